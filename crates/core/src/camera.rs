@@ -1,0 +1,245 @@
+//! Cameras: look-at placement with a perspective or orthographic projection to pixels.
+//!
+//! World space is right-handed with +y up. A camera looks from `position` towards
+//! `look_at`; image x grows to the right and image y grows downwards, in continuous pixel
+//! coordinates (pixel centres at +0.5).
+//!
+//! ```
+//! use glam::Vec3;
+//! use phenomena_core::camera::{Camera, Projection};
+//! let cam = Camera {
+//!     position: Vec3::new(0.0, 0.0, 5.0),
+//!     look_at: Vec3::ZERO,
+//!     up: Vec3::Y,
+//!     projection: Projection::Perspective { fov_y_deg: 90.0 },
+//! };
+//! let view = cam.view(200, 100).unwrap();
+//! let p = view.project(Vec3::ZERO).unwrap();
+//! assert_eq!((p.x_px, p.y_px, p.depth), (100.0, 50.0, 5.0));
+//! // With a 90° vertical field of view, y = 5 at depth 5 is the top edge.
+//! assert!((view.project(Vec3::new(0.0, 5.0, 0.0)).unwrap().y_px - 0.0).abs() < 1e-4);
+//! ```
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::validate::Issues;
+
+/// How the camera maps view space to the image.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Projection {
+    /// Pinhole perspective with a vertical field of view in degrees.
+    Perspective {
+        /// Vertical field of view, degrees.
+        fov_y_deg: f32,
+    },
+    /// Parallel projection showing `height_m` world units from top to bottom.
+    Orthographic {
+        /// World-space height of the view, metres.
+        height_m: f32,
+    },
+}
+
+/// A look-at camera.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    /// Eye position, metres.
+    pub position: Vec3,
+    /// Point the camera looks at, metres.
+    pub look_at: Vec3,
+    /// Approximate up direction (need not be orthogonal to the view direction).
+    #[serde(default = "default_up")]
+    pub up: Vec3,
+    /// Projection.
+    pub projection: Projection,
+}
+
+fn default_up() -> Vec3 {
+    Vec3::Y
+}
+
+/// A point projected to the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projected {
+    /// Image x, pixels (0 = left edge).
+    pub x_px: f32,
+    /// Image y, pixels (0 = top edge).
+    pub y_px: f32,
+    /// Distance along the view direction, metres.
+    pub depth: f32,
+    /// Pixels per metre at this depth (the scale of a small object facing the camera).
+    pub px_per_m: f32,
+}
+
+/// A camera prepared for one image size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraView {
+    eye: Vec3,
+    right: Vec3,
+    up: Vec3,
+    forward: Vec3,
+    width: f32,
+    height: f32,
+    /// Focal length in pixels (perspective) or pixels per metre (orthographic).
+    scale: f32,
+    perspective: bool,
+}
+
+/// Distance below which a point counts as behind a perspective camera, metres.
+pub const NEAR_M: f32 = 1e-4;
+
+impl Camera {
+    /// Check the camera: finite vectors, distinct eye and target, a usable up vector,
+    /// a field of view in (0, 179] degrees or a positive orthographic height.
+    pub fn validate(&self, issues: &mut Issues, prefix: &str) {
+        for (name, v) in [("position", self.position), ("look_at", self.look_at), ("up", self.up)] {
+            issues.vector(&format!("{prefix}.{name}"), &v.to_array(), 1e9);
+        }
+        let forward = self.look_at - self.position;
+        if forward.length() < 1e-6 {
+            issues.push(
+                format!("{prefix}.look_at"),
+                format!("{:?}", self.look_at.to_array()),
+                "a point different from the camera position",
+            );
+        } else if forward.normalize().cross(self.up.normalize_or_zero()).length() < 1e-4 {
+            issues.push(
+                format!("{prefix}.up"),
+                format!("{:?}", self.up.to_array()),
+                "a direction not parallel to the view direction",
+            );
+        }
+        match self.projection {
+            Projection::Perspective { fov_y_deg } => issues.range_open_low(
+                &format!("{prefix}.projection.fov_y_deg"),
+                f64::from(fov_y_deg),
+                0.0,
+                179.0,
+            ),
+            Projection::Orthographic { height_m } => {
+                issues.range_open_low(&format!("{prefix}.projection.height_m"), f64::from(height_m), 0.0, 1e9)
+            }
+        }
+    }
+
+    /// Prepare the camera for a `width × height` image; `None` if the camera is
+    /// degenerate (see [`Camera::validate`]) or the image is empty.
+    pub fn view(&self, width: usize, height: usize) -> Option<CameraView> {
+        let forward = (self.look_at - self.position).try_normalize()?;
+        let right = forward.cross(self.up).try_normalize()?;
+        let up = right.cross(forward);
+        if width == 0 || height == 0 {
+            return None;
+        }
+        let (scale, perspective) = match self.projection {
+            Projection::Perspective { fov_y_deg } if fov_y_deg > 0.0 && fov_y_deg < 180.0 => {
+                (0.5 * height as f32 / (0.5 * fov_y_deg.to_radians()).tan(), true)
+            }
+            Projection::Orthographic { height_m } if height_m > 0.0 => (height as f32 / height_m, false),
+            _ => return None,
+        };
+        Some(CameraView {
+            eye: self.position,
+            right,
+            up,
+            forward,
+            width: width as f32,
+            height: height as f32,
+            scale,
+            perspective,
+        })
+    }
+}
+
+impl CameraView {
+    /// Project a world point; `None` if it is behind (or at) a perspective camera.
+    #[inline]
+    pub fn project(&self, p: Vec3) -> Option<Projected> {
+        let d = p - self.eye;
+        let depth = d.dot(self.forward);
+        let px_per_m = if self.perspective {
+            if !(depth > NEAR_M) {
+                return None;
+            }
+            self.scale / depth
+        } else {
+            self.scale
+        };
+        Some(Projected {
+            x_px: 0.5 * self.width + d.dot(self.right) * px_per_m,
+            y_px: 0.5 * self.height - d.dot(self.up) * px_per_m,
+            depth,
+            px_per_m,
+        })
+    }
+
+    /// The primary ray through continuous pixel position `(x_px, y_px)`: origin and unit
+    /// direction.
+    pub fn ray(&self, x_px: f32, y_px: f32) -> (Vec3, Vec3) {
+        let sx = (x_px - 0.5 * self.width) / self.scale;
+        let sy = (0.5 * self.height - y_px) / self.scale;
+        if self.perspective {
+            (self.eye, (self.forward + self.right * sx + self.up * sy).normalize())
+        } else {
+            (self.eye + self.right * sx + self.up * sy, self.forward)
+        }
+    }
+
+    /// Unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
+    /// Image-plane components (right, down) of a world-space direction, in metres;
+    /// multiply by [`Projected::px_per_m`] for pixels.
+    pub fn image_direction(&self, dir: Vec3) -> (f32, f32) {
+        (dir.dot(self.right), -dir.dot(self.up))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam(projection: Projection) -> Camera {
+        Camera {
+            position: Vec3::new(1.0, 2.0, 6.0),
+            look_at: Vec3::new(0.0, 0.5, 0.0),
+            up: Vec3::Y,
+            projection,
+        }
+    }
+
+    #[test]
+    fn ray_and_project_are_inverse() {
+        for projection in
+            [Projection::Perspective { fov_y_deg: 50.0 }, Projection::Orthographic { height_m: 3.0 }]
+        {
+            let v = cam(projection).view(320, 200).unwrap();
+            for (x, y) in [(0.5, 0.5), (160.0, 100.0), (300.2, 12.7)] {
+                let (o, d) = v.ray(x, y);
+                let p = v.project(o + d * 4.0).unwrap();
+                assert!((p.x_px - x).abs() < 1e-3 && (p.y_px - y).abs() < 1e-3, "{projection:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn behind_the_camera_is_not_projected() {
+        let v = cam(Projection::Perspective { fov_y_deg: 50.0 }).view(10, 10).unwrap();
+        assert!(v.project(Vec3::new(2.0, 3.5, 12.0)).is_none());
+    }
+
+    #[test]
+    fn degenerate_cameras_are_reported() {
+        let mut bad = cam(Projection::Perspective { fov_y_deg: 0.0 });
+        bad.up = Vec3::new(-1.0, -1.5, -6.0);
+        let mut issues = Issues::default();
+        bad.validate(&mut issues, "camera");
+        let errs = issues.into_result().unwrap_err();
+        assert_eq!(errs.len(), 2, "{errs:?}");
+        assert!(bad.view(10, 10).is_none());
+    }
+}

@@ -1,0 +1,36 @@
+//! The shared core of phenomena: what two or more of the four phenomena use, nothing else.
+//!
+//! - [`color`]: CIE colour-matching functions, spectral lines, Planck's law, XYZ <-> sRGB.
+//! - [`tonemap`]: exposure and tone mapping for display.
+//! - [`kernel`]: normalised SPH kernels (poly6, spiky, cubic spline) in 2-D and 3-D.
+//! - [`grid`]: uniform-grid neighbour search by counting sort.
+//! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
+//! - [`noise`]: Perlin / simplex noise over space and time.
+//! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
+//! - [`camera`]: look-at cameras with perspective and orthographic projection.
+//! - [`validate`]: configuration problems that name the field, the value and the valid range.
+//!
+//! This crate does no file, terminal or network IO.
+//!
+//! ```
+//! use phenomena_core::color::{blackbody_srgb_normalized, blackbody_xyz, xy_chromaticity, Observer};
+//! // A 1900 K flame is orange: red is the largest component, blue the smallest.
+//! let rgb = blackbody_srgb_normalized(1900.0);
+//! assert!(rgb.x == 1.0 && rgb.y > rgb.z);
+//! let (x, _y) = xy_chromaticity(blackbody_xyz(Observer::Cie1931TwoDegree, 1900.0)).unwrap();
+//! assert!(x > 0.5);
+//! ```
+//!
+//! # Feature flags
+//! None yet.
+
+pub mod camera;
+mod cmf_data;
+pub mod color;
+pub mod grid;
+pub mod image;
+pub mod kernel;
+pub mod noise;
+pub mod rng;
+pub mod tonemap;
+pub mod validate;

@@ -1,0 +1,170 @@
+//! Seeded random streams keyed by `(seed, purpose, index)`.
+//!
+//! Every random number in phenomena comes from a [`Stream`] opened for one purpose
+//! (e.g. "flame.emit") and one index (e.g. the frame number or a particle id). Because a
+//! stream depends only on its key, never on which thread asks or in what order, results
+//! are bit-identical for any thread count.
+//!
+//! ```
+//! use phenomena_core::rng::{Purpose, Stream};
+//! const EMIT: Purpose = Purpose::named("example.emit");
+//! let mut s1 = Stream::new(42, EMIT, 7);
+//! let mut s2 = Stream::new(42, EMIT, 7);
+//! assert_eq!(s1.next_f64(), s2.next_f64());
+//! let mut other_frame = Stream::new(42, EMIT, 8);
+//! assert_ne!(Stream::new(42, EMIT, 7).next_u64(), other_frame.next_u64());
+//! ```
+
+use rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// What a stream is for: a 64-bit tag, usually the hash of a dotted name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Purpose(pub u64);
+
+impl Purpose {
+    /// A purpose from a name, hashed with 64-bit FNV-1a at compile time.
+    pub const fn named(name: &str) -> Self {
+        let bytes = name.as_bytes();
+        let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut i = 0;
+        while i < bytes.len() {
+            hash ^= bytes[i] as u64;
+            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+            i += 1;
+        }
+        Purpose(hash)
+    }
+}
+
+/// SplitMix64 finaliser: a bijective 64-bit mix (Steele, Lea, Flood 2014).
+const fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A deterministic random stream (xoshiro256++) for one `(seed, purpose, index)` key.
+#[derive(Clone, Debug)]
+pub struct Stream {
+    rng: Xoshiro256PlusPlus,
+}
+
+impl Stream {
+    /// Open the stream for `(seed, purpose, index)`.
+    pub fn new(seed: u64, purpose: Purpose, index: u64) -> Self {
+        // Each stage adds a distinct odd constant so that zero keys do not mix to zero.
+        let key = mix64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        let key = mix64(key ^ purpose.0.wrapping_add(0xd1b5_4a32_d192_ed03));
+        let key = mix64(key ^ index.wrapping_add(0x8cb9_2ba7_2f3d_8dd7));
+        Self { rng: Xoshiro256PlusPlus::seed_from_u64(key) }
+    }
+
+    /// Next raw 64 bits.
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        self.rng.next_u64()
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    #[inline]
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform in [0, 1) with 24 random bits.
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+
+    /// Uniform in [lo, hi).
+    #[inline]
+    pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.next_f32()
+    }
+
+    /// Uniform integer in [0, n) (n > 0), by Lemire's multiply-shift (bias < 2⁻³²·n).
+    #[inline]
+    pub fn below(&mut self, n: u32) -> u32 {
+        (((self.next_u64() >> 32) * u64::from(n)) >> 32) as u32
+    }
+
+    /// Standard normal deviate (Box-Muller, f64 internally).
+    pub fn normal(&mut self) -> f64 {
+        // 1 - u is in (0, 1], so the log is finite.
+        let u1 = 1.0 - self.next_f64();
+        let u2 = self.next_f64();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// A point uniformly distributed in the unit disk, as (x, y).
+    pub fn in_unit_disk(&mut self) -> (f32, f32) {
+        let r = self.next_f32().sqrt();
+        let a = std::f32::consts::TAU * self.next_f32();
+        (r * a.cos(), r * a.sin())
+    }
+
+    /// A direction uniformly distributed on the unit sphere.
+    pub fn on_unit_sphere(&mut self) -> glam::Vec3 {
+        let z = 2.0 * self.next_f32() - 1.0;
+        let a = std::f32::consts::TAU * self.next_f32();
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        glam::Vec3::new(s * a.cos(), s * a.sin(), z)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P: Purpose = Purpose::named("test.purpose");
+
+    #[test]
+    fn same_key_same_numbers_different_keys_differ() {
+        let a: Vec<u64> = {
+            let mut s = Stream::new(1, P, 2);
+            (0..8).map(|_| s.next_u64()).collect()
+        };
+        let mut s = Stream::new(1, P, 2);
+        assert_eq!(a, (0..8).map(|_| s.next_u64()).collect::<Vec<_>>());
+        for (seed, purpose, index) in [(2, P, 2), (1, Purpose::named("other"), 2), (1, P, 3)] {
+            let mut t = Stream::new(seed, purpose, index);
+            assert_ne!(a[0], t.next_u64());
+        }
+    }
+
+    #[test]
+    fn known_values_are_portable() {
+        // Pinned so that a change of generator or key mixing is noticed: scenes rendered
+        // with a seed must stay reproducible across versions.
+        let mut s = Stream::new(0, Purpose(0), 0);
+        assert_eq!([s.next_u64(), s.next_u64()], [0x5c9c_d3a4_0126_aa8c, 0x1606_db53_cbd0_34ad]);
+        let mut s = Stream::new(42, Purpose::named("flame.emit"), 7);
+        assert_eq!(s.next_u64(), 0xa2af_d774_4f4a_4d22);
+        assert_eq!(Purpose::named(""), Purpose(0xcbf2_9ce4_8422_2325));
+        assert_eq!(Purpose::named("a"), Purpose(0xaf63_dc4c_8601_ec8c));
+    }
+
+    #[test]
+    fn uniform_moments_match_theory() {
+        // Mean of n uniforms: 1/2 ± 1/sqrt(12 n); with n = 1e5 the 5σ band is ±0.0046.
+        let mut s = Stream::new(9, P, 0);
+        let n = 100_000;
+        let mean: f64 = (0..n).map(|_| s.next_f64()).sum::<f64>() / n as f64;
+        assert!((mean - 0.5).abs() < 5.0 / (12.0 * n as f64).sqrt(), "{mean}");
+        // Normal: mean 0 ± 5/sqrt(n), variance 1 ± 5·sqrt(2/n).
+        let xs: Vec<f64> = (0..n).map(|_| s.normal()).collect();
+        let m = xs.iter().sum::<f64>() / n as f64;
+        let v = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n as f64;
+        assert!(m.abs() < 5.0 / (n as f64).sqrt(), "{m}");
+        assert!((v - 1.0).abs() < 5.0 * (2.0 / n as f64).sqrt(), "{v}");
+        for _ in 0..1000 {
+            let k = s.below(7);
+            assert!(k < 7);
+            let (x, y) = s.in_unit_disk();
+            assert!(x * x + y * y <= 1.0 + 1e-6);
+            assert!((s.on_unit_sphere().length() - 1.0).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,110 @@
+//! Configuration checking shared by every phenomenon: each problem names the field (as a
+//! dotted path, e.g. `sph.gas_constant`), the offending value and what is valid.
+//!
+//! ```
+//! use phenomena_core::validate::Issues;
+//! let mut issues = Issues::default();
+//! issues.range("sph.support_radius_m", -1.0, 1e-4..=10.0);
+//! let err = issues.into_result().unwrap_err();
+//! assert_eq!(err[0].to_string(), "sph.support_radius_m = -1: expected a value in [0.0001, 10]");
+//! ```
+
+use std::fmt;
+use std::ops::RangeInclusive;
+
+/// One invalid configuration value.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Issue {
+    /// Dotted path of the field inside the phenomenon's table, e.g. `emitter.rate`.
+    pub field: String,
+    /// The offending value as written.
+    pub value: String,
+    /// What would be valid, e.g. `a value in [0, 1]`.
+    pub expected: String,
+}
+
+impl fmt::Display for Issue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} = {}: expected {}", self.field, self.value, self.expected)
+    }
+}
+
+impl std::error::Error for Issue {}
+
+/// Collects every problem of a configuration, not just the first.
+#[derive(Clone, Debug, Default)]
+pub struct Issues {
+    list: Vec<Issue>,
+}
+
+impl Issues {
+    /// Record a problem.
+    pub fn push(&mut self, field: impl Into<String>, value: impl fmt::Display, expected: impl Into<String>) {
+        self.list.push(Issue { field: field.into(), value: value.to_string(), expected: expected.into() });
+    }
+
+    /// Require `lo <= value <= hi` (and finite).
+    pub fn range(&mut self, field: &str, value: f64, range: RangeInclusive<f64>) {
+        if !(value.is_finite() && range.contains(&value)) {
+            self.push(field, value, format!("a value in [{}, {}]", range.start(), range.end()));
+        }
+    }
+
+    /// Require `lo < value <= hi` (and finite).
+    pub fn range_open_low(&mut self, field: &str, value: f64, lo: f64, hi: f64) {
+        if !(value.is_finite() && value > lo && value <= hi) {
+            self.push(field, value, format!("a value in ({lo}, {hi}]"));
+        }
+    }
+
+    /// Require an integer in `range`.
+    pub fn count(&mut self, field: &str, value: u64, range: RangeInclusive<u64>) {
+        if !range.contains(&value) {
+            self.push(field, value, format!("an integer in [{}, {}]", range.start(), range.end()));
+        }
+    }
+
+    /// Require every component finite and of magnitude at most `max_abs`.
+    pub fn vector(&mut self, field: &str, v: &[f32], max_abs: f64) {
+        if v.iter().any(|c| !c.is_finite() || f64::from(c.abs()) > max_abs) {
+            self.push(field, format!("{v:?}"), format!("finite components within ±{max_abs}"));
+        }
+    }
+
+    /// Add another list's problems, prefixing their field paths with `prefix.`.
+    pub fn extend_prefixed(&mut self, prefix: &str, other: Vec<Issue>) {
+        for mut issue in other {
+            issue.field = format!("{prefix}.{}", issue.field);
+            self.list.push(issue);
+        }
+    }
+
+    /// Whether nothing was recorded.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// `Ok(())` when nothing was recorded, else every problem.
+    pub fn into_result(self) -> Result<(), Vec<Issue>> {
+        if self.list.is_empty() { Ok(()) } else { Err(self.list) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn collects_every_problem() {
+        let mut i = Issues::default();
+        i.range("a", f64::NAN, 0.0..=1.0);
+        i.range("b", 0.5, 0.0..=1.0);
+        i.range_open_low("c", 0.0, 0.0, 1.0);
+        i.count("d", 0, 1..=10);
+        i.vector("e", &[0.0, f32::INFINITY], 10.0);
+        let errs = i.into_result().unwrap_err();
+        let fields: Vec<&str> = errs.iter().map(|e| e.field.as_str()).collect();
+        assert_eq!(fields, ["a", "c", "d", "e"]);
+        assert_eq!(errs[1].to_string(), "c = 0: expected a value in (0, 1]");
+    }
+}
