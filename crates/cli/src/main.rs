@@ -1,1 +1,172 @@
-fn main() {}
+//! The `phenomena` command line: render scene files to images and export data.
+#![allow(clippy::print_stdout, clippy::print_stderr)]
+
+mod export;
+mod output;
+mod render;
+mod scene;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use phenomena_flame::View;
+
+use crate::export::TableFormat;
+use crate::output::ImageFormat;
+use crate::render::RenderJob;
+
+/// Simulate and render natural phenomena (flame; aurora, snow and sparkle to come).
+#[derive(Parser, Debug)]
+#[command(name = "phenomena", version, about, long_about = None)]
+struct Cli {
+    /// Log more (-v: info, -vv: debug) to standard error.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Simulate a scene file and write its frames as DIR/frame_00000.png, ...
+    Render {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames to write: A..B (B not included), A..=B, or N. Earlier frames are
+        /// simulated but not written. Default: all of the scene's frames.
+        #[arg(long, value_parser = render::parse_frame_range)]
+        frames: Option<std::ops::Range<u32>>,
+        /// Image width in pixels (overrides the scene).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+        width: Option<u32>,
+        /// Image height in pixels (overrides the scene).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+        height: Option<u32>,
+        /// Random seed (overrides the scene).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: one per core). Output is identical for any count.
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+        threads: Option<u16>,
+        /// Image format: png (tone mapped, 8-bit sRGB) or exr (linear float radiance).
+        #[arg(long, value_enum, default_value_t = ImageFormat::Png)]
+        format: ImageFormat,
+        /// Skip frames whose files already exist (they are still simulated).
+        #[arg(long)]
+        resume: bool,
+        /// Write one JSON object per frame (timings, particle counts) to this file.
+        #[arg(long)]
+        stats: Option<PathBuf>,
+        /// What to draw: the flame, or particles coloured by density (paper Fig 7).
+        #[arg(long, value_enum)]
+        view: Option<ViewArg>,
+    },
+    /// Export data products.
+    Export {
+        #[command(subcommand)]
+        what: ExportWhat,
+    },
+    /// Check a scene file and report every problem with file:line:column.
+    Validate {
+        /// The scene file (TOML).
+        scene: PathBuf,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum ExportWhat {
+    /// The blackbody colour table (paper Fig 1): CIE 1931 xy and normalised linear sRGB.
+    Blackbody {
+        /// Lowest temperature, K.
+        #[arg(long, default_value_t = 1000.0)]
+        min_k: f64,
+        /// Highest temperature, K (included when on the step grid).
+        #[arg(long, default_value_t = 10000.0)]
+        max_k: f64,
+        /// Temperature step, K.
+        #[arg(long, default_value_t = 100.0)]
+        step_k: f64,
+        /// csv (temperature_k,x,y,r,g,b) or png (a 1-pixel-high strip).
+        #[arg(long, value_enum, default_value_t = TableFormat::Csv)]
+        format: TableFormat,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum ViewArg {
+    Flame,
+    Density,
+}
+
+fn run(cli: Cli) -> anyhow::Result<String> {
+    match cli.command {
+        Command::Render { scene, out, frames, width, height, seed, threads, format, resume, stats, view } => {
+            render::run(&RenderJob {
+                scene_path: scene,
+                out_dir: out,
+                frames,
+                width,
+                height,
+                seed,
+                threads: threads.map(usize::from),
+                format,
+                resume,
+                stats,
+                view: view.map(|v| match v {
+                    ViewArg::Flame => View::Flame,
+                    ViewArg::Density => View::Density,
+                }),
+                quiet: false,
+            })
+        }
+        Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
+            export::blackbody(min_k, max_k, step_k, format, &out)
+        }
+        Command::Validate { scene } => {
+            let s = scene::load(&scene)?;
+            let st = s.settings();
+            Ok(format!(
+                "{}: ok ({} scene, {} frames at {}x{}, seed {})",
+                scene.display(),
+                s.phenomenon(),
+                st.frames,
+                st.width,
+                st.height,
+                st.seed
+            ))
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let level = match cli.verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level)),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match run(cli) {
+        Ok(summary) => {
+            println!("{summary}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

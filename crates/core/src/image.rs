@@ -228,6 +228,29 @@ impl Frame {
         self.c2.set(x, y, v.z);
     }
 
+    /// Bilinear sample of all three channels at continuous position `(x, y)`, clamped
+    /// to the edge pixels (the same result as [`Plane::sample_bilinear`] per channel).
+    #[inline]
+    pub fn sample_bilinear(&self, x: f32, y: f32) -> Vec3 {
+        let (w, h) = (self.width(), self.height());
+        if w == 0 || h == 0 {
+            return Vec3::ZERO;
+        }
+        let fx = (x - 0.5).clamp(0.0, (w - 1) as f32);
+        let fy = (y - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (fx as usize, fy as usize);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+        let (i00, i01, i10, i11) = (y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1);
+        let tap = |p: &Plane| {
+            let d = &p.data;
+            let a = d[i00] + (d[i01] - d[i00]) * tx;
+            let b = d[i10] + (d[i11] - d[i10]) * tx;
+            a + (b - a) * ty
+        };
+        Vec3::new(tap(&self.c0), tap(&self.c1), tap(&self.c2))
+    }
+
     /// The planes, mutably, for per-channel work.
     pub fn planes_mut(&mut self) -> [&mut Plane; 3] {
         [&mut self.c0, &mut self.c1, &mut self.c2]
@@ -320,6 +343,10 @@ mod tests {
         assert!((q.sample_bilinear(1.75, 2.25) - (1.25 + 17.5)).abs() < 1e-5);
         // Clamped outside.
         assert_eq!(q.sample_bilinear(-10.0, -10.0), 0.0);
+        let f = Frame { c0: q.clone(), c1: q.clone(), c2: q.clone() };
+        for (x, y) in [(1.75, 2.25), (-3.0, 0.2), (9.0, 9.0), (0.5, 3.99)] {
+            assert_eq!(f.sample_bilinear(x, y), Vec3::splat(q.sample_bilinear(x, y)));
+        }
     }
 
     #[test]

@@ -32,7 +32,20 @@ pub struct Exposure {
 impl Exposure {
     /// Map one linear channel value to display-referred [0, 1]. NaN maps to 0.
     pub fn apply(&self, linear: f32) -> f32 {
-        let x = linear * self.ev.exp2();
+        self.apply_scaled(linear, self.ev.exp2())
+    }
+
+    /// Map many values: the exposure scale is computed once.
+    pub fn apply_all(&self, linear: &[f32], mut out: impl FnMut(f32)) {
+        let scale = self.ev.exp2();
+        for &v in linear {
+            out(self.apply_scaled(v, scale));
+        }
+    }
+
+    #[inline]
+    fn apply_scaled(&self, linear: f32, scale: f32) -> f32 {
+        let x = linear * scale;
         let x = if x.is_nan() { 0.0 } else { x.max(0.0) };
         let y = match self.tone_map {
             ToneMap::Clamp => x,

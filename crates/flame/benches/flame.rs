@@ -1,1 +1,74 @@
-fn main() {}
+//! Flame hot paths: one SPH step, one 1280×720 render (splats, shimmer, composite), and
+//! the two together, at the particle counts of issue 2 (10,000 and 30,000) and the
+//! paper's 3,000.
+//!
+//! Run with `cargo bench -p phenomena-flame --bench flame`. The flame is the campfire-like
+//! configuration below, warmed up until its particle count is steady.
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use glam::Vec3;
+use phenomena_flame::{FlameConfig, FlameRenderer, FlameSim, RenderSettings};
+use std::hint::black_box;
+use std::time::Duration;
+
+/// A flame whose steady state holds about `n` particles (rate × mean lifetime).
+fn config(n: usize) -> FlameConfig {
+    let mut c = FlameConfig::default();
+    c.emitter.lifetime_s = 1.0;
+    c.emitter.rate_per_s = n as f32 / c.emitter.lifetime_s;
+    // Keep the emission density (and so the neighbour count) the same at every n: the
+    // burner area grows with the rate.
+    c.emitter.radius_m = 0.08 * (n as f32 / 3000.0).sqrt();
+    c
+}
+
+fn warm(n: usize) -> FlameSim {
+    let mut sim = FlameSim::new(config(n), 1).expect("valid config");
+    for _ in 0..120 {
+        sim.step().expect("step");
+    }
+    sim
+}
+
+fn renderer(n: usize, resolution_scale: f32) -> FlameRenderer {
+    let mut s = RenderSettings { resolution_scale, ..Default::default() };
+    // Frame the wider burner of the larger flames.
+    let scale = (n as f32 / 3000.0).sqrt().max(1.0);
+    s.camera.position = Vec3::new(0.0, 0.45, 2.2 * scale.sqrt());
+    FlameRenderer::new(s, 1280, 720, None).expect("valid settings")
+}
+
+fn bench(c: &mut Criterion) {
+    let mut g = c.benchmark_group("flame");
+    g.sample_size(20).measurement_time(Duration::from_secs(6)).warm_up_time(Duration::from_secs(2));
+    for n in [3_000usize, 10_000, 30_000] {
+        let sim = warm(n);
+        eprintln!("n = {n}: {} particles after warm-up", sim.particles().len());
+        g.bench_with_input(BenchmarkId::new("step", n), &n, |b, _| {
+            let mut s = sim.clone();
+            b.iter(|| black_box(s.step().expect("step")));
+        });
+        for scale in [1.0f32, 0.5] {
+            let mut r = renderer(n, scale);
+            g.bench_with_input(BenchmarkId::new(format!("render_1280x720_scale{scale}"), n), &n, |b, _| {
+                b.iter(|| black_box(r.render(&sim)));
+            });
+            let mut r = renderer(n, scale);
+            g.bench_with_input(
+                BenchmarkId::new(format!("step_render_1280x720_scale{scale}"), n),
+                &n,
+                |b, _| {
+                    let mut s = sim.clone();
+                    b.iter(|| {
+                        s.step().expect("step");
+                        black_box(r.render(&s))
+                    });
+                },
+            );
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,105 @@
+//! `phenomena export`: data products other than frames.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Result, bail};
+use phenomena_core::color::{
+    Observer, blackbody_srgb_normalized, blackbody_xyz, srgb_encode_u8, xy_chromaticity,
+};
+
+use crate::output;
+
+/// Output format of the blackbody table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum TableFormat {
+    /// `temperature_k,x,y,r,g,b` rows.
+    Csv,
+    /// A 1-pixel-high strip, one pixel per temperature, sRGB encoded.
+    Png,
+}
+
+/// Most rows a table may have.
+const MAX_ROWS: f64 = 1_000_000.0;
+
+/// The temperatures `min, min + step, ...` up to `max` inclusive.
+pub(crate) fn temperatures(min_k: f64, max_k: f64, step_k: f64) -> Result<Vec<f64>> {
+    if !(min_k.is_finite() && min_k > 0.0 && min_k <= 1e6) {
+        bail!("--min-k {min_k} is out of range: expected a temperature in (0, 1000000] K");
+    }
+    if !(max_k.is_finite() && max_k >= min_k && max_k <= 1e6) {
+        bail!("--max-k {max_k} is out of range: expected a temperature in [--min-k = {min_k}, 1000000] K");
+    }
+    if !(step_k.is_finite() && step_k > 0.0) {
+        bail!("--step-k {step_k} is out of range: expected a positive step in K");
+    }
+    let count = ((max_k - min_k) / step_k + 1e-9).floor() + 1.0;
+    if count > MAX_ROWS {
+        bail!("--step-k {step_k} gives {count} rows, more than the limit of {MAX_ROWS}: use a larger step");
+    }
+    Ok((0..count as usize).map(|k| min_k + k as f64 * step_k).collect())
+}
+
+/// The CSV text: CIE 1931 xy chromaticity (empty for temperatures with no visible
+/// emission) and linear sRGB, negatives clipped to 0, scaled so max(r, g, b) = 1.
+pub(crate) fn blackbody_csv(temps: &[f64]) -> String {
+    let mut out = String::from("temperature_k,x,y,r,g,b\n");
+    for &t in temps {
+        let xy = xy_chromaticity(blackbody_xyz(Observer::Cie1931TwoDegree, t));
+        let rgb = blackbody_srgb_normalized(t);
+        let (x, y) =
+            xy.map_or((String::new(), String::new()), |(x, y)| (format!("{x:.8}"), format!("{y:.8}")));
+        let _ = writeln!(out, "{t},{x},{y},{:.8},{:.8},{:.8}", rgb.x, rgb.y, rgb.z);
+    }
+    out
+}
+
+/// Write the blackbody table.
+pub(crate) fn blackbody(
+    min_k: f64,
+    max_k: f64,
+    step_k: f64,
+    format: TableFormat,
+    out: &Path,
+) -> Result<String> {
+    let temps = temperatures(min_k, max_k, step_k)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        output::ensure_dir(parent)?;
+    }
+    match format {
+        TableFormat::Csv => output::write_bytes_atomic(out, blackbody_csv(&temps).as_bytes())?,
+        TableFormat::Png => {
+            let rgb: Vec<u8> = temps
+                .iter()
+                .flat_map(|&t| {
+                    let c = blackbody_srgb_normalized(t);
+                    [c.x, c.y, c.z].map(|v| srgb_encode_u8(v as f32))
+                })
+                .collect();
+            output::write_png_rgb8(out, temps.len() as u32, 1, &rgb)?;
+        }
+    }
+    Ok(format!("wrote {} temperatures ({min_k}-{max_k} K) to {}", temps.len(), out.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temperature_lists() {
+        assert_eq!(temperatures(1000.0, 1300.0, 100.0).unwrap(), vec![1000.0, 1100.0, 1200.0, 1300.0]);
+        assert_eq!(temperatures(1000.0, 1350.0, 100.0).unwrap().len(), 4);
+        assert_eq!(temperatures(5.0, 5.0, 1.0).unwrap(), vec![5.0]);
+        assert!(temperatures(0.0, 10.0, 1.0).unwrap_err().to_string().contains("--min-k 0"));
+        assert!(temperatures(10.0, 5.0, 1.0).unwrap_err().to_string().contains("--max-k 5"));
+        assert!(temperatures(1.0, 5.0, 0.0).unwrap_err().to_string().contains("--step-k 0"));
+        assert!(temperatures(1.0, 1e6, 0.1).unwrap_err().to_string().contains("rows"));
+    }
+
+    #[test]
+    fn invisible_temperatures_have_no_chromaticity() {
+        let csv = blackbody_csv(&[1.0]);
+        assert_eq!(csv.lines().nth(1), Some("1,,,0.00000000,0.00000000,0.00000000"));
+    }
+}

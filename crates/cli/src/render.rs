@@ -1,0 +1,249 @@
+//! `phenomena render`: simulate a scene and write its frames.
+
+use std::fmt::Write as _;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use phenomena_core::image::Frame;
+use phenomena_flame::{Background, FlameRenderer, FlameSim, View, frame_from_srgb8};
+use serde::Serialize;
+
+use crate::output::{self, ImageFormat};
+use crate::scene::Scene;
+
+/// Options of one render, after the command line has been read.
+#[derive(Clone, Debug)]
+pub(crate) struct RenderJob {
+    pub(crate) scene_path: PathBuf,
+    pub(crate) out_dir: PathBuf,
+    pub(crate) frames: Option<Range<u32>>,
+    pub(crate) width: Option<u32>,
+    pub(crate) height: Option<u32>,
+    pub(crate) seed: Option<u64>,
+    pub(crate) threads: Option<usize>,
+    pub(crate) format: ImageFormat,
+    pub(crate) resume: bool,
+    pub(crate) stats: Option<PathBuf>,
+    pub(crate) view: Option<View>,
+    pub(crate) quiet: bool,
+}
+
+/// Parse `A..B` (B exclusive), `A..=B` (inclusive) or `N` (the single frame N).
+pub(crate) fn parse_frame_range(s: &str) -> Result<Range<u32>, String> {
+    let num = |t: &str| {
+        t.trim().parse::<u32>().map_err(|_| format!("`{t}` is not a frame number (a whole number from 0)"))
+    };
+    let range = if let Some((a, b)) = s.split_once("..=") {
+        num(a)?..num(b)?.checked_add(1).ok_or("frame number too large")?
+    } else if let Some((a, b)) = s.split_once("..") {
+        num(a)?..num(b)?
+    } else {
+        let n = num(s)?;
+        n..n.checked_add(1).ok_or("frame number too large")?
+    };
+    if range.is_empty() {
+        return Err(format!("`{s}` is an empty range: use A..B with A < B (B is not rendered) or A..=B"));
+    }
+    Ok(range)
+}
+
+/// A phenomenon's simulation and renderer, stepped together.
+pub(crate) enum Runner {
+    Flame { sim: Box<FlameSim>, renderer: Box<FlameRenderer> },
+}
+
+/// Per-frame statistics, one JSON object per line of `--stats`.
+#[derive(Serialize)]
+struct FrameStats {
+    frame: u32,
+    particles: usize,
+    emitted: usize,
+    expired: usize,
+    left_domain: usize,
+    capped: usize,
+    step_ms: f64,
+    render_ms: Option<f64>,
+    write_ms: Option<f64>,
+    skipped: bool,
+}
+
+impl Runner {
+    /// Build the simulation and renderer of `scene`; relative asset paths resolve
+    /// against `scene_dir`.
+    pub(crate) fn new(scene: &Scene, scene_dir: &Path) -> Result<Self> {
+        match scene {
+            Scene::Flame(s) => {
+                let background = match &s.render.background {
+                    Background::Image { path } => {
+                        let p = scene_dir.join(path);
+                        let (w, h, rgb) = output::read_rgb8(&p)?;
+                        Some(
+                            frame_from_srgb8(w, h, &rgb)
+                                .context("background image has an unexpected size")?,
+                        )
+                    }
+                    _ => None,
+                };
+                let sim = FlameSim::new(s.flame.clone(), s.scene.seed)?;
+                let renderer = FlameRenderer::new(
+                    s.render.clone(),
+                    s.scene.width as usize,
+                    s.scene.height as usize,
+                    background.as_ref(),
+                )?;
+                Ok(Runner::Flame { sim: Box::new(sim), renderer: Box::new(renderer) })
+            }
+        }
+    }
+
+    fn step(&mut self) -> Result<FrameStats> {
+        match self {
+            Runner::Flame { sim, .. } => {
+                let s = sim.step()?;
+                Ok(FrameStats {
+                    frame: 0,
+                    particles: s.particles,
+                    emitted: s.emitted,
+                    expired: s.expired,
+                    left_domain: s.left_domain,
+                    capped: s.capped,
+                    step_ms: 0.0,
+                    render_ms: None,
+                    write_ms: None,
+                    skipped: false,
+                })
+            }
+        }
+    }
+
+    /// Render the current state into `frame` (reused across frames).
+    pub(crate) fn render_into(&mut self, frame: &mut Frame) {
+        match self {
+            Runner::Flame { sim, renderer } => renderer.render_into(sim.particles(), sim.config(), frame),
+        }
+    }
+}
+
+/// Apply command-line overrides to a scene.
+pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) {
+    let s = scene.settings_mut();
+    if let Some(w) = job.width {
+        s.width = w;
+    }
+    if let Some(h) = job.height {
+        s.height = h;
+    }
+    if let Some(seed) = job.seed {
+        s.seed = seed;
+    }
+    if let Some(view) = job.view {
+        match scene {
+            Scene::Flame(f) => f.render.view = view,
+        }
+    }
+}
+
+/// Run a render job; returns a one-line summary.
+pub(crate) fn run(job: &RenderJob) -> Result<String> {
+    let mut scene = crate::scene::load(&job.scene_path)?;
+    apply_overrides(&mut scene, job);
+    let issues = scene.validate();
+    if !issues.is_empty() {
+        let list: Vec<String> = issues.iter().map(|i| format!("  {i}")).collect();
+        bail!("the command-line options make the scene invalid:\n{}", list.join("\n"));
+    }
+    let range = job.frames.clone().unwrap_or(0..scene.settings().frames);
+    output::ensure_dir(&job.out_dir)?;
+    if let Some(stats) = &job.stats
+        && let Some(parent) = stats.parent().filter(|p| !p.as_os_str().is_empty())
+    {
+        output::ensure_dir(parent)?;
+    }
+
+    let threads = job.threads.unwrap_or(0);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start the worker threads")?;
+    let scene_dir = job.scene_path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    pool.install(|| render_frames(&scene, &scene_dir, job, range))
+}
+
+fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<u32>) -> Result<String> {
+    let started = Instant::now();
+    let mut runner = Runner::new(scene, scene_dir)?;
+    let exposure = scene.settings().exposure();
+    let bar = ProgressBar::with_draw_target(
+        Some(u64::from(range.end)),
+        if job.quiet { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:30}] {pos}/{len} frames, {elapsed} elapsed, ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let mut stats_text = String::new();
+    let mut image = Frame::new(0, 0);
+    let (mut written, mut skipped) = (0u32, 0u32);
+    for frame in 0..range.end {
+        let t0 = Instant::now();
+        let mut stats = runner.step().with_context(|| format!("simulation failed at frame {frame}"))?;
+        stats.frame = frame;
+        stats.step_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if frame >= range.start {
+            let path = job.out_dir.join(format!("frame_{frame:05}.{}", job.format.extension()));
+            if job.resume && path.is_file() {
+                stats.skipped = true;
+                skipped += 1;
+                bar.set_message("resuming");
+            } else {
+                bar.set_message("rendering");
+                let t1 = Instant::now();
+                runner.render_into(&mut image);
+                stats.render_ms = Some(t1.elapsed().as_secs_f64() * 1e3);
+                let t2 = Instant::now();
+                output::write_frame(&path, &image, job.format, &exposure)?;
+                stats.write_ms = Some(t2.elapsed().as_secs_f64() * 1e3);
+                written += 1;
+            }
+            if job.stats.is_some() {
+                let line = serde_json::to_string(&stats).context("cannot encode stats")?;
+                let _ = writeln!(stats_text, "{line}");
+            }
+        } else {
+            bar.set_message("simulating");
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(path) = &job.stats {
+        output::write_bytes_atomic(path, stats_text.as_bytes())?;
+    }
+    Ok(format!(
+        "{}: wrote {written} frame(s){} to {} in {:.1} s",
+        scene.phenomenon(),
+        if skipped > 0 { format!(", kept {skipped} finished frame(s)") } else { String::new() },
+        job.out_dir.display(),
+        started.elapsed().as_secs_f64()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_ranges() {
+        assert_eq!(parse_frame_range("3..7"), Ok(3..7));
+        assert_eq!(parse_frame_range("3..=7"), Ok(3..8));
+        assert_eq!(parse_frame_range("5"), Ok(5..6));
+        assert!(parse_frame_range("7..3").unwrap_err().contains("empty range"));
+        assert!(parse_frame_range("a..3").unwrap_err().contains("not a frame number"));
+        assert!(parse_frame_range("-1..3").is_err());
+    }
+}

@@ -1,0 +1,313 @@
+//! Scene files: TOML with a `[scene]` table, one phenomenon table (e.g. `[flame]`) and
+//! that phenomenon's `[render]` table. Every problem is reported as `file:line:column`.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use phenomena_core::tonemap::{Exposure, ToneMap};
+use phenomena_core::validate::{Issue, Issues};
+use phenomena_flame::{FlameConfig, RenderSettings as FlameRenderSettings};
+use serde::{Deserialize, Serialize};
+use toml::de::{DeTable, DeValue};
+
+/// Settings every scene shares (`[scene]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub(crate) struct SceneSettings {
+    /// Number of frames to render.
+    pub(crate) frames: u32,
+    /// Image width, pixels.
+    pub(crate) width: u32,
+    /// Image height, pixels.
+    pub(crate) height: u32,
+    /// Seed of every random stream.
+    pub(crate) seed: u64,
+    /// Exposure compensation in stops, applied before tone mapping (PNG only).
+    pub(crate) exposure_ev: f32,
+    /// Tone-mapping operator for PNG output.
+    pub(crate) tone_map: ToneMap,
+}
+
+impl Default for SceneSettings {
+    fn default() -> Self {
+        Self { frames: 120, width: 1280, height: 720, seed: 1, exposure_ev: 0.0, tone_map: ToneMap::Aces }
+    }
+}
+
+impl SceneSettings {
+    pub(crate) fn exposure(&self) -> Exposure {
+        Exposure { ev: self.exposure_ev, tone_map: self.tone_map }
+    }
+
+    fn validate(&self, i: &mut Issues) {
+        i.count("frames", u64::from(self.frames), 1..=1_000_000);
+        i.count("width", u64::from(self.width), 1..=16384);
+        i.count("height", u64::from(self.height), 1..=16384);
+        i.range("exposure_ev", f64::from(self.exposure_ev), -32.0..=32.0);
+    }
+}
+
+/// A flame scene file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FlameScene {
+    #[serde(default)]
+    pub(crate) scene: SceneSettings,
+    #[serde(default)]
+    pub(crate) flame: FlameConfig,
+    #[serde(default)]
+    pub(crate) render: FlameRenderSettings,
+}
+
+/// Any scene, by phenomenon.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Scene {
+    Flame(Box<FlameScene>),
+}
+
+impl Scene {
+    pub(crate) fn settings(&self) -> &SceneSettings {
+        match self {
+            Scene::Flame(s) => &s.scene,
+        }
+    }
+
+    pub(crate) fn settings_mut(&mut self) -> &mut SceneSettings {
+        match self {
+            Scene::Flame(s) => &mut s.scene,
+        }
+    }
+
+    pub(crate) fn phenomenon(&self) -> &'static str {
+        match self {
+            Scene::Flame(_) => "flame",
+        }
+    }
+
+    /// Every problem, with field paths from the file's root (e.g. `flame.sph.k`).
+    pub(crate) fn validate(&self) -> Vec<Issue> {
+        let mut i = Issues::default();
+        let mut scene = Issues::default();
+        self.settings().validate(&mut scene);
+        if let Err(e) = scene.into_result() {
+            i.extend_prefixed("scene", e);
+        }
+        match self {
+            Scene::Flame(s) => {
+                if let Err(e) = s.flame.validate() {
+                    i.extend_prefixed("flame", e);
+                }
+                if let Err(e) = s.render.validate() {
+                    i.extend_prefixed("render", e);
+                }
+            }
+        }
+        i.into_result().err().unwrap_or_default()
+    }
+}
+
+/// The phenomena a scene file may hold, by table name.
+pub(crate) const PHENOMENA: [&str; 1] = ["flame"];
+
+/// A problem at a place in a file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Located {
+    pub(crate) file: PathBuf,
+    pub(crate) line: usize,
+    pub(crate) column: usize,
+    pub(crate) message: String,
+}
+
+impl fmt::Display for Located {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}:{}: {}", self.file.display(), self.line, self.column, self.message)
+    }
+}
+
+/// Problems found in a scene file (at least one).
+#[derive(Debug)]
+pub(crate) struct SceneErrors(pub(crate) Vec<Located>);
+
+impl fmt::Display for SceneErrors {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (k, e) in self.0.iter().enumerate() {
+            if k > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for SceneErrors {}
+
+/// 1-based line and column (in characters) of a byte offset.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..text.floor_char_boundary(offset)];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// Parse and validate scene text; `file` names it in messages.
+pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
+    let at = |offset: usize, message: String| {
+        let (line, column) = line_column(text, offset);
+        Located { file: file.to_path_buf(), line, column, message }
+    };
+    let root = DeTable::parse(text).map_err(|e| {
+        SceneErrors(vec![at(e.span().map_or(0, |s| s.start), e.message().trim().to_string())])
+    })?;
+    let present: Vec<&str> = PHENOMENA.iter().copied().filter(|p| root.get_ref().get(*p).is_some()).collect();
+    let scene = match present.as_slice() {
+        ["flame"] => toml::from_str::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
+        [] => {
+            return Err(SceneErrors(vec![at(
+                0,
+                format!(
+                    "no phenomenon table: a scene holds exactly one of {} (e.g. a [flame] table)",
+                    PHENOMENA.map(|p| format!("[{p}]")).join(", ")
+                ),
+            )]));
+        }
+        several => {
+            let second = several[1];
+            let offset = root.get_ref().get(second).map_or(0, |v| v.span().start);
+            return Err(SceneErrors(vec![at(
+                offset,
+                format!("a scene holds one phenomenon, but this file has [{}]", several.join("], [")),
+            )]));
+        }
+    }
+    .map_err(|e| SceneErrors(vec![at(e.span().map_or(0, |s| s.start), e.message().trim().to_string())]))?;
+
+    let issues = scene.validate();
+    if issues.is_empty() {
+        return Ok(scene);
+    }
+    Err(SceneErrors(
+        issues.into_iter().map(|issue| at(locate(root.get_ref(), &issue.field), issue.to_string())).collect(),
+    ))
+}
+
+/// Read and parse a scene file.
+pub(crate) fn load(path: &Path) -> anyhow::Result<Scene> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read the scene file: {e}", path.display()))?;
+    Ok(parse(&text, path)?)
+}
+
+/// Byte offset of the value at a dotted field path such as `flame.wind.keys[1].time_s`,
+/// or of the closest enclosing item that is written in the file (a default value has no
+/// place of its own).
+fn locate(root: &DeTable<'_>, field: &str) -> usize {
+    let mut offset = 0;
+    let mut table: Option<&DeTable<'_>> = Some(root);
+    let mut value: Option<&DeValue<'_>> = None;
+    for segment in field.split('.') {
+        let (key, index) = match segment.split_once('[') {
+            Some((k, rest)) => (k, rest.trim_end_matches(']').parse::<usize>().ok()),
+            None => (segment, None),
+        };
+        let next = match (table, value) {
+            (Some(t), _) => t.get(key),
+            (None, Some(v)) => v.as_table().and_then(|t| t.get(key)),
+            _ => None,
+        };
+        let Some(item) = next else { break };
+        offset = item.span().start;
+        let mut v = item.get_ref();
+        if let Some(k) = index {
+            match v.as_array().and_then(|a| a.get(k)) {
+                Some(el) => {
+                    offset = el.span().start;
+                    v = el.get_ref();
+                }
+                None => break,
+            }
+        }
+        table = None;
+        value = Some(v);
+    }
+    offset
+}
+
+/// Scenes shipped in `scenes/`, embedded so `demo` and `new` work anywhere.
+pub(crate) mod builtin {
+    /// Fig 8: the paper's flame, about 3,000 particles.
+    pub(crate) const FLAME_PAPER: &str = include_str!("../../../scenes/flame-paper.toml");
+    /// Fig 9: wind to the left.
+    pub(crate) const FLAME_WIND_LEFT: &str = include_str!("../../../scenes/flame-wind-left.toml");
+    /// Fig 10: wind to the right.
+    pub(crate) const FLAME_WIND_RIGHT: &str = include_str!("../../../scenes/flame-wind-right.toml");
+    /// Showcase.
+    pub(crate) const FLAME_CAMPFIRE: &str = include_str!("../../../scenes/flame-campfire.toml");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn errors(text: &str) -> Vec<String> {
+        match parse(text, Path::new("s.toml")) {
+            Ok(_) => Vec::new(),
+            Err(e) => e.0.iter().map(|l| l.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn line_and_column_are_one_based_characters() {
+        assert_eq!(line_column("ab\ncdé\nx", 0), (1, 1));
+        assert_eq!(line_column("ab\ncdé\nx", 3), (2, 1));
+        assert_eq!(line_column("ab\ncdé\nx", 9), (3, 1));
+        assert_eq!(line_column("ab\ncdé\nx", 7), (2, 4));
+    }
+
+    #[test]
+    fn syntax_errors_are_located() {
+        let e = errors("[flame]\nmode = \"paper\"\nsubsteps = = 2\n");
+        assert_eq!(e.len(), 1);
+        assert!(e[0].starts_with("s.toml:3:"), "{e:?}");
+    }
+
+    #[test]
+    fn unknown_keys_are_located() {
+        let e = errors("[flame]\n[flame.sph]\nsupport_radius = 0.1\n");
+        assert_eq!(e.len(), 1);
+        assert!(e[0].starts_with("s.toml:3:1: unknown field `support_radius`"), "{e:?}");
+    }
+
+    #[test]
+    fn out_of_range_values_are_located_at_the_value() {
+        let text = "[scene]\nwidth = 0\n[flame.sph]\ngas_constant_m2_s2 = -2.0\n[[flame.wind.keys]]\ntime_s = 1\nforce_n_m3 = [0, 0, 0]\n[[flame.wind.keys]]\ntime_s = 0.5\nforce_n_m3 = [1, 0, 0]\n";
+        let e = errors(text);
+        assert_eq!(e.len(), 3, "{e:?}");
+        assert_eq!(e[0], "s.toml:2:9: scene.width = 0: expected an integer in [1, 16384]");
+        assert!(e[1].starts_with("s.toml:4:22: flame.sph.gas_constant_m2_s2 = -2"), "{e:?}");
+        assert!(e[2].starts_with("s.toml:9:10: flame.wind.keys[1].time_s = 0.5"), "{e:?}");
+    }
+
+    #[test]
+    fn phenomenon_table_is_required_and_unique() {
+        let e = errors("[scene]\nframes = 3\n");
+        assert!(e[0].contains("no phenomenon table"), "{e:?}");
+        let e = errors("[flmae]\n");
+        assert!(e[0].contains("no phenomenon table"), "{e:?}");
+    }
+
+    #[test]
+    fn shipped_scenes_are_valid() {
+        for (name, text) in [
+            ("flame-paper", builtin::FLAME_PAPER),
+            ("flame-wind-left", builtin::FLAME_WIND_LEFT),
+            ("flame-wind-right", builtin::FLAME_WIND_RIGHT),
+            ("flame-campfire", builtin::FLAME_CAMPFIRE),
+        ] {
+            if let Err(e) = parse(text, Path::new(name)) {
+                panic!("{e}");
+            }
+        }
+    }
+}

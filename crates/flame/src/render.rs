@@ -1,0 +1,874 @@
+//! Flame rendering per the paper's §5: blackbody colour by temperature (§5.1, Fig 1),
+//! times the poly6 radial profile (Fig 2), additively blended with an alpha from density
+//! (§5.2); heat shimmer from accumulated kernel-gradient refraction offsets (Figs 3-4)
+//! that distort the background near the flame (§5.3).
+//!
+//! The output is a linear HDR frame in sRGB primaries; tone mapping and encoding happen
+//! at the edge (the CLI).
+//!
+//! Splats are accumulated in horizontal bands of [`BAND_ROWS`] rows processed in parallel;
+//! each band adds its particles in index order, so images are bit-identical for any
+//! thread count.
+
+use glam::{DVec3, Vec3};
+use phenomena_core::camera::{Camera, CameraView, Projection};
+use phenomena_core::color::{
+    Observer, blackbody_srgb_normalized, blackbody_xyz, srgb_decode, xyz_to_linear_srgb,
+};
+use phenomena_core::image::{Frame, Plane};
+use phenomena_core::validate::{Issue, Issues};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::config::FlameConfig;
+use crate::sim::{FlameSim, Particles};
+
+/// Rows per parallel band of the splat buffers.
+pub const BAND_ROWS: usize = 16;
+
+/// Largest magnitude of the normalised poly6 gradient profile q(1 - q²)², reached at
+/// q = 1/√5: (1/√5)(4/5)² = 0.286217... The paper's Fig 3 texture is normalised to it.
+const GRADIENT_PROFILE_MAX: f32 = 0.286_216_5;
+
+/// How bright a temperature looks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Brightness {
+    /// Colour only, largest sRGB component 1 at every temperature: the paper's Fig 1
+    /// texture, where temperature picks the hue.
+    Normalized,
+    /// Blackbody radiance relative to `reference_temperature_k`: hotter is brighter, and a
+    /// cooling particle dims as Planck's law says (an extension).
+    #[default]
+    Radiometric,
+}
+
+/// What to draw.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum View {
+    /// The flame over its (shimmering) background (Fig 8).
+    #[default]
+    Flame,
+    /// Each particle as a square, redder where denser, over black (Fig 7).
+    Density,
+}
+
+/// Heat shimmer (§5.3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Shimmer {
+    /// Whether to distort the background.
+    pub enabled: bool,
+    /// Largest background displacement from one particle, metres at the particle's depth
+    /// (converted to pixels by the camera, so it does not depend on the resolution).
+    pub strength_m: f32,
+    /// Radius of a particle's refraction footprint relative to its flame splat.
+    pub radius_scale: f32,
+}
+
+impl Default for Shimmer {
+    fn default() -> Self {
+        Self { enabled: true, strength_m: 0.002, radius_scale: 1.0 }
+    }
+}
+
+/// The image behind the flame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Background {
+    /// Black: the flame alone, for additive compositing.
+    Black,
+    /// A checkerboard in image space, the clearest way to see shimmer.
+    Checker {
+        /// Checker squares per image height.
+        squares_per_height: f32,
+        /// Linear RGB of the light squares.
+        light: Vec3,
+        /// Linear RGB of the dark squares.
+        dark: Vec3,
+    },
+    /// A vertical gradient from `horizon` (bottom) to `zenith` (top), linear RGB.
+    Sky {
+        /// Colour at the top of the image.
+        zenith: Vec3,
+        /// Colour at the bottom of the image.
+        horizon: Vec3,
+    },
+    /// A PNG file, stretched to the frame; the path is relative to the scene file. The
+    /// caller loads it and passes it to [`FlameRenderer::new`].
+    Image {
+        /// Path of the PNG.
+        path: String,
+    },
+}
+
+impl Default for Background {
+    fn default() -> Self {
+        Background::Checker { squares_per_height: 12.0, light: Vec3::splat(0.12), dark: Vec3::splat(0.04) }
+    }
+}
+
+/// Render settings of a flame scene (`[flame.render]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSettings {
+    /// The camera.
+    pub camera: Camera,
+    /// Linear radiance at the centre of one fully opaque particle at the reference
+    /// temperature.
+    pub intensity: f32,
+    /// Splat radius as a multiple of the SPH support radius d (Fig 2 spans d: 1).
+    pub splat_radius_scale: f32,
+    /// Colour model of the blackbody table.
+    pub brightness: Brightness,
+    /// Temperature of unit brightness for `radiometric`, kelvin.
+    pub reference_temperature_k: f32,
+    /// A particle is fully opaque at this multiple of the rest density ρ0; alpha falls
+    /// linearly below it ("alpha from density", §5.2).
+    pub full_alpha_density_ratio: f32,
+    /// Heat shimmer.
+    pub shimmer: Shimmer,
+    /// Background.
+    pub background: Background,
+    /// Resolution of the splat buffers relative to the frame (1 = full resolution;
+    /// 0.5 splats at half resolution and upsamples bilinearly, four times cheaper).
+    pub resolution_scale: f32,
+    /// What to draw.
+    pub view: View,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            camera: Camera {
+                position: Vec3::new(0.0, 0.45, 2.2),
+                look_at: Vec3::new(0.0, 0.45, 0.0),
+                up: Vec3::Y,
+                projection: Projection::Perspective { fov_y_deg: 35.0 },
+            },
+            intensity: 0.25,
+            splat_radius_scale: 1.0,
+            brightness: Brightness::Radiometric,
+            reference_temperature_k: 1900.0,
+            full_alpha_density_ratio: 1.0,
+            shimmer: Shimmer::default(),
+            background: Background::default(),
+            resolution_scale: 1.0,
+            view: View::Flame,
+        }
+    }
+}
+
+impl RenderSettings {
+    /// Every problem with these settings (fields relative to `[flame.render]`).
+    pub fn validate(&self) -> Result<(), Vec<Issue>> {
+        let mut i = Issues::default();
+        self.camera.validate(&mut i, "camera");
+        i.range("intensity", f64::from(self.intensity), 0.0..=1e9);
+        i.range_open_low("splat_radius_scale", f64::from(self.splat_radius_scale), 0.0, 100.0);
+        i.range("reference_temperature_k", f64::from(self.reference_temperature_k), 500.0..=40_000.0);
+        i.range_open_low("full_alpha_density_ratio", f64::from(self.full_alpha_density_ratio), 0.0, 1e6);
+        i.range("shimmer.strength_m", f64::from(self.shimmer.strength_m), 0.0..=10.0);
+        i.range_open_low("shimmer.radius_scale", f64::from(self.shimmer.radius_scale), 0.0, 100.0);
+        i.range("resolution_scale", f64::from(self.resolution_scale), 0.125..=1.0);
+        match &self.background {
+            Background::Checker { squares_per_height, light, dark } => {
+                i.range_open_low("background.squares_per_height", f64::from(*squares_per_height), 0.0, 1e4);
+                i.vector("background.light", &light.to_array(), 1e6);
+                i.vector("background.dark", &dark.to_array(), 1e6);
+            }
+            Background::Sky { zenith, horizon } => {
+                i.vector("background.zenith", &zenith.to_array(), 1e6);
+                i.vector("background.horizon", &horizon.to_array(), 1e6);
+            }
+            Background::Image { path } if path.is_empty() => {
+                i.push("background.path", "\"\"", "the path of a PNG file")
+            }
+            _ => {}
+        }
+        i.into_result()
+    }
+}
+
+/// Why a renderer could not be created.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// Invalid settings; every problem listed.
+    #[error("invalid flame render settings: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
+    Settings(Vec<Issue>),
+    /// The frame size is zero or too large.
+    #[error("frame size {0}x{1} is outside 1x1 ..= 16384x16384")]
+    Size(usize, usize),
+    /// `background.kind = "image"` but no image was supplied.
+    #[error("the background is an image file but none was loaded")]
+    MissingBackground,
+}
+
+/// The paper's Fig 1 texture: linear sRGB of a blackbody by temperature, precomputed
+/// from 0 to 10,000 K every [`BlackbodyLut::STEP_K`] and interpolated linearly.
+#[derive(Clone, Debug)]
+pub struct BlackbodyLut {
+    table: Vec<Vec3>,
+}
+
+impl BlackbodyLut {
+    /// Table spacing, kelvin.
+    pub const STEP_K: f32 = 5.0;
+    /// Highest tabulated temperature (Fig 1 spans 1-10,000 K); hotter values clamp.
+    pub const MAX_K: f32 = 10_000.0;
+
+    /// Precompute the table for a brightness model.
+    pub fn new(brightness: Brightness, reference_temperature_k: f32) -> Self {
+        let n = (Self::MAX_K / Self::STEP_K) as usize + 1;
+        let y_ref = blackbody_xyz(Observer::Cie1931TwoDegree, f64::from(reference_temperature_k)).y;
+        let table = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let t = f64::from(i as f32 * Self::STEP_K);
+                let rgb = match brightness {
+                    Brightness::Normalized => blackbody_srgb_normalized(t),
+                    Brightness::Radiometric if y_ref > 0.0 => {
+                        xyz_to_linear_srgb(blackbody_xyz(Observer::Cie1931TwoDegree, t) / y_ref)
+                            .max(DVec3::ZERO)
+                    }
+                    Brightness::Radiometric => DVec3::ZERO,
+                };
+                rgb.as_vec3()
+            })
+            .collect();
+        Self { table }
+    }
+
+    /// Linear sRGB at `temperature_k` (black at or below 0 K and for NaN).
+    #[inline]
+    pub fn lookup(&self, temperature_k: f32) -> Vec3 {
+        if !(temperature_k > 0.0) {
+            return Vec3::ZERO;
+        }
+        let f = (temperature_k.min(Self::MAX_K)) / Self::STEP_K;
+        let i = (f as usize).min(self.table.len() - 2);
+        let t = f - i as f32;
+        self.table[i].lerp(self.table[i + 1], t)
+    }
+}
+
+/// One particle prepared for splatting, in splat-buffer pixels.
+#[derive(Clone, Copy, Debug)]
+struct Splat {
+    x: f32,
+    y: f32,
+    radius: f32,
+    color: Vec3,
+    shimmer_radius: f32,
+    /// Peak background offset of this particle, in frame pixels.
+    shimmer_px: f32,
+    depth: f32,
+}
+
+/// Renders a flame simulation to linear HDR frames.
+#[derive(Clone, Debug)]
+pub struct FlameRenderer {
+    settings: RenderSettings,
+    width: usize,
+    height: usize,
+    view: CameraView,
+    splat_view: CameraView,
+    splat_w: usize,
+    splat_h: usize,
+    lut: BlackbodyLut,
+    background: Frame,
+    splats: Vec<Option<Splat>>,
+    bins: Vec<Vec<u32>>,
+    planes: [Plane; 5],
+    /// Per splat-buffer row, the columns any splat touched (start..end; empty if none),
+    /// so that compositing only works where the flame or its shimmer is.
+    spans: Vec<(u32, u32)>,
+}
+
+impl FlameRenderer {
+    /// A renderer for `width × height` frames. `background_image` is used when the
+    /// settings ask for an image background (linear RGB, any size: it is stretched).
+    pub fn new(
+        settings: RenderSettings,
+        width: usize,
+        height: usize,
+        background_image: Option<&Frame>,
+    ) -> Result<Self, RenderError> {
+        settings.validate().map_err(RenderError::Settings)?;
+        if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+            return Err(RenderError::Size(width, height));
+        }
+        let view = settings.camera.view(width, height).ok_or(RenderError::Size(width, height))?;
+        let splat_w = ((width as f32 * settings.resolution_scale).round() as usize).max(1);
+        let splat_h = ((height as f32 * settings.resolution_scale).round() as usize).max(1);
+        let splat_view = settings.camera.view(splat_w, splat_h).ok_or(RenderError::Size(width, height))?;
+        let background = match &settings.background {
+            Background::Image { .. } => {
+                resample(background_image.ok_or(RenderError::MissingBackground)?, width, height)
+            }
+            other => procedural_background(other, width, height),
+        };
+        let bands = splat_h.div_ceil(BAND_ROWS);
+        Ok(Self {
+            lut: BlackbodyLut::new(settings.brightness, settings.reference_temperature_k),
+            settings,
+            width,
+            height,
+            view,
+            splat_view,
+            splat_w,
+            splat_h,
+            background,
+            splats: Vec::new(),
+            bins: vec![Vec::new(); bands],
+            planes: std::array::from_fn(|_| Plane::new(splat_w, splat_h)),
+            spans: vec![(0, 0); splat_h],
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// The camera prepared for the output frame.
+    pub fn view(&self) -> &CameraView {
+        &self.view
+    }
+
+    /// The background the flame is composited over (before shimmer).
+    pub fn background(&self) -> &Frame {
+        &self.background
+    }
+
+    /// Render the simulation's current state.
+    pub fn render(&mut self, sim: &FlameSim) -> Frame {
+        let mut out = Frame::new(self.width, self.height);
+        self.render_into(sim.particles(), sim.config(), &mut out);
+        out
+    }
+
+    /// Render particles simulated with `config` (its support radius and rest density
+    /// set the splat size and the alpha scale).
+    pub fn render_particles(&mut self, p: &Particles, config: &FlameConfig) -> Frame {
+        let mut out = Frame::new(self.width, self.height);
+        self.render_into(p, config, &mut out);
+        out
+    }
+
+    /// Render into an existing frame (reallocated only if its size differs), so that an
+    /// animation allocates its frame once.
+    pub fn render_into(&mut self, p: &Particles, config: &FlameConfig, out: &mut Frame) {
+        if out.width() != self.width || out.height() != self.height {
+            *out = Frame::new(self.width, self.height);
+        }
+        match self.settings.view {
+            View::Flame => {
+                self.prepare_splats(p, config);
+                self.bin_splats();
+                self.splat_bands();
+                self.composite(out);
+            }
+            View::Density => self.render_density(p, config, out),
+        }
+    }
+
+    /// Project particles and compute their colours (in parallel, order-preserving).
+    fn prepare_splats(&mut self, p: &Particles, config: &FlameConfig) {
+        let s = &self.settings;
+        let d = config.sph.support_radius_m * s.splat_radius_scale;
+        let full_alpha = config.sph.rest_density_kg_m3 * s.full_alpha_density_ratio;
+        let shimmer = if s.shimmer.enabled { s.shimmer.strength_m } else { 0.0 };
+        let shimmer_scale = s.shimmer.radius_scale;
+        let (view, lut, intensity) = (&self.splat_view, &self.lut, s.intensity);
+        let frame_per_splat_px = self.width as f32 / self.splat_w as f32;
+        let (w, h) = (self.splat_w as f32, self.splat_h as f32);
+        p.position_m
+            .par_iter()
+            .zip(p.temperature_k.par_iter())
+            .zip(p.density_kg_m3.par_iter())
+            .map(|((&x, &t), &rho)| {
+                let pr = view.project(x)?;
+                let radius = d * pr.px_per_m;
+                let reach = radius * shimmer_scale.max(1.0);
+                if pr.x_px + reach < 0.0
+                    || pr.y_px + reach < 0.0
+                    || pr.x_px - reach > w
+                    || pr.y_px - reach > h
+                {
+                    return None;
+                }
+                let alpha = (rho / full_alpha).clamp(0.0, 1.0);
+                Some(Splat {
+                    x: pr.x_px,
+                    y: pr.y_px,
+                    radius,
+                    color: lut.lookup(t) * (intensity * alpha),
+                    shimmer_radius: radius * shimmer_scale,
+                    shimmer_px: shimmer * pr.px_per_m * frame_per_splat_px,
+                    depth: pr.depth,
+                })
+            })
+            .collect_into_vec(&mut self.splats);
+    }
+
+    /// Assign each splat to the bands its footprint touches, in particle order.
+    fn bin_splats(&mut self) {
+        for b in &mut self.bins {
+            b.clear();
+        }
+        let last = self.bins.len() - 1;
+        for (i, s) in self.splats.iter().enumerate() {
+            if let Some(s) = s {
+                let reach = if s.shimmer_px > 0.0 { s.radius.max(s.shimmer_radius) } else { s.radius };
+                let y0 = ((s.y - reach).max(0.0) as usize / BAND_ROWS).min(last);
+                let y1 = ((s.y + reach).max(0.0) as usize / BAND_ROWS).min(last);
+                for b in &mut self.bins[y0..=y1] {
+                    b.push(i as u32);
+                }
+            }
+        }
+    }
+
+    /// Accumulate flame radiance (Fig 2 profile) and refraction offsets (Fig 3
+    /// gradient) band by band.
+    fn splat_bands(&mut self) {
+        let w = self.splat_w;
+        let chunk = BAND_ROWS * w;
+        let [r, g, b, ox, oy] = &mut self.planes;
+        let (splats, bins) = (&self.splats, &self.bins);
+        r.data_mut()
+            .par_chunks_mut(chunk)
+            .zip(g.data_mut().par_chunks_mut(chunk))
+            .zip(b.data_mut().par_chunks_mut(chunk))
+            .zip(ox.data_mut().par_chunks_mut(chunk))
+            .zip(oy.data_mut().par_chunks_mut(chunk))
+            .zip(self.spans.par_chunks_mut(BAND_ROWS))
+            .enumerate()
+            .for_each(|(band, (((((r, g), b), ox), oy), spans))| {
+                let row0 = band * BAND_ROWS;
+                let rows = r.len() / w;
+                let mut out = BandBuffers { w, row0, rows, r, g, b, ox, oy, spans, dx: Vec::new() };
+                out.clear();
+                for &i in &bins[band] {
+                    if let Some(s) = &splats[i as usize] {
+                        out.splat(s);
+                    }
+                }
+            });
+    }
+
+    /// Distort the background by the offsets and add the flame, row by row; rows and
+    /// columns no splat touched are a plain copy of the background.
+    fn composite(&self, out: &mut Frame) {
+        let (w, h) = (self.width, self.height);
+        let (sw, sh) = (self.splat_w, self.splat_h);
+        let same = sw == w && sh == h;
+        let (kx, ky) = (sw as f32 / w as f32, sh as f32 / h as f32);
+        // Bilinear upsampling taps per output column: (x0, x1, weight of x1).
+        let taps: Vec<(u32, u32, f32)> = (0..if same { 0 } else { w })
+            .map(|x| {
+                let fx = ((x as f32 + 0.5) * kx - 0.5).clamp(0.0, (sw - 1) as f32);
+                let x0 = fx as usize;
+                (x0 as u32, (x0 + 1).min(sw - 1) as u32, fx - x0 as f32)
+            })
+            .collect();
+        let planes = &self.planes;
+        let spans = &self.spans;
+        let bg = &self.background;
+        let [o0, o1, o2] = out.planes_mut();
+        o0.data_mut()
+            .par_chunks_mut(w)
+            .zip(o1.data_mut().par_chunks_mut(w))
+            .zip(o2.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each_init(
+                || [(); 5].map(|_| vec![0.0f32; sw]),
+                |tmp, (y, ((c0, c1), c2))| {
+                    let row = y * w..(y + 1) * w;
+                    c0.copy_from_slice(&bg.c0.data()[row.clone()]);
+                    c1.copy_from_slice(&bg.c1.data()[row.clone()]);
+                    c2.copy_from_slice(&bg.c2.data()[row]);
+                    // Source rows and blend weight (bilinear in y, clamped at the edges).
+                    let (y0, y1, ty) = if same {
+                        (y, y, 0.0)
+                    } else {
+                        let fy = ((y as f32 + 0.5) * ky - 0.5).clamp(0.0, (sh - 1) as f32);
+                        let y0 = fy as usize;
+                        (y0, (y0 + 1).min(sh - 1), fy - y0 as f32)
+                    };
+                    let (a, b) = (spans[y0], spans[y1]);
+                    let (lo, hi) = match (a.0 < a.1, b.0 < b.1) {
+                        (true, true) => (a.0.min(b.0), a.1.max(b.1)),
+                        (true, false) => a,
+                        (false, true) => b,
+                        (false, false) => return,
+                    };
+                    let (lo, hi) = (lo as usize, hi as usize);
+                    // Vertical pass: blend the two source rows over the touched span
+                    // (plus one column each side for the horizontal taps).
+                    let (s_lo, s_hi) = (lo.saturating_sub(1), (hi + 1).min(sw));
+                    for (p, t) in tmp.iter_mut().enumerate() {
+                        let r0 = &planes[p].data()[y0 * sw + s_lo..y0 * sw + s_hi];
+                        let r1 = &planes[p].data()[y1 * sw + s_lo..y1 * sw + s_hi];
+                        for ((t, &a), &b) in t[s_lo..s_hi].iter_mut().zip(r0).zip(r1) {
+                            *t = a + (b - a) * ty;
+                        }
+                    }
+                    // Output columns whose bilinear footprint meets the touched span.
+                    let (x_lo, x_hi) = if same {
+                        (lo, hi)
+                    } else {
+                        (
+                            ((lo as f32 - 1.0) / kx).max(0.0) as usize,
+                            (((hi as f32 + 1.0) / kx) as usize + 1).min(w),
+                        )
+                    };
+                    for x in x_lo..x_hi {
+                        let v: [f32; 5] = if same {
+                            std::array::from_fn(|p| tmp[p][x])
+                        } else {
+                            let (x0, x1, tx) = taps[x];
+                            let (x0, x1) = (x0 as usize, x1 as usize);
+                            std::array::from_fn(|p| tmp[p][x0] + (tmp[p][x1] - tmp[p][x0]) * tx)
+                        };
+                        if v[3] != 0.0 || v[4] != 0.0 {
+                            let c = bg.sample_bilinear(x as f32 + 0.5 + v[3], y as f32 + 0.5 + v[4]);
+                            (c0[x], c1[x], c2[x]) = (c.x, c.y, c.z);
+                        }
+                        c0[x] += v[0];
+                        c1[x] += v[1];
+                        c2[x] += v[2];
+                    }
+                },
+            );
+    }
+
+    /// Fig 7: particles as squares, coloured from blue (ρ = 0) to red (ρ ≥ 2ρ0), painted
+    /// far to near.
+    fn render_density(&mut self, p: &Particles, config: &FlameConfig, out: &mut Frame) {
+        self.prepare_splats(p, config);
+        let mut order: Vec<(f32, u32)> =
+            self.splats.iter().enumerate().filter_map(|(i, s)| s.map(|s| (s.depth, i as u32))).collect();
+        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for plane in out.planes_mut() {
+            plane.clear();
+        }
+        let scale = self.width as f32 / self.splat_w as f32;
+        let rho0 = config.sph.rest_density_kg_m3;
+        for (_, i) in order {
+            let Some(s) = self.splats[i as usize] else { continue };
+            let t = (p.density_kg_m3[i as usize] / (2.0 * rho0)).clamp(0.0, 1.0);
+            let color = Vec3::new(t, 0.15, 1.0 - t);
+            let half = (0.5 * s.radius * scale).max(0.5);
+            let (cx, cy) = (s.x * scale, s.y * scale);
+            let x0 = (cx - half).max(0.0) as usize;
+            let y0 = (cy - half).max(0.0) as usize;
+            let x1 = ((cx + half).max(0.0) as usize).min(self.width - 1);
+            let y1 = ((cy + half).max(0.0) as usize).min(self.height - 1);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    out.set_pixel(x, y, color);
+                }
+            }
+        }
+    }
+}
+
+/// Mutable views of one band of the five splat planes.
+struct BandBuffers<'a> {
+    w: usize,
+    row0: usize,
+    rows: usize,
+    r: &'a mut [f32],
+    g: &'a mut [f32],
+    b: &'a mut [f32],
+    ox: &'a mut [f32],
+    oy: &'a mut [f32],
+    spans: &'a mut [(u32, u32)],
+    /// Horizontal offsets from the splat centre of the columns it covers (reused).
+    dx: Vec<f32>,
+}
+
+impl BandBuffers<'_> {
+    fn clear(&mut self) {
+        for buf in [&mut *self.r, &mut *self.g, &mut *self.b, &mut *self.ox, &mut *self.oy] {
+            buf.fill(0.0);
+        }
+        self.spans.fill((0, 0));
+    }
+
+    /// Prepare the disk at (`x`, `y`) with `radius`: the band-local rows it touches and
+    /// the first column of `self.dx`, which holds (column centre - x) for its columns.
+    fn disk(&mut self, x: f32, y: f32, radius: f32) -> (std::ops::Range<usize>, usize) {
+        // Conservative integer bounds by truncation (no libm floor/ceil on the hot path):
+        // one extra row or column at most, where the profile is exactly zero.
+        let top = (y - radius).max(self.row0 as f32) as usize;
+        let bottom = (((y + radius).max(0.0) as usize) + 2).min(self.row0 + self.rows);
+        let rows = top.max(self.row0) - self.row0..bottom.max(top) - self.row0;
+        let left = (x - radius).max(0.0) as usize;
+        let right = (((x + radius).max(0.0) as usize) + 2).min(self.w);
+        self.dx.clear();
+        self.dx.extend((left..right.max(left)).map(|c| c as f32 + 0.5 - x));
+        (rows, left)
+    }
+
+    /// Columns, as indices into `self.dx`, of the chord at squared half-width `rem`
+    /// around centre `x`, where `left` is the column of `self.dx[0]`. The range may
+    /// include boundary columns whose weight is exactly zero (the profiles clamp at 0).
+    #[inline]
+    fn chord(&self, x: f32, left: usize, rem: f32) -> std::ops::Range<usize> {
+        let h = rem.sqrt();
+        let lo = ((x - h - 0.5 - left as f32).max(0.0) as usize).min(self.dx.len());
+        let hi = (((x + h + 0.5 - left as f32).max(0.0) as usize) + 1).min(self.dx.len());
+        lo.min(hi)..hi
+    }
+
+    /// Record that columns `cols` of band-local row `ly` were touched.
+    fn touch(&mut self, ly: usize, cols: &std::ops::Range<usize>) {
+        let s = &mut self.spans[ly];
+        let (a, b) = (cols.start as u32, cols.end as u32);
+        *s = if s.0 < s.1 { (s.0.min(a), s.1.max(b)) } else { (a, b) };
+    }
+
+    /// Add one particle: its flame profile and, if enabled, its refraction offsets.
+    fn splat(&mut self, s: &Splat) {
+        if s.shimmer_px > 0.0 && s.shimmer_radius == s.radius {
+            self.fused(s);
+        } else {
+            self.flame(s);
+            if s.shimmer_px > 0.0 {
+                self.shimmer(s);
+            }
+        }
+    }
+
+    /// Fig 2: radiance × (1 - r²/R²)³, the poly6 profile normalised to 1 at the centre.
+    fn flame(&mut self, s: &Splat) {
+        let r2 = s.radius * s.radius;
+        if !(r2 > 0.0) {
+            return;
+        }
+        let inv_r2 = 1.0 / r2;
+        let (rows, left) = self.disk(s.x, s.y, s.radius);
+        for ly in rows {
+            let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
+            let dy2 = dy * dy;
+            let span = self.chord(s.x, left, r2 - dy2);
+            let at = ly * self.w + left;
+            let cols = at + span.start..at + span.end;
+            self.touch(ly, &(left + span.start..left + span.end));
+            let dx = &self.dx[span];
+            let n = dx.len();
+            let (r, g, b) =
+                (&mut self.r[cols.clone()][..n], &mut self.g[cols.clone()][..n], &mut self.b[cols][..n]);
+            let (cr, cg, cb) = (s.color.x, s.color.y, s.color.z);
+            for k in 0..n {
+                let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
+                let t = if t > 0.0 { t } else { 0.0 };
+                let wgt = t * t * t;
+                r[k] += wgt * cr;
+                g[k] += wgt * cg;
+                b[k] += wgt * cb;
+            }
+        }
+    }
+
+    /// Fig 3: the refraction direction, the poly6 gradient profile (r/R)(1 - r²/R²)²
+    /// pointing away from the particle (light bends towards the denser, cooler air),
+    /// normalised to a peak of 1 and scaled to `shimmer_px`.
+    fn shimmer(&mut self, s: &Splat) {
+        let r2 = s.shimmer_radius * s.shimmer_radius;
+        if !(r2 > 0.0) {
+            return;
+        }
+        let inv_r2 = 1.0 / r2;
+        let scale = s.shimmer_px / (GRADIENT_PROFILE_MAX * s.shimmer_radius);
+        let (rows, left) = self.disk(s.x, s.y, s.shimmer_radius);
+        for ly in rows {
+            let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
+            let dy2 = dy * dy;
+            let span = self.chord(s.x, left, r2 - dy2);
+            let at = ly * self.w + left;
+            let cols = at + span.start..at + span.end;
+            self.touch(ly, &(left + span.start..left + span.end));
+            let dx = &self.dx[span];
+            let n = dx.len();
+            let (ox, oy) = (&mut self.ox[cols.clone()][..n], &mut self.oy[cols][..n]);
+            for k in 0..n {
+                let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
+                let t = if t > 0.0 { t } else { 0.0 };
+                let wgt = t * t * scale;
+                ox[k] += wgt * dx[k];
+                oy[k] += wgt * dy;
+            }
+        }
+    }
+
+    /// [`Self::flame`] and [`Self::shimmer`] in one pass when both have the same radius
+    /// (the paper's textures of Figs 2 and 3 are the same size): bit-identical sums,
+    /// one evaluation of the profile.
+    fn fused(&mut self, s: &Splat) {
+        let r2 = s.radius * s.radius;
+        if !(r2 > 0.0) {
+            return;
+        }
+        let inv_r2 = 1.0 / r2;
+        let scale = s.shimmer_px / (GRADIENT_PROFILE_MAX * s.shimmer_radius);
+        let (rows, left) = self.disk(s.x, s.y, s.radius);
+        for ly in rows {
+            let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
+            let dy2 = dy * dy;
+            let span = self.chord(s.x, left, r2 - dy2);
+            let at = ly * self.w + left;
+            let cols = at + span.start..at + span.end;
+            self.touch(ly, &(left + span.start..left + span.end));
+            let dx = &self.dx[span];
+            let n = dx.len();
+            let (r, g, b) = (
+                &mut self.r[cols.clone()][..n],
+                &mut self.g[cols.clone()][..n],
+                &mut self.b[cols.clone()][..n],
+            );
+            let (ox, oy) = (&mut self.ox[cols.clone()][..n], &mut self.oy[cols][..n]);
+            let (cr, cg, cb) = (s.color.x, s.color.y, s.color.z);
+            for k in 0..n {
+                let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
+                let t = if t > 0.0 { t } else { 0.0 };
+                let t2 = t * t;
+                let wgt = t2 * t;
+                r[k] += wgt * cr;
+                g[k] += wgt * cg;
+                b[k] += wgt * cb;
+                let sw = t2 * scale;
+                ox[k] += sw * dx[k];
+                oy[k] += sw * dy;
+            }
+        }
+    }
+}
+
+/// A built-in background at the frame size.
+fn procedural_background(bg: &Background, width: usize, height: usize) -> Frame {
+    let mut f = Frame::new(width, height);
+    for y in 0..height {
+        for x in 0..width {
+            let c = match bg {
+                Background::Black | Background::Image { .. } => Vec3::ZERO,
+                Background::Checker { squares_per_height, light, dark } => {
+                    let size = height as f32 / squares_per_height;
+                    let (i, j) = ((x as f32 / size) as i64, (y as f32 / size) as i64);
+                    if (i + j) % 2 == 0 { *light } else { *dark }
+                }
+                Background::Sky { zenith, horizon } => {
+                    horizon.lerp(*zenith, 1.0 - (y as f32 + 0.5) / height as f32)
+                }
+            };
+            f.set_pixel(x, y, c);
+        }
+    }
+    f
+}
+
+/// Stretch a frame to `width × height` by bilinear sampling.
+fn resample(src: &Frame, width: usize, height: usize) -> Frame {
+    let mut f = Frame::new(width, height);
+    let (sx, sy) = (src.width() as f32 / width as f32, src.height() as f32 / height as f32);
+    for y in 0..height {
+        for x in 0..width {
+            let (u, v) = ((x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy);
+            f.set_pixel(
+                x,
+                y,
+                Vec3::new(
+                    src.c0.sample_bilinear(u, v),
+                    src.c1.sample_bilinear(u, v),
+                    src.c2.sample_bilinear(u, v),
+                ),
+            );
+        }
+    }
+    f
+}
+
+/// Decode 8-bit sRGB-encoded RGB bytes (row-major triples) into a linear frame, for
+/// user backgrounds. `None` if the length does not match.
+pub fn frame_from_srgb8(width: usize, height: usize, rgb: &[u8]) -> Option<Frame> {
+    if rgb.len() != width * height * 3 {
+        return None;
+    }
+    let mut f = Frame::new(width, height);
+    for (i, px) in rgb.chunks_exact(3).enumerate() {
+        let c = Vec3::new(
+            srgb_decode(f32::from(px[0]) / 255.0),
+            srgb_decode(f32::from(px[1]) / 255.0),
+            srgb_decode(f32::from(px[2]) / 255.0),
+        );
+        f.set_pixel(i % width, i / width, c);
+    }
+    Some(f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lut_matches_direct_evaluation() {
+        let lut = BlackbodyLut::new(Brightness::Normalized, 1900.0);
+        for t in [800.0_f32, 1234.5, 1900.0, 6500.0, 9999.0] {
+            let direct = blackbody_srgb_normalized(f64::from(t)).as_vec3();
+            // Linear interpolation over 5 K steps: the colour changes by < 1e-3 per K
+            // here, so the error is far below 1e-3.
+            assert!((lut.lookup(t) - direct).abs().max_element() < 1e-3, "{t}");
+        }
+        assert_eq!(lut.lookup(0.0), Vec3::ZERO);
+        assert_eq!(lut.lookup(f32::NAN), Vec3::ZERO);
+        assert!(lut.lookup(1e9).is_finite());
+    }
+
+    #[test]
+    fn radiometric_lut_brightens_with_temperature() {
+        let lut = BlackbodyLut::new(Brightness::Radiometric, 1900.0);
+        let y = |t: f32| lut.lookup(t).dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        assert!((y(1900.0) - 1.0).abs() < 0.02);
+        assert!(y(1000.0) < 0.01 * y(1900.0));
+        assert!(y(3000.0) > 10.0 * y(1900.0));
+    }
+
+    #[test]
+    fn a_single_splat_has_the_poly6_profile_and_shimmer_points_outwards() {
+        let mut settings = RenderSettings {
+            background: Background::Black,
+            brightness: Brightness::Normalized,
+            intensity: 1.0,
+            ..Default::default()
+        };
+        settings.camera.projection = Projection::Orthographic { height_m: 1.0 };
+        settings.camera.position = Vec3::new(0.0, 0.0, 2.0);
+        settings.camera.look_at = Vec3::ZERO;
+        let config = FlameConfig::default();
+        let mut r = FlameRenderer::new(settings, 101, 101, None).unwrap();
+        let d = config.sph.support_radius_m;
+        let p = Particles {
+            position_m: vec![Vec3::ZERO],
+            temperature_k: vec![6500.0],
+            density_kg_m3: vec![config.sph.rest_density_kg_m3],
+            ..Default::default()
+        };
+        let f = r.render_particles(&p, &config);
+        let centre = f.pixel(50, 50).max_element();
+        assert!((centre - 1.0).abs() < 1e-6, "{centre}");
+        // At r = d/2 (101 px per metre): (1 - 1/4)³ = 0.421875 of the centre.
+        let px = (0.5 * d * 101.0) as usize;
+        let q = (px as f32 / (d * 101.0)).powi(2);
+        let expect = (1.0 - q).powi(3);
+        assert!((f.pixel(50 + px, 50).max_element() - expect).abs() < 1e-5);
+        // Offsets: right of the centre they point right, above it they point up.
+        let [.., ox, oy] = &r.planes;
+        assert!(ox.get(52, 50) > 0.0 && ox.get(48, 50) < 0.0);
+        assert!(oy.get(50, 48) < 0.0 && oy.get(50, 52) > 0.0);
+        assert_eq!(ox.get(0, 0), 0.0);
+    }
+}
