@@ -196,7 +196,7 @@ impl Default for Extended {
     fn default() -> Self {
         Self {
             ambient_temperature_k: 300.0,
-            cooling_time_s: 0.6,
+            cooling_time_s: 1.5,
             temperature_jitter_k: 80.0,
             buoyancy_m_s2_per_k: 1.0e-3,
             clamp_negative_pressure: true,

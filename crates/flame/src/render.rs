@@ -147,7 +147,7 @@ impl Default for RenderSettings {
                 up: Vec3::Y,
                 projection: Projection::Perspective { fov_y_deg: 35.0 },
             },
-            intensity: 0.25,
+            intensity: 0.35,
             splat_radius_scale: 1.0,
             brightness: Brightness::Radiometric,
             reference_temperature_k: 1900.0,

@@ -38,6 +38,8 @@ pub enum FlameError {
 /// Particle state, structure-of-arrays (one `Vec` per attribute, index = particle).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Particles {
+    /// Identity, unique over a simulation's life (the emission order).
+    pub id: Vec<u64>,
     /// Position x, metres.
     pub position_m: Vec<Vec3>,
     /// Velocity u, m/s.
@@ -74,6 +76,7 @@ impl Particles {
     fn check_shape(&self) -> Result<(), FlameError> {
         let n = self.len();
         let lens = [
+            self.id.len(),
             self.velocity_m_s.len(),
             self.mass_kg.len(),
             self.temperature_k.len(),
@@ -103,6 +106,7 @@ impl Particles {
             }
             v.truncate(k);
         }
+        f(&mut self.id, keep);
         f(&mut self.position_m, keep);
         f(&mut self.velocity_m_s, keep);
         f(&mut self.mass_kg, keep);
@@ -121,6 +125,7 @@ impl Particles {
             grid.gather(v, tmp);
             std::mem::swap(v, tmp);
         }
+        g(&mut self.id, grid, &mut s.u64);
         g(&mut self.position_m, grid, &mut s.vec3);
         g(&mut self.velocity_m_s, grid, &mut s.vec3);
         g(&mut self.acceleration_m_s2, grid, &mut s.vec3);
@@ -136,6 +141,7 @@ impl Particles {
 
 #[derive(Clone, Debug, Default)]
 struct Scratch {
+    u64: Vec<u64>,
     vec3: Vec<Vec3>,
     f32: Vec<f32>,
     keep: Vec<bool>,
@@ -174,6 +180,8 @@ pub struct StepStats {
 pub struct FlameState {
     /// Frames completed.
     pub frame: u64,
+    /// Id of the next particle to be born.
+    pub next_id: u64,
     /// The particles.
     pub particles: Particles,
 }
@@ -198,6 +206,7 @@ pub struct FlameSim {
     config: FlameConfig,
     seed: u64,
     frame: u64,
+    next_id: u64,
     particles: Particles,
     grid: NeighborGrid,
     density_kernel: Kernel,
@@ -216,6 +225,7 @@ impl FlameSim {
             config,
             seed,
             frame: 0,
+            next_id: 0,
             particles: Particles::default(),
             grid: NeighborGrid::default(),
             scratch: Scratch::default(),
@@ -227,6 +237,7 @@ impl FlameSim {
         state.particles.check_shape()?;
         let mut sim = Self::new(config, seed)?;
         sim.frame = state.frame;
+        sim.next_id = state.next_id;
         sim.particles = state.particles;
         Ok(sim)
     }
@@ -247,6 +258,7 @@ impl FlameSim {
         let m = config.sph.particle_mass_kg;
         let t = config.emitter.temperature_k;
         let particles = Particles {
+            id: (0..n as u64).collect(),
             position_m: positions_m,
             velocity_m_s: velocities_m_s,
             mass_kg: vec![m; n],
@@ -258,12 +270,12 @@ impl FlameSim {
             pressure_pa: vec![0.0; n],
             acceleration_m_s2: vec![Vec3::ZERO; n],
         };
-        Self::from_state(config, seed, FlameState { frame: 0, particles })
+        Self::from_state(config, seed, FlameState { frame: 0, next_id: n as u64, particles })
     }
 
     /// A checkpoint of the current state.
     pub fn state(&self) -> FlameState {
-        FlameState { frame: self.frame, particles: self.particles.clone() }
+        FlameState { frame: self.frame, next_id: self.next_id, particles: self.particles.clone() }
     }
 
     /// The configuration.
@@ -336,6 +348,8 @@ impl FlameSim {
         let p = &mut self.particles;
         for _ in 0..n {
             let (u, v) = rng.in_unit_disk();
+            p.id.push(self.next_id);
+            self.next_id += 1;
             p.position_m.push(e.position_m + Vec3::new(u * e.radius_m, 0.0, v * e.radius_m));
             let jitter = Vec3::new(rng.normal() as f32, rng.normal() as f32, rng.normal() as f32);
             p.velocity_m_s.push(e.velocity_m_s + jitter * e.velocity_jitter_m_s);
