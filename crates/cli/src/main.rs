@@ -1,10 +1,12 @@
 //! The `phenomena` command line: render scene files to images and export data.
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
+mod demo;
 mod export;
 mod output;
 mod render;
 mod scene;
+mod starter;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -75,6 +77,32 @@ enum Command {
         /// The scene file (TOML).
         scene: PathBuf,
     },
+    /// Write a commented starter scene holding every default.
+    New {
+        /// The phenomenon.
+        #[arg(value_enum)]
+        phenomenon: NewWhat,
+        /// Where to write it (default: ./<phenomenon>.toml).
+        path: Option<PathBuf>,
+        /// Overwrite an existing file.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Render a short showcase of every system into a folder.
+    Demo {
+        /// Output directory.
+        #[arg(long, default_value = "demo-out")]
+        out: PathBuf,
+        /// Worker threads (default: one per core).
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+        threads: Option<u16>,
+    },
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum NewWhat {
+    /// The SPH flame of Inagaki et al.
+    Flame,
 }
 
 #[derive(Subcommand, Debug)]
@@ -129,6 +157,22 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
             export::blackbody(min_k, max_k, step_k, format, &out)
         }
+        Command::New { phenomenon: NewWhat::Flame, path, force } => {
+            let path = path.unwrap_or_else(|| PathBuf::from("flame.toml"));
+            if path.exists() && !force {
+                anyhow::bail!("{} already exists (use --force to overwrite)", path.display());
+            }
+            if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+                output::ensure_dir(parent)?;
+            }
+            output::write_bytes_atomic(&path, starter::FLAME.as_bytes())?;
+            Ok(format!(
+                "wrote {}; render it with: phenomena render {} --out out",
+                path.display(),
+                path.display()
+            ))
+        }
+        Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
         Command::Validate { scene } => {
             let s = scene::load(&scene)?;
             let st = s.settings();

@@ -148,7 +148,13 @@ pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) {
 
 /// Run a render job; returns a one-line summary.
 pub(crate) fn run(job: &RenderJob) -> Result<String> {
-    let mut scene = crate::scene::load(&job.scene_path)?;
+    let scene = crate::scene::load(&job.scene_path)?;
+    run_scene(scene, job)
+}
+
+/// Render an already parsed scene with a job's options (relative asset paths resolve
+/// against the directory of `job.scene_path`).
+pub(crate) fn run_scene(mut scene: Scene, job: &RenderJob) -> Result<String> {
     apply_overrides(&mut scene, job);
     let issues = scene.validate();
     if !issues.is_empty() {

@@ -43,7 +43,7 @@ impl SceneSettings {
         i.count("frames", u64::from(self.frames), 1..=1_000_000);
         i.count("width", u64::from(self.width), 1..=16384);
         i.count("height", u64::from(self.height), 1..=16384);
-        i.range("exposure_ev", f64::from(self.exposure_ev), -32.0..=32.0);
+        i.range("exposure_ev", self.exposure_ev, -32.0..=32.0);
     }
 }
 
@@ -261,7 +261,8 @@ mod tests {
     fn line_and_column_are_one_based_characters() {
         assert_eq!(line_column("ab\ncdé\nx", 0), (1, 1));
         assert_eq!(line_column("ab\ncdé\nx", 3), (2, 1));
-        assert_eq!(line_column("ab\ncdé\nx", 9), (3, 1));
+        assert_eq!(line_column("ab\ncdé\nx", 8), (3, 1));
+        assert_eq!(line_column("ab\ncdé\nx", 99), (3, 2));
         assert_eq!(line_column("ab\ncdé\nx", 7), (2, 4));
     }
 

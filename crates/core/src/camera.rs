@@ -112,14 +112,11 @@ impl Camera {
             );
         }
         match self.projection {
-            Projection::Perspective { fov_y_deg } => issues.range_open_low(
-                &format!("{prefix}.projection.fov_y_deg"),
-                f64::from(fov_y_deg),
-                0.0,
-                179.0,
-            ),
+            Projection::Perspective { fov_y_deg } => {
+                issues.range_open_low(&format!("{prefix}.projection.fov_y_deg"), fov_y_deg, 0.0, 179.0)
+            }
             Projection::Orthographic { height_m } => {
-                issues.range_open_low(&format!("{prefix}.projection.height_m"), f64::from(height_m), 0.0, 1e9)
+                issues.range_open_low(&format!("{prefix}.projection.height_m"), height_m, 0.0, 1e9)
             }
         }
     }

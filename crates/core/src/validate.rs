@@ -43,16 +43,30 @@ impl Issues {
         self.list.push(Issue { field: field.into(), value: value.to_string(), expected: expected.into() });
     }
 
-    /// Require `lo <= value <= hi` (and finite).
-    pub fn range(&mut self, field: &str, value: f64, range: RangeInclusive<f64>) {
-        if !(value.is_finite() && range.contains(&value)) {
+    /// Require `lo <= value <= hi` (and finite). The value is reported as written (an
+    /// `f32` prints as the shortest decimal that reads back to it).
+    pub fn range<T: Into<f64> + fmt::Display + Copy>(
+        &mut self,
+        field: &str,
+        value: T,
+        range: RangeInclusive<f64>,
+    ) {
+        let v: f64 = value.into();
+        if !(v.is_finite() && range.contains(&v)) {
             self.push(field, value, format!("a value in [{}, {}]", range.start(), range.end()));
         }
     }
 
     /// Require `lo < value <= hi` (and finite).
-    pub fn range_open_low(&mut self, field: &str, value: f64, lo: f64, hi: f64) {
-        if !(value.is_finite() && value > lo && value <= hi) {
+    pub fn range_open_low<T: Into<f64> + fmt::Display + Copy>(
+        &mut self,
+        field: &str,
+        value: T,
+        lo: f64,
+        hi: f64,
+    ) {
+        let v: f64 = value.into();
+        if !(v.is_finite() && v > lo && v <= hi) {
             self.push(field, value, format!("a value in ({lo}, {hi}]"));
         }
     }
@@ -98,13 +112,15 @@ mod tests {
     fn collects_every_problem() {
         let mut i = Issues::default();
         i.range("a", f64::NAN, 0.0..=1.0);
+        i.range("f", -0.1f32, 0.0..=1.0);
         i.range("b", 0.5, 0.0..=1.0);
         i.range_open_low("c", 0.0, 0.0, 1.0);
         i.count("d", 0, 1..=10);
         i.vector("e", &[0.0, f32::INFINITY], 10.0);
         let errs = i.into_result().unwrap_err();
         let fields: Vec<&str> = errs.iter().map(|e| e.field.as_str()).collect();
-        assert_eq!(fields, ["a", "c", "d", "e"]);
-        assert_eq!(errs[1].to_string(), "c = 0: expected a value in (0, 1]");
+        assert_eq!(fields, ["a", "f", "c", "d", "e"]);
+        assert_eq!(errs[1].value, "-0.1");
+        assert_eq!(errs[2].to_string(), "c = 0: expected a value in (0, 1]");
     }
 }

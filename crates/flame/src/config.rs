@@ -225,32 +225,32 @@ impl FlameConfig {
     /// `[flame]` table), the value and the valid range.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
-        i.range_open_low("frame_time_s", f64::from(self.frame_time_s), 0.0, 1.0);
+        i.range_open_low("frame_time_s", self.frame_time_s, 0.0, 1.0);
         i.count("substeps", u64::from(self.substeps), 1..=64);
         i.count("max_particles", u64::from(self.max_particles), 1..=10_000_000);
 
         let s = &self.sph;
-        i.range_open_low("sph.support_radius_m", f64::from(s.support_radius_m), 0.0, 100.0);
-        i.range_open_low("sph.particle_mass_kg", f64::from(s.particle_mass_kg), 0.0, 1e6);
-        i.range_open_low("sph.rest_density_kg_m3", f64::from(s.rest_density_kg_m3), 0.0, 1e6);
-        i.range("sph.gas_constant_m2_s2", f64::from(s.gas_constant_m2_s2), 0.0..=1e6);
+        i.range_open_low("sph.support_radius_m", s.support_radius_m, 0.0, 100.0);
+        i.range_open_low("sph.particle_mass_kg", s.particle_mass_kg, 0.0, 1e6);
+        i.range_open_low("sph.rest_density_kg_m3", s.rest_density_kg_m3, 0.0, 1e6);
+        i.range("sph.gas_constant_m2_s2", s.gas_constant_m2_s2, 0.0..=1e6);
         if s.pressure_kernel == KernelKind::CubicSpline {
             i.push("sph.pressure_kernel", "\"cubic-spline\"", "\"poly6\" or \"spiky\"");
         }
 
         let e = &self.emitter;
         i.vector("emitter.position_m", &e.position_m.to_array(), 1e6);
-        i.range("emitter.radius_m", f64::from(e.radius_m), 0.0..=100.0);
-        i.range("emitter.rate_per_s", f64::from(e.rate_per_s), 0.0..=1e7);
+        i.range("emitter.radius_m", e.radius_m, 0.0..=100.0);
+        i.range("emitter.rate_per_s", e.rate_per_s, 0.0..=1e7);
         i.vector("emitter.velocity_m_s", &e.velocity_m_s.to_array(), 1e3);
-        i.range("emitter.velocity_jitter_m_s", f64::from(e.velocity_jitter_m_s), 0.0..=1e3);
-        i.range("emitter.temperature_k", f64::from(e.temperature_k), 1.0..=40_000.0);
-        i.range_open_low("emitter.lifetime_s", f64::from(e.lifetime_s), 0.0, 1e4);
-        i.range("emitter.lifetime_jitter", f64::from(e.lifetime_jitter), 0.0..=1.0);
+        i.range("emitter.velocity_jitter_m_s", e.velocity_jitter_m_s, 0.0..=1e3);
+        i.range("emitter.temperature_k", e.temperature_k, 1.0..=40_000.0);
+        i.range_open_low("emitter.lifetime_s", e.lifetime_s, 0.0, 1e4);
+        i.range("emitter.lifetime_jitter", e.lifetime_jitter, 0.0..=1.0);
 
         i.vector("wind.force_n_m3", &self.wind.force_n_m3.to_array(), 1e6);
         for (k, key) in self.wind.keys.iter().enumerate() {
-            i.range(&format!("wind.keys[{k}].time_s"), f64::from(key.time_s), 0.0..=1e7);
+            i.range(&format!("wind.keys[{k}].time_s"), key.time_s, 0.0..=1e7);
             i.vector(&format!("wind.keys[{k}].force_n_m3"), &key.force_n_m3.to_array(), 1e6);
             if k > 0 && !(key.time_s >= self.wind.keys[k - 1].time_s) {
                 i.push(
@@ -269,10 +269,10 @@ impl FlameConfig {
         }
 
         let x = &self.extended;
-        i.range("extended.ambient_temperature_k", f64::from(x.ambient_temperature_k), 0.0..=40_000.0);
-        i.range_open_low("extended.cooling_time_s", f64::from(x.cooling_time_s), 0.0, 1e6);
-        i.range("extended.temperature_jitter_k", f64::from(x.temperature_jitter_k), 0.0..=10_000.0);
-        i.range("extended.buoyancy_m_s2_per_k", f64::from(x.buoyancy_m_s2_per_k), -1.0..=1.0);
+        i.range("extended.ambient_temperature_k", x.ambient_temperature_k, 0.0..=40_000.0);
+        i.range_open_low("extended.cooling_time_s", x.cooling_time_s, 0.0, 1e6);
+        i.range("extended.temperature_jitter_k", x.temperature_jitter_k, 0.0..=10_000.0);
+        i.range("extended.buoyancy_m_s2_per_k", x.buoyancy_m_s2_per_k, -1.0..=1.0);
 
         let d = &self.domain;
         i.vector("domain.min_m", &d.min_m.to_array(), 1e6);

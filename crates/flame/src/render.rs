@@ -105,7 +105,7 @@ pub enum Background {
 
 impl Default for Background {
     fn default() -> Self {
-        Background::Checker { squares_per_height: 12.0, light: Vec3::splat(0.12), dark: Vec3::splat(0.04) }
+        Background::Checker { squares_per_height: 12.0, light: Vec3::splat(0.08), dark: Vec3::splat(0.02) }
     }
 }
 
@@ -165,16 +165,16 @@ impl RenderSettings {
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
         self.camera.validate(&mut i, "camera");
-        i.range("intensity", f64::from(self.intensity), 0.0..=1e9);
-        i.range_open_low("splat_radius_scale", f64::from(self.splat_radius_scale), 0.0, 100.0);
-        i.range("reference_temperature_k", f64::from(self.reference_temperature_k), 500.0..=40_000.0);
-        i.range_open_low("full_alpha_density_ratio", f64::from(self.full_alpha_density_ratio), 0.0, 1e6);
-        i.range("shimmer.strength_m", f64::from(self.shimmer.strength_m), 0.0..=10.0);
-        i.range_open_low("shimmer.radius_scale", f64::from(self.shimmer.radius_scale), 0.0, 100.0);
-        i.range("resolution_scale", f64::from(self.resolution_scale), 0.125..=1.0);
+        i.range("intensity", self.intensity, 0.0..=1e9);
+        i.range_open_low("splat_radius_scale", self.splat_radius_scale, 0.0, 100.0);
+        i.range("reference_temperature_k", self.reference_temperature_k, 500.0..=40_000.0);
+        i.range_open_low("full_alpha_density_ratio", self.full_alpha_density_ratio, 0.0, 1e6);
+        i.range("shimmer.strength_m", self.shimmer.strength_m, 0.0..=10.0);
+        i.range_open_low("shimmer.radius_scale", self.shimmer.radius_scale, 0.0, 100.0);
+        i.range("resolution_scale", self.resolution_scale, 0.125..=1.0);
         match &self.background {
             Background::Checker { squares_per_height, light, dark } => {
-                i.range_open_low("background.squares_per_height", f64::from(*squares_per_height), 0.0, 1e4);
+                i.range_open_low("background.squares_per_height", *squares_per_height, 0.0, 1e4);
                 i.vector("background.light", &light.to_array(), 1e6);
                 i.vector("background.dark", &dark.to_array(), 1e6);
             }

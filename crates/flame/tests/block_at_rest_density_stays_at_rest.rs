@@ -26,7 +26,8 @@ fn interior_of_a_block_at_rest_density_does_not_move() {
     let centre = (n / 2 * n + n / 2) * n + n / 2; // the middle of the block
     // Measure the lattice's own interior density with the simulation's kernel sum, and
     // make it the rest density: p = 0 inside.
-    let mut probe = FlameSim::with_particles(config.clone(), 1, positions.clone(), vec![Vec3::ZERO; count]).unwrap();
+    let mut probe =
+        FlameSim::with_particles(config.clone(), 1, positions.clone(), vec![Vec3::ZERO; count]).unwrap();
     probe.evaluate_at(0.0).unwrap();
     let pp = probe.particles();
     let at = pp.id.iter().position(|&id| id == centre as u64).unwrap();

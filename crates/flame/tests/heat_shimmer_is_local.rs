@@ -39,7 +39,11 @@ fn shimmer_changes_pixels_near_the_flame_and_leaves_far_ones_untouched() {
         let c = bg.pixel(x, y);
         [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| {
             let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-            nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h && bg.pixel(nx as usize, ny as usize) != c
+            nx >= 0
+                && ny >= 0
+                && (nx as usize) < w
+                && (ny as usize) < h
+                && bg.pixel(nx as usize, ny as usize) != c
         })
     };
     let (mut near_changed, mut near_total, mut far_total) = (0, 0, 0);

@@ -45,7 +45,10 @@ fn check(kernel: KernelKind) {
     let bound = k_max as f64 * f64::from(f32::EPSILON) * scale;
     assert!(scale > 0.0 && k_max > 10, "the cloud must interact (k_max {k_max})");
     for c in total.to_array() {
-        assert!(f64::from(c.abs()) <= bound, "{kernel:?}: Σ m a = {total:?}, bound {bound:e}, scale {scale:e}");
+        assert!(
+            f64::from(c.abs()) <= bound,
+            "{kernel:?}: Σ m a = {total:?}, bound {bound:e}, scale {scale:e}"
+        );
     }
 }
 

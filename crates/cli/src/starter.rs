@@ -1,0 +1,102 @@
+//! `phenomena new`: commented starter scenes holding every default.
+
+/// A flame scene with every parameter at its default, each explained.
+pub(crate) const FLAME: &str = r#"# A phenomena flame scene. Render it with
+#   phenomena render flame.toml --out out/flame
+# Every value below is the default; delete what you do not change.
+# Units are in the names: _m metres, _s seconds, _k kelvin, _kg kilograms.
+
+[scene]
+frames = 120            # frames to render (60 per second of simulated time by default)
+width = 1280            # pixels
+height = 720
+seed = 1                # every random number derives from this
+exposure_ev = 0.0       # PNG only: exposure compensation in stops
+tone_map = "aces"       # PNG only: "aces", "reinhard" or "clamp"
+
+[flame]
+mode = "extended"       # "paper": Inagaki et al. as printed (constant temperature);
+                        # "extended": cooling, buoyancy, no negative pressure
+frame_time_s = 0.016666668   # one frame of 60 fps
+substeps = 1            # SPH steps per frame (the paper: 1)
+max_particles = 200000  # emission pauses at this count
+
+[flame.sph]             # paper §4.2
+support_radius_m = 0.04       # d of the poly6 kernel, eq (2)
+particle_mass_kg = 1e-5       # m, the same for every particle
+rest_density_kg_m3 = 1.0      # ρ0 of eq (11)
+gas_constant_m2_s2 = 0.1      # k of eq (11): p = k(ρ - ρ0)
+pressure_kernel = "spiky"     # gradient in eq (12): "spiky" or "poly6" (as printed)
+
+[flame.emitter]         # the burner, paper §4.3 step 1
+position_m = [0.0, 0.0, 0.0]  # centre of a horizontal disk
+radius_m = 0.08
+rate_per_s = 3000.0           # particles per second
+velocity_m_s = [0.0, 0.8, 0.0]
+velocity_jitter_m_s = 0.05    # standard deviation per axis
+temperature_k = 1900.0
+lifetime_s = 1.0              # particles are removed at the end of their life
+lifetime_jitter = 0.3         # lifetimes spread over ±30 %
+
+[flame.wind]            # the external force, paper §4.2.3
+force_n_m3 = [0.0, 0.0, 0.0]  # constant force per unit volume; or keyframes:
+# [[flame.wind.keys]]
+# time_s = 0.0
+# force_n_m3 = [0.5, 0.0, 0.0]
+
+[flame.extended]        # used only in "extended" mode
+ambient_temperature_k = 300.0
+cooling_time_s = 1.5          # T = T_amb + (T_0 - T_amb) exp(-age / cooling_time_s)
+temperature_jitter_k = 80.0   # spread of the birth temperature
+buoyancy_m_s2_per_k = 0.001   # upward acceleration per kelvin above ambient
+clamp_negative_pressure = true
+
+[flame.domain]          # particles leaving this box are removed
+min_m = [-2.0, -0.5, -2.0]
+max_m = [2.0, 3.0, 2.0]
+
+[render]                # paper §5
+intensity = 0.35              # radiance at the centre of one opaque particle
+splat_radius_scale = 1.0      # splat radius in units of the support radius
+brightness = "radiometric"    # "normalized": colour only (Fig 1); "radiometric": Planck
+reference_temperature_k = 1900.0  # radiometric: brightness 1 at this temperature
+full_alpha_density_ratio = 1.0    # opaque at this multiple of the rest density
+resolution_scale = 1.0        # splat buffers at this fraction of the frame size
+view = "flame"                # "flame", or "density" (particles as squares, Fig 7)
+
+[render.camera]
+position = [0.0, 0.45, 2.2]
+look_at = [0.0, 0.45, 0.0]
+up = [0.0, 1.0, 0.0]
+projection = { kind = "perspective", fov_y_deg = 35.0 }
+# projection = { kind = "orthographic", height_m = 1.5 }
+
+[render.shimmer]        # heat haze, paper §5.3
+enabled = true
+strength_m = 0.002            # largest background shift per particle, metres at the flame
+radius_scale = 1.0            # refraction footprint relative to the splat
+
+[render.background]
+kind = "checker"
+squares_per_height = 12.0
+light = [0.08, 0.08, 0.08]    # linear RGB
+dark = [0.02, 0.02, 0.02]
+# kind = "sky", zenith = [0.01, 0.01, 0.04], horizon = [0.1, 0.05, 0.04]
+# kind = "image", path = "background.png"   (relative to this file)
+# kind = "black"
+"#;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{FlameScene, Scene, parse};
+    use std::path::Path;
+
+    #[test]
+    fn the_starter_holds_exactly_the_defaults() {
+        match parse(FLAME, Path::new("flame.toml")) {
+            Ok(Scene::Flame(s)) => assert_eq!(*s, FlameScene::default()),
+            Err(e) => panic!("{e}"),
+        }
+    }
+}
