@@ -85,10 +85,8 @@ pub fn spectral_line_xyz(observer: Observer, wavelength_nm: f64, power: f64) -> 
 /// (very cold bodies at visible wavelengths) the result is exactly 0, never NaN.
 /// Non-positive or non-finite inputs give 0.
 pub fn planck_exitance(wavelength_nm: f64, temperature_k: f64) -> f64 {
-    if !(wavelength_nm > 0.0 && temperature_k > 0.0)
-        || !wavelength_nm.is_finite()
-        || !temperature_k.is_finite()
-    {
+    let valid = wavelength_nm > 0.0 && temperature_k > 0.0;
+    if !valid || !wavelength_nm.is_finite() || !temperature_k.is_finite() {
         return 0.0;
     }
     let lambda_m = wavelength_nm * 1e-9;

@@ -155,6 +155,7 @@ impl NeighborGrid {
     fn cell_of(&self, c: [f32; 3]) -> usize {
         let mut idx = 0usize;
         let mut stride = 1usize;
+        #[allow(clippy::needless_range_loop)] // three parallel arrays indexed by axis
         for a in 0..self.dim {
             let k =
                 (((c[a] - self.origin[a]) * self.inv_cell).floor().max(0.0) as usize).min(self.dims[a] - 1);

@@ -43,7 +43,7 @@ fn bench(c: &mut Criterion) {
     g.sample_size(20).measurement_time(Duration::from_secs(6)).warm_up_time(Duration::from_secs(2));
     for n in [3_000usize, 10_000, 30_000] {
         let sim = warm(n);
-        eprintln!("n = {n}: {} particles after warm-up", sim.particles().len());
+        assert!(sim.particles().len() > n * 9 / 10, "warm-up reaches about {n} particles");
         g.bench_with_input(BenchmarkId::new("step", n), &n, |b, _| {
             let mut s = sim.clone();
             b.iter(|| black_box(s.step().expect("step")));

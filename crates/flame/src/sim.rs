@@ -535,8 +535,7 @@ mod tests {
 
     #[test]
     fn the_cap_holds_and_is_counted() {
-        let mut c = FlameConfig::default();
-        c.max_particles = 100;
+        let c = FlameConfig { max_particles: 100, ..Default::default() };
         let mut sim = FlameSim::new(c, 1).unwrap();
         let s = sim.step().unwrap();
         assert_eq!(s.particles, 50);
@@ -562,8 +561,7 @@ mod tests {
 
     #[test]
     fn invalid_config_is_refused() {
-        let mut c = FlameConfig::default();
-        c.substeps = 0;
+        let c = FlameConfig { substeps: 0, ..Default::default() };
         assert!(matches!(FlameSim::new(c, 0), Err(FlameError::Config(v)) if v[0].field == "substeps"));
     }
 }
