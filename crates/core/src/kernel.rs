@@ -101,15 +101,14 @@ impl Kernel {
         }
     }
 
-    /// W from the squared distance; poly6 needs no square root.
+    /// W from the squared distance; poly6 needs no square root and no branch (so it can
+    /// be summed over every candidate, inside the support or not: it is exactly 0
+    /// outside, and for NaN or infinite input).
     #[inline]
     pub fn value_sq(&self, r_sq: f32) -> f32 {
         match self.kind {
             KernelKind::Poly6 => {
-                if !(r_sq < self.support_sq) {
-                    return 0.0;
-                }
-                let t = self.support_sq - r_sq;
+                let t = (self.support_sq - r_sq).max(0.0);
                 self.norm * t * t * t
             }
             _ => self.value(r_sq.sqrt()),
@@ -291,6 +290,8 @@ mod tests {
             assert_eq!(k.value(f32::NAN), 0.0);
             assert_eq!(k.gradient_factor(0.0), 0.0);
             assert_eq!(k.value_sq(1.5), 0.0);
+            assert_eq!(k.value_sq(f32::NAN), 0.0);
+            assert_eq!(k.value_sq(f32::INFINITY), 0.0);
         }
     }
 }

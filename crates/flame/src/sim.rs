@@ -398,16 +398,21 @@ impl FlameSim {
                     let xi = pos[i];
                     let mut sum = 0.0f32;
                     // Particles are in cell order, so each run of cells is a contiguous
-                    // range of particle indices.
+                    // range of particle indices. The loop is branch-free: W is exactly 0
+                    // outside the support, and each candidate is written to the list but
+                    // kept only if it is inside.
                     grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
                         let first = run.start;
+                        let base = nb.index.len();
+                        nb.index.resize(base + run.len(), 0);
+                        let mut kept = base;
                         for (k, (p, m)) in pos[run.clone()].iter().zip(&mass[run]).enumerate() {
                             let r2 = (*p - xi).length_squared();
-                            if r2 < d2 {
-                                nb.index.push((first + k) as u32);
-                                sum += m * kernel.value_sq(r2);
-                            }
+                            nb.index[kept] = (first + k) as u32;
+                            kept += usize::from(r2 < d2);
+                            sum += m * kernel.value_sq(r2);
                         }
+                        nb.index.truncate(kept);
                     });
                     rho[o] = sum;
                     let pi = k * (sum - rho0);
