@@ -61,7 +61,7 @@ splat_radius_scale = 1.0      # splat radius in units of the support radius
 brightness = "radiometric"    # "normalized": colour only (Fig 1); "radiometric": Planck
 reference_temperature_k = 1900.0  # radiometric: brightness 1 at this temperature
 full_alpha_density_ratio = 1.0    # opaque at this multiple of the rest density
-resolution_scale = 1.0        # splat buffers at this fraction of the frame size
+resolution_scale = 0.5        # splat buffers at this fraction of the frame (1 = paper)
 view = "flame"                # "flame", or "density" (particles as squares, Fig 7)
 
 [render.camera]
