@@ -837,6 +837,7 @@ mod tests {
             background: Background::Black,
             brightness: Brightness::Normalized,
             intensity: 1.0,
+            resolution_scale: 1.0,
             ..Default::default()
         };
         settings.camera.projection = Projection::Orthographic { height_m: 1.0 };
