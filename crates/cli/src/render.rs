@@ -121,10 +121,10 @@ impl Runner {
         }
     }
 
-    /// Render the current state into `frame` (reused across frames).
-    pub(crate) fn render_into(&mut self, frame: &mut Frame) {
+    /// Render the current state (into the renderer's own frame, reused across frames).
+    pub(crate) fn render(&mut self) -> &Frame {
         match self {
-            Runner::Flame { sim, renderer } => renderer.render_into(sim.particles(), sim.config(), frame),
+            Runner::Flame { sim, renderer } => renderer.render(sim),
         }
     }
 }
@@ -196,7 +196,6 @@ fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<
         .progress_chars("=> "),
     );
     let mut stats_text = String::new();
-    let mut image = Frame::new(0, 0);
     let (mut written, mut skipped) = (0u32, 0u32);
     for frame in 0..range.end {
         let t0 = Instant::now();
@@ -212,10 +211,10 @@ fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<
             } else {
                 bar.set_message("rendering");
                 let t1 = Instant::now();
-                runner.render_into(&mut image);
+                let image = runner.render();
                 stats.render_ms = Some(t1.elapsed().as_secs_f64() * 1e3);
                 let t2 = Instant::now();
-                output::write_frame(&path, &image, job.format, &exposure)?;
+                output::write_frame(&path, image, job.format, &exposure)?;
                 stats.write_ms = Some(t2.elapsed().as_secs_f64() * 1e3);
                 written += 1;
             }

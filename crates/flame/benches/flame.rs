@@ -49,9 +49,10 @@ fn bench(c: &mut Criterion) {
             b.iter(|| black_box(s.step().expect("step")));
         });
         for scale in [1.0f32, 0.5] {
+            // An animation renders into the renderer's own frame, reused every frame.
             let mut r = renderer(n, scale);
             g.bench_with_input(BenchmarkId::new(format!("render_1280x720_scale{scale}"), n), &n, |b, _| {
-                b.iter(|| black_box(r.render(&sim)));
+                b.iter(|| black_box(r.render(&sim).width()));
             });
             let mut r = renderer(n, scale);
             g.bench_with_input(
@@ -61,7 +62,7 @@ fn bench(c: &mut Criterion) {
                     let mut s = sim.clone();
                     b.iter(|| {
                         s.step().expect("step");
-                        black_box(r.render(&s))
+                        black_box(r.render(&s).width())
                     });
                 },
             );

@@ -21,11 +21,12 @@
 //!     sim.step().unwrap();
 //! }
 //! let mut renderer = FlameRenderer::new(RenderSettings::default(), 64, 36, None).unwrap();
+//! let background = renderer.background().clone();
 //! let frame = renderer.render(&sim);
 //! // The flame is brighter than the background it is drawn over.
 //! let (w, h) = (frame.width(), frame.height());
 //! let brightest = (0..w * h).map(|i| frame.pixel(i % w, i / w).max_element()).fold(0.0, f32::max);
-//! assert!(brightest > renderer.background().pixel(0, 0).max_element());
+//! assert!(brightest > background.pixel(0, 0).max_element());
 //! ```
 //!
 //! # Feature flags

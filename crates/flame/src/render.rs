@@ -286,6 +286,12 @@ pub struct FlameRenderer {
     /// Per splat-buffer row, the columns any splat touched (start..end; empty if none),
     /// so that compositing only works where the flame or its shimmer is.
     spans: Vec<(u32, u32)>,
+    /// The output frame, kept between renders.
+    frame: Frame,
+    /// Per output row, the columns where `frame` may differ from the background (what
+    /// the last render wrote); everywhere else it already equals the background, so a
+    /// new render only rewrites these columns and its own.
+    dirty: Vec<(u32, u32)>,
 }
 
 impl FlameRenderer {
@@ -326,6 +332,8 @@ impl FlameRenderer {
             bins: vec![Vec::new(); bands],
             planes: std::array::from_fn(|_| Plane::new(splat_w, splat_h)),
             spans: vec![(0, 0); splat_h],
+            frame: Frame::new(width, height),
+            dirty: vec![(0, width as u32); height],
         })
     }
 
@@ -344,36 +352,25 @@ impl FlameRenderer {
         &self.background
     }
 
-    /// Render the simulation's current state.
-    pub fn render(&mut self, sim: &FlameSim) -> Frame {
-        let mut out = Frame::new(self.width, self.height);
-        self.render_into(sim.particles(), sim.config(), &mut out);
-        out
+    /// Render the simulation's current state. The frame is the renderer's own buffer,
+    /// reused from frame to frame (clone it to keep it).
+    pub fn render(&mut self, sim: &FlameSim) -> &Frame {
+        self.render_particles(sim.particles(), sim.config())
     }
 
     /// Render particles simulated with `config` (its support radius and rest density
     /// set the splat size and the alpha scale).
-    pub fn render_particles(&mut self, p: &Particles, config: &FlameConfig) -> Frame {
-        let mut out = Frame::new(self.width, self.height);
-        self.render_into(p, config, &mut out);
-        out
-    }
-
-    /// Render into an existing frame (reallocated only if its size differs), so that an
-    /// animation allocates its frame once.
-    pub fn render_into(&mut self, p: &Particles, config: &FlameConfig, out: &mut Frame) {
-        if out.width() != self.width || out.height() != self.height {
-            *out = Frame::new(self.width, self.height);
-        }
+    pub fn render_particles(&mut self, p: &Particles, config: &FlameConfig) -> &Frame {
         match self.settings.view {
             View::Flame => {
                 self.prepare_splats(p, config);
                 self.bin_splats();
                 self.splat_bands();
-                self.composite(out);
+                self.composite();
             }
-            View::Density => self.render_density(p, config, out),
+            View::Density => self.render_density(p, config),
         }
+        &self.frame
     }
 
     /// Project particles and compute their colours (in parallel, order-preserving).
@@ -462,8 +459,9 @@ impl FlameRenderer {
     }
 
     /// Distort the background by the offsets and add the flame, row by row; rows and
-    /// columns no splat touched are a plain copy of the background.
-    fn composite(&self, out: &mut Frame) {
+    /// columns no splat touched are a plain copy of the background (written only where
+    /// the previous frame had something else there).
+    fn composite(&mut self) {
         let (w, h) = (self.width, self.height);
         let (sw, sh) = (self.splat_w, self.splat_h);
         let same = sw == w && sh == h;
@@ -479,19 +477,25 @@ impl FlameRenderer {
         let planes = &self.planes;
         let spans = &self.spans;
         let bg = &self.background;
-        let [o0, o1, o2] = out.planes_mut();
+        let [o0, o1, o2] = self.frame.planes_mut();
         o0.data_mut()
             .par_chunks_mut(w)
             .zip(o1.data_mut().par_chunks_mut(w))
             .zip(o2.data_mut().par_chunks_mut(w))
+            .zip(self.dirty.par_iter_mut())
             .enumerate()
             .for_each_init(
                 || [(); 5].map(|_| vec![0.0f32; sw]),
-                |tmp, (y, ((c0, c1), c2))| {
-                    let row = y * w..(y + 1) * w;
-                    c0.copy_from_slice(&bg.c0.data()[row.clone()]);
-                    c1.copy_from_slice(&bg.c1.data()[row.clone()]);
-                    c2.copy_from_slice(&bg.c2.data()[row]);
+                |tmp, (y, (((c0, c1), c2), dirty))| {
+                    // Restore the background where the last frame wrote.
+                    let (d_lo, d_hi) = (dirty.0 as usize, dirty.1 as usize);
+                    if d_lo < d_hi {
+                        let row = y * w + d_lo..y * w + d_hi;
+                        c0[d_lo..d_hi].copy_from_slice(&bg.c0.data()[row.clone()]);
+                        c1[d_lo..d_hi].copy_from_slice(&bg.c1.data()[row.clone()]);
+                        c2[d_lo..d_hi].copy_from_slice(&bg.c2.data()[row]);
+                    }
+                    *dirty = (0, 0);
                     // Source rows and blend weight (bilinear in y, clamped at the edges).
                     let (y0, y1, ty) = if same {
                         (y, y, 0.0)
@@ -527,6 +531,7 @@ impl FlameRenderer {
                             (((hi as f32 + 1.0) / kx) as usize + 1).min(w),
                         )
                     };
+                    *dirty = (x_lo as u32, x_hi as u32);
                     for x in x_lo..x_hi {
                         let v: [f32; 5] = if same {
                             std::array::from_fn(|p| tmp[p][x])
@@ -549,8 +554,11 @@ impl FlameRenderer {
 
     /// Fig 7: particles as squares, coloured from blue (ρ = 0) to red (ρ ≥ 2ρ0), painted
     /// far to near.
-    fn render_density(&mut self, p: &Particles, config: &FlameConfig, out: &mut Frame) {
+    fn render_density(&mut self, p: &Particles, config: &FlameConfig) {
         self.prepare_splats(p, config);
+        // The whole frame is redrawn: mark it all as differing from the background.
+        self.dirty.fill((0, self.width as u32));
+        let out = &mut self.frame;
         let mut order: Vec<(f32, u32)> =
             self.splats.iter().enumerate().filter_map(|(i, s)| s.map(|s| (s.depth, i as u32))).collect();
         order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));

@@ -11,7 +11,8 @@ fn half_resolution_splatting_keeps_the_light_of_full_resolution() {
         sim.step().unwrap();
     }
     let render = |scale: f32| {
-        let mut s = RenderSettings { background: Background::Black, resolution_scale: scale, ..Default::default() };
+        let mut s =
+            RenderSettings { background: Background::Black, resolution_scale: scale, ..Default::default() };
         s.shimmer.enabled = false;
         FlameRenderer::new(s, 640, 360, None).unwrap().render(&sim).to_interleaved()
     };

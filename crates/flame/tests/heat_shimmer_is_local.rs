@@ -14,8 +14,8 @@ fn shimmer_changes_pixels_near_the_flame_and_leaves_far_ones_untouched() {
     let mut off = on.clone();
     off.shimmer.enabled = false;
     let mut r_on = FlameRenderer::new(on.clone(), w, h, None).unwrap();
-    let img_on = r_on.render(&sim);
-    let img_off = FlameRenderer::new(off, w, h, None).unwrap().render(&sim);
+    let img_on = r_on.render(&sim).clone();
+    let img_off = FlameRenderer::new(off, w, h, None).unwrap().render(&sim).clone();
 
     // Footprints of the particles' refraction textures, in pixels (plus 2 px for the
     // bilinear background lookup at their rim).

@@ -18,8 +18,9 @@ fn run(threads: usize) -> (phenomena_flame::FlameState, Vec<f32>) {
             let _ = r.render(&sim);
         }
         let settings = RenderSettings { resolution_scale: 0.5, ..Default::default() };
-        let frame = FlameRenderer::new(settings, 200, 120, None).unwrap().render(&sim);
-        (sim.state(), frame.to_interleaved())
+        let mut r = FlameRenderer::new(settings, 200, 120, None).unwrap();
+        let frame = r.render(&sim).to_interleaved();
+        (sim.state(), frame)
     })
 }
 

@@ -15,7 +15,8 @@ fn bright_centroid_x(wind_x: f32) -> f32 {
     let mut settings = RenderSettings { background: Background::Black, ..Default::default() };
     settings.shimmer.enabled = false;
     let (w, h) = (160, 90);
-    let frame = FlameRenderer::new(settings, w, h, None).unwrap().render(&sim);
+    let mut renderer = FlameRenderer::new(settings, w, h, None).unwrap();
+    let frame = renderer.render(&sim);
     let lum = |x, y| f64::from(frame.pixel(x, y).dot(Vec3::new(0.2126, 0.7152, 0.0722)));
     let (mut sx, mut total) = (0.0, 0.0);
     for y in 0..h {
