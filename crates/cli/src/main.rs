@@ -82,7 +82,7 @@ enum Command {
         /// The phenomenon.
         #[arg(value_enum)]
         phenomenon: NewWhat,
-        /// Where to write it (default: ./<phenomenon>.toml).
+        /// Where to write it (default: `./PHENOMENON.toml`).
         path: Option<PathBuf>,
         /// Overwrite an existing file.
         #[arg(long)]

@@ -640,112 +640,64 @@ impl BandBuffers<'_> {
         *s = if s.0 < s.1 { (s.0.min(a), s.1.max(b)) } else { (a, b) };
     }
 
-    /// Add one particle: its flame profile and, if enabled, its refraction offsets.
+    /// Add one particle: its flame profile and, if enabled, its refraction offsets, in
+    /// one pass when both footprints have the same radius (the paper's textures of Figs
+    /// 2 and 3 are the same size), else in two.
     fn splat(&mut self, s: &Splat) {
-        if s.shimmer_px > 0.0 && s.shimmer_radius == s.radius {
-            self.fused(s);
+        let shimmer = s.shimmer_px > 0.0;
+        if shimmer && s.shimmer_radius == s.radius {
+            self.stamp::<true, true>(s, s.radius);
         } else {
-            self.flame(s);
-            if s.shimmer_px > 0.0 {
-                self.shimmer(s);
+            self.stamp::<true, false>(s, s.radius);
+            if shimmer {
+                self.stamp::<false, true>(s, s.shimmer_radius);
             }
         }
     }
 
-    /// Fig 2: radiance × (1 - r²/R²)³, the poly6 profile normalised to 1 at the centre.
-    fn flame(&mut self, s: &Splat) {
-        let r2 = s.radius * s.radius;
+    /// Stamp one particle's disk of `radius` into the band:
+    /// - `FLAME` (Fig 2): radiance × (1 - r²/R²)³, the poly6 profile normalised to 1 at
+    ///   the centre;
+    /// - `SHIMMER` (Fig 3): the refraction direction, the poly6 gradient profile
+    ///   (r/R)(1 - r²/R²)² pointing away from the particle (light bends towards the
+    ///   denser, cooler air), normalised to a peak of 1 and scaled to `shimmer_px`.
+    fn stamp<const FLAME: bool, const SHIMMER: bool>(&mut self, s: &Splat, radius: f32) {
+        let r2 = radius * radius;
         if !(r2 > 0.0) {
             return;
         }
         let inv_r2 = 1.0 / r2;
-        let (rows, left) = self.disk(s.x, s.y, s.radius);
+        let scale = s.shimmer_px / (GRADIENT_PROFILE_MAX * radius);
+        let (cr, cg, cb) = (s.color.x, s.color.y, s.color.z);
+        let (rows, left) = self.disk(s.x, s.y, radius);
         for ly in rows {
             let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
             let dy2 = dy * dy;
             let at = ly * self.w + left;
             let dx = &self.dx[..];
-            let cols = at..at + dx.len();
             let n = dx.len();
-            let (r, g, b) =
-                (&mut self.r[cols.clone()][..n], &mut self.g[cols.clone()][..n], &mut self.b[cols][..n]);
-            let (cr, cg, cb) = (s.color.x, s.color.y, s.color.z);
-            for k in 0..n {
-                let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
-                let t = if t > 0.0 { t } else { 0.0 };
-                let wgt = t * t * t;
-                r[k] += wgt * cr;
-                g[k] += wgt * cg;
-                b[k] += wgt * cb;
-            }
-        }
-    }
-
-    /// Fig 3: the refraction direction, the poly6 gradient profile (r/R)(1 - r²/R²)²
-    /// pointing away from the particle (light bends towards the denser, cooler air),
-    /// normalised to a peak of 1 and scaled to `shimmer_px`.
-    fn shimmer(&mut self, s: &Splat) {
-        let r2 = s.shimmer_radius * s.shimmer_radius;
-        if !(r2 > 0.0) {
-            return;
-        }
-        let inv_r2 = 1.0 / r2;
-        let scale = s.shimmer_px / (GRADIENT_PROFILE_MAX * s.shimmer_radius);
-        let (rows, left) = self.disk(s.x, s.y, s.shimmer_radius);
-        for ly in rows {
-            let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
-            let dy2 = dy * dy;
-            let at = ly * self.w + left;
-            let dx = &self.dx[..];
-            let cols = at..at + dx.len();
-            let n = dx.len();
-            let (ox, oy) = (&mut self.ox[cols.clone()][..n], &mut self.oy[cols][..n]);
-            for k in 0..n {
-                let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
-                let t = if t > 0.0 { t } else { 0.0 };
-                let wgt = t * t * scale;
-                ox[k] += wgt * dx[k];
-                oy[k] += wgt * dy;
-            }
-        }
-    }
-
-    /// [`Self::flame`] and [`Self::shimmer`] in one pass when both have the same radius
-    /// (the paper's textures of Figs 2 and 3 are the same size): bit-identical sums,
-    /// one evaluation of the profile.
-    fn fused(&mut self, s: &Splat) {
-        let r2 = s.radius * s.radius;
-        if !(r2 > 0.0) {
-            return;
-        }
-        let inv_r2 = 1.0 / r2;
-        let scale = s.shimmer_px / (GRADIENT_PROFILE_MAX * s.shimmer_radius);
-        let (rows, left) = self.disk(s.x, s.y, s.radius);
-        for ly in rows {
-            let dy = (self.row0 + ly) as f32 + 0.5 - s.y;
-            let dy2 = dy * dy;
-            let at = ly * self.w + left;
-            let dx = &self.dx[..];
-            let cols = at..at + dx.len();
-            let n = dx.len();
+            let cols = at..at + n;
             let (r, g, b) = (
                 &mut self.r[cols.clone()][..n],
                 &mut self.g[cols.clone()][..n],
                 &mut self.b[cols.clone()][..n],
             );
             let (ox, oy) = (&mut self.ox[cols.clone()][..n], &mut self.oy[cols][..n]);
-            let (cr, cg, cb) = (s.color.x, s.color.y, s.color.z);
             for k in 0..n {
                 let t = 1.0 - (dx[k] * dx[k] + dy2) * inv_r2;
                 let t = if t > 0.0 { t } else { 0.0 };
                 let t2 = t * t;
-                let wgt = t2 * t;
-                r[k] += wgt * cr;
-                g[k] += wgt * cg;
-                b[k] += wgt * cb;
-                let sw = t2 * scale;
-                ox[k] += sw * dx[k];
-                oy[k] += sw * dy;
+                if FLAME {
+                    let wgt = t2 * t;
+                    r[k] += wgt * cr;
+                    g[k] += wgt * cg;
+                    b[k] += wgt * cb;
+                }
+                if SHIMMER {
+                    let sw = t2 * scale;
+                    ox[k] += sw * dx[k];
+                    oy[k] += sw * dy;
+                }
             }
         }
     }
