@@ -175,6 +175,10 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
         Command::Validate { scene } => {
             let s = scene::load(&scene)?;
+            // Everything `render` checks before its first frame: assets load and the
+            // simulation and renderer accept the scene.
+            let dir = scene.parent().unwrap_or(std::path::Path::new(".")).to_path_buf();
+            render::Runner::new(&s, &dir)?;
             let st = s.settings();
             Ok(format!(
                 "{}: ok ({} scene, {} frames at {}x{}, seed {})",

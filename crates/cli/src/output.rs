@@ -75,13 +75,20 @@ pub(crate) fn write_frame(
     match format {
         ImageFormat::Png => write_png_rgb8(path, w, h, &to_srgb8(frame, exposure)),
         ImageFormat::Exr => write_atomic(path, |tmp| {
+            use exr::prelude::*;
             let data = frame.to_interleaved();
             let width = frame.width();
-            exr::prelude::write_rgb_file(tmp, frame.width(), frame.height(), |x, y| {
+            let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
                 let i = (y * width + x) * 3;
                 (data[i], data[i + 1], data[i + 2])
-            })
-            .with_context(|| format!("cannot write {}", tmp.display()))
+            });
+            // One thread, blocks in order: the same pixels give the same bytes (the
+            // parallel writer emits compressed blocks in completion order).
+            Image::from_channels((frame.width(), frame.height()), channels)
+                .write()
+                .non_parallel()
+                .to_file(tmp)
+                .with_context(|| format!("cannot write {}", tmp.display()))
         }),
     }
 }

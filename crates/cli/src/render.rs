@@ -163,12 +163,23 @@ pub(crate) fn run_scene(mut scene: Scene, job: &RenderJob) -> Result<String> {
         let list: Vec<String> = issues.iter().map(|i| format!("  {i}")).collect();
         bail!("the command-line options make the scene invalid:\n{}", list.join("\n"));
     }
-    let range = job.frames.clone().unwrap_or(0..scene.settings().frames);
+    let total = scene.settings().frames;
+    let range = job.frames.clone().unwrap_or(0..total);
+    if range.end > total {
+        bail!(
+            "--frames {}..{} goes past the scene's {total} frames (0..{total}): choose frames below {total} or raise [scene] frames",
+            range.start,
+            range.end
+        );
+    }
     output::ensure_dir(&job.out_dir)?;
-    if let Some(stats) = &job.stats
-        && let Some(parent) = stats.parent().filter(|p| !p.as_os_str().is_empty())
-    {
-        output::ensure_dir(parent)?;
+    if let Some(stats) = &job.stats {
+        if stats.is_dir() {
+            bail!("--stats {} is a directory: give a file name", stats.display());
+        }
+        if let Some(parent) = stats.parent().filter(|p| !p.as_os_str().is_empty()) {
+            output::ensure_dir(parent)?;
+        }
     }
 
     let threads = job.threads.unwrap_or(0);
@@ -195,8 +206,40 @@ fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<
         .unwrap_or_else(|_| ProgressStyle::default_bar())
         .progress_chars("=> "),
     );
-    let mut stats_text = String::new();
-    let (mut written, mut skipped) = (0u32, 0u32);
+    let mut tally = Tally::default();
+    let result = render_loop(&mut runner, job, &range, &exposure, &bar, &mut tally);
+    bar.finish_and_clear();
+    // The stats of the frames done are written even when a later frame failed.
+    if let Some(path) = &job.stats {
+        output::write_bytes_atomic(path, tally.stats_text.as_bytes())?;
+    }
+    result?;
+    let Tally { written, skipped, .. } = tally;
+    Ok(format!(
+        "{}: wrote {written} frame(s){} to {} in {:.1} s",
+        scene.phenomenon(),
+        if skipped > 0 { format!(", kept {skipped} finished frame(s)") } else { String::new() },
+        job.out_dir.display(),
+        started.elapsed().as_secs_f64()
+    ))
+}
+
+/// What a render loop has done so far.
+#[derive(Default)]
+struct Tally {
+    stats_text: String,
+    written: u32,
+    skipped: u32,
+}
+
+fn render_loop(
+    runner: &mut Runner,
+    job: &RenderJob,
+    range: &Range<u32>,
+    exposure: &phenomena_core::tonemap::Exposure,
+    bar: &ProgressBar,
+    tally: &mut Tally,
+) -> Result<()> {
     for frame in 0..range.end {
         let t0 = Instant::now();
         let mut stats = runner.step().with_context(|| format!("simulation failed at frame {frame}"))?;
@@ -206,7 +249,7 @@ fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<
             let path = job.out_dir.join(format!("frame_{frame:05}.{}", job.format.extension()));
             if job.resume && path.is_file() {
                 stats.skipped = true;
-                skipped += 1;
+                tally.skipped += 1;
                 bar.set_message("resuming");
             } else {
                 bar.set_message("rendering");
@@ -214,30 +257,20 @@ fn render_frames(scene: &Scene, scene_dir: &Path, job: &RenderJob, range: Range<
                 let image = runner.render();
                 stats.render_ms = Some(t1.elapsed().as_secs_f64() * 1e3);
                 let t2 = Instant::now();
-                output::write_frame(&path, image, job.format, &exposure)?;
+                output::write_frame(&path, image, job.format, exposure)?;
                 stats.write_ms = Some(t2.elapsed().as_secs_f64() * 1e3);
-                written += 1;
+                tally.written += 1;
             }
             if job.stats.is_some() {
                 let line = serde_json::to_string(&stats).context("cannot encode stats")?;
-                let _ = writeln!(stats_text, "{line}");
+                let _ = writeln!(tally.stats_text, "{line}");
             }
         } else {
             bar.set_message("simulating");
         }
         bar.inc(1);
     }
-    bar.finish_and_clear();
-    if let Some(path) = &job.stats {
-        output::write_bytes_atomic(path, stats_text.as_bytes())?;
-    }
-    Ok(format!(
-        "{}: wrote {written} frame(s){} to {} in {:.1} s",
-        scene.phenomenon(),
-        if skipped > 0 { format!(", kept {skipped} finished frame(s)") } else { String::new() },
-        job.out_dir.display(),
-        started.elapsed().as_secs_f64()
-    ))
+    Ok(())
 }
 
 #[cfg(test)]

@@ -162,7 +162,7 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
     })?;
     let present: Vec<&str> = PHENOMENA.iter().copied().filter(|p| root.get_ref().get(*p).is_some()).collect();
     let scene = match present.as_slice() {
-        ["flame"] => toml::from_str::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
+        ["flame"] => deserialize_all::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
         [] => {
             return Err(SceneErrors(vec![at(
                 0,
@@ -181,7 +181,9 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
             )]));
         }
     }
-    .map_err(|e| SceneErrors(vec![at(e.span().map_or(0, |s| s.start), e.message().trim().to_string())]))?;
+    .map_err(|errors| {
+        SceneErrors(errors.into_iter().map(|(offset, message)| at(offset, message)).collect())
+    })?;
 
     let issues = scene.validate();
     if issues.is_empty() {
@@ -190,6 +192,69 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
     Err(SceneErrors(
         issues.into_iter().map(|issue| at(locate(root.get_ref(), &issue.field), issue.to_string())).collect(),
     ))
+}
+
+/// Deserialize, collecting every unknown key and bad value rather than stopping at the
+/// first: after each error the offending `key = value` is blanked out (positions kept)
+/// and the text is read again. Returns (byte offset, message) per problem.
+fn deserialize_all<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Vec<(usize, String)>> {
+    const MAX_ERRORS: usize = 50;
+    let mut work = text.to_string();
+    let mut errors: Vec<(usize, String)> = Vec::new();
+    while errors.len() < MAX_ERRORS {
+        match toml::from_str::<T>(&work) {
+            Ok(value) if errors.is_empty() => return Ok(value),
+            Ok(_) => break,
+            Err(e) => {
+                let offset = e.span().map_or(0, |s| s.start);
+                let message = e.message().trim().to_string();
+                if errors.last().is_some_and(|last| last.0 == offset && last.1 == message) {
+                    break; // blanking did not remove the cause (e.g. a missing field)
+                }
+                errors.push((offset, message));
+                let Some(range) =
+                    DeTable::parse(&work).ok().and_then(|root| entry_at(root.get_ref(), offset))
+                else {
+                    break;
+                };
+                let blanked: String = work[range.clone()]
+                    .chars()
+                    .map(|c| if c == '\n' || c == '\r' { c } else { ' ' })
+                    .collect();
+                work.replace_range(range, &blanked);
+                if DeTable::parse(&work).is_err() {
+                    break; // blanking inside an inline table broke the syntax: stop here
+                }
+            }
+        }
+    }
+    errors.sort_by_key(|e| e.0);
+    Err(errors)
+}
+
+/// The byte range `key = value` of the innermost entry whose key or value contains
+/// `offset`.
+fn entry_at(table: &DeTable<'_>, offset: usize) -> Option<std::ops::Range<usize>> {
+    for (key, value) in table.iter() {
+        // Spans of header tables do not always cover their bodies: look inside first.
+        let inner = match value.get_ref() {
+            DeValue::Table(t) => entry_at(t, offset),
+            DeValue::Array(a) => a.iter().find_map(|el| match el.get_ref() {
+                DeValue::Table(t) => entry_at(t, offset),
+                _ => None,
+            }),
+            _ => None,
+        };
+        if inner.is_some() {
+            return inner;
+        }
+        let (k, v) = (key.span(), value.span());
+        let whole = k.start.min(v.start)..k.end.max(v.end);
+        if whole.contains(&offset) && !matches!(value.get_ref(), DeValue::Table(_)) {
+            return Some(whole);
+        }
+    }
+    None
 }
 
 /// Read and parse a scene file.
@@ -274,6 +339,18 @@ mod tests {
     }
 
     #[test]
+    fn every_unknown_key_and_bad_value_is_reported() {
+        let e = errors(
+            "[scene]\nwidth = 0\nframez = 3\n[flame]\nsubstepz = 2\n[flame.sph]\ngas_constant = -1\nsupport_radius_m = \"big\"\n",
+        );
+        assert_eq!(e.len(), 4, "{e:?}");
+        assert!(e[0].starts_with("s.toml:3:1: unknown field `framez`"), "{e:?}");
+        assert!(e.iter().any(|m| m.starts_with("s.toml:5:1: unknown field `substepz`")), "{e:?}");
+        assert!(e.iter().any(|m| m.starts_with("s.toml:7:1: unknown field `gas_constant`")), "{e:?}");
+        assert!(e.iter().any(|m| m.starts_with("s.toml:8:")), "{e:?}");
+    }
+
+    #[test]
     fn unknown_keys_are_located() {
         let e = errors("[flame]\n[flame.sph]\nsupport_radius = 0.1\n");
         assert_eq!(e.len(), 1);
@@ -296,6 +373,16 @@ mod tests {
         assert!(e[0].contains("no phenomenon table"), "{e:?}");
         let e = errors("[flmae]\n");
         assert!(e[0].contains("no phenomenon table"), "{e:?}");
+    }
+
+    #[test]
+    fn the_readme_scene_example_is_valid() {
+        let readme = include_str!("../../../README.md");
+        let start = readme.find("```toml\n").expect("README has a TOML example") + 8;
+        let end = start + readme[start..].find("```").expect("closed");
+        if let Err(e) = parse(&readme[start..end], Path::new("README.md")) {
+            panic!("{e}");
+        }
     }
 
     #[test]

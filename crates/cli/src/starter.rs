@@ -64,7 +64,7 @@ full_alpha_density_ratio = 1.0    # opaque at this multiple of the rest density
 resolution_scale = 0.5        # splat buffers at this fraction of the frame (1 = paper)
 view = "flame"                # "flame", or "density" (particles as squares, Fig 7)
 
-[render.camera]
+[render.camera]                # if given, position, look_at and projection are required
 position = [0.0, 0.45, 2.2]
 look_at = [0.0, 0.45, 0.0]
 up = [0.0, 1.0, 0.0]
@@ -81,9 +81,11 @@ kind = "checker"
 squares_per_height = 12.0
 light = [0.08, 0.08, 0.08]    # linear RGB
 dark = [0.02, 0.02, 0.02]
-# kind = "sky", zenith = [0.01, 0.01, 0.04], horizon = [0.1, 0.05, 0.04]
-# kind = "image", path = "background.png"   (relative to this file)
-# kind = "black"
+# or, instead of the three lines above:
+# kind = "sky"
+# zenith = [0.004, 0.006, 0.02]
+# horizon = [0.07, 0.035, 0.03]
+# or: kind = "image" with path = "background.png" (relative to this file), or kind = "black"
 "#;
 
 #[cfg(test)]

@@ -46,11 +46,14 @@ pub enum Projection {
 #[serde(deny_unknown_fields)]
 pub struct Camera {
     /// Eye position, metres.
+    #[serde(deserialize_with = "crate::serde_vec::vec3")]
     pub position: Vec3,
     /// Point the camera looks at, metres.
+    #[serde(deserialize_with = "crate::serde_vec::vec3")]
     pub look_at: Vec3,
     /// Approximate up direction (need not be orthogonal to the view direction).
     #[serde(default = "default_up")]
+    #[serde(deserialize_with = "crate::serde_vec::vec3")]
     pub up: Vec3,
     /// Projection.
     pub projection: Projection,

@@ -11,7 +11,6 @@
 //! | cubic spline | 8 / (π d³) | 40 / (7π d²) | Monaghan 1992; aurora thesis eq (2.17)-(2.18) with h = d/2 |
 
 use serde::{Deserialize, Serialize};
-use std::f32::consts::PI;
 
 /// Which kernel function.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -37,6 +36,10 @@ pub enum Dim {
 }
 
 /// A normalised SPH kernel with a fixed support radius.
+///
+/// Stored in scaled form, W(r) = σ/d^D · f(r/d) with σ the dimensionless factor of the
+/// table above: the coefficients stay representable in f32 for any support radius from
+/// 1e-6 to 1e6 (a literal 315/(64π d⁹) overflows below d ≈ 5.6e-5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Kernel {
     kind: KernelKind,
@@ -44,27 +47,41 @@ pub struct Kernel {
     support: f32,
     support_sq: f32,
     inv_support: f32,
-    norm: f32,
+    inv_support_sq: f32,
+    /// σ / d^D: the value scale.
+    value_scale: f32,
+    /// σ / d^(D+1): the derivative scale (dW/dr = this × f'(q)).
+    deriv_scale: f32,
 }
 
 impl Kernel {
     /// A kernel of `kind` in `dim` dimensions with support radius `support` (> 0).
-    ///
-    /// # Panics
-    /// Never for finite positive `support`; a non-positive support yields a kernel that
-    /// is zero everywhere (callers validate their configuration first).
+    /// A non-positive or non-finite support yields a kernel that is zero everywhere
+    /// (callers validate their configuration first).
     pub fn new(kind: KernelKind, dim: Dim, support: f32) -> Self {
-        let d = support.max(f32::MIN_POSITIVE);
-        let norm = match (kind, dim) {
-            (KernelKind::Poly6, Dim::Three) => 315.0 / (64.0 * PI * d.powi(9)),
-            (KernelKind::Poly6, Dim::Two) => 4.0 / (PI * d.powi(8)),
-            (KernelKind::Spiky, Dim::Three) => 15.0 / (PI * d.powi(6)),
-            (KernelKind::Spiky, Dim::Two) => 10.0 / (PI * d.powi(5)),
-            (KernelKind::CubicSpline, Dim::Three) => 8.0 / (PI * d.powi(3)),
-            (KernelKind::CubicSpline, Dim::Two) => 40.0 / (7.0 * PI * d.powi(2)),
+        use std::f64::consts::PI;
+        let valid = support > 0.0 && support.is_finite();
+        let d = if valid { f64::from(support) } else { 1.0 };
+        // Dimensionless factors σ with W = σ/d^D f(q), q = r/d.
+        let (sigma, power) = match (kind, dim) {
+            (KernelKind::Poly6, Dim::Three) => (315.0 / (64.0 * PI), 3),
+            (KernelKind::Poly6, Dim::Two) => (4.0 / PI, 2),
+            (KernelKind::Spiky, Dim::Three) => (15.0 / PI, 3),
+            (KernelKind::Spiky, Dim::Two) => (10.0 / PI, 2),
+            (KernelKind::CubicSpline, Dim::Three) => (8.0 / PI, 3),
+            (KernelKind::CubicSpline, Dim::Two) => (40.0 / (7.0 * PI), 2),
         };
-        let norm = if support > 0.0 && norm.is_finite() { norm } else { 0.0 };
-        Self { kind, dim, support: d, support_sq: d * d, inv_support: 1.0 / d, norm }
+        let scale = if valid { sigma / d.powi(power) } else { 0.0 };
+        Self {
+            kind,
+            dim,
+            support: d as f32,
+            support_sq: (d * d) as f32,
+            inv_support: (1.0 / d) as f32,
+            inv_support_sq: (1.0 / (d * d)) as f32,
+            value_scale: scale as f32,
+            deriv_scale: (scale / d) as f32,
+        }
     }
 
     /// The kernel kind.
@@ -88,16 +105,17 @@ impl Kernel {
         if !(r < self.support) {
             return 0.0;
         }
+        let q = r * self.inv_support;
         match self.kind {
             KernelKind::Poly6 => {
-                let t = self.support_sq - r * r;
-                self.norm * t * t * t
+                let t = 1.0 - q * q;
+                self.value_scale * t * t * t
             }
             KernelKind::Spiky => {
-                let t = self.support - r;
-                self.norm * t * t * t
+                let t = 1.0 - q;
+                self.value_scale * t * t * t
             }
-            KernelKind::CubicSpline => self.norm * spline_shape(r * self.inv_support),
+            KernelKind::CubicSpline => self.value_scale * spline_shape(q),
         }
     }
 
@@ -108,8 +126,8 @@ impl Kernel {
     pub fn value_sq(&self, r_sq: f32) -> f32 {
         match self.kind {
             KernelKind::Poly6 => {
-                let t = (self.support_sq - r_sq).max(0.0);
-                self.norm * t * t * t
+                let t = (1.0 - r_sq * self.inv_support_sq).max(0.0);
+                self.value_scale * t * t * t
             }
             _ => self.value(r_sq.sqrt()),
         }
@@ -121,18 +139,17 @@ impl Kernel {
         if !(r < self.support) {
             return 0.0;
         }
+        let q = r * self.inv_support;
         match self.kind {
             KernelKind::Poly6 => {
-                let t = self.support_sq - r * r;
-                -6.0 * self.norm * r * t * t
+                let t = 1.0 - q * q;
+                -6.0 * self.deriv_scale * q * t * t
             }
             KernelKind::Spiky => {
-                let t = self.support - r;
-                -3.0 * self.norm * t * t
+                let t = 1.0 - q;
+                -3.0 * self.deriv_scale * t * t
             }
-            KernelKind::CubicSpline => {
-                self.norm * spline_shape_derivative(r * self.inv_support) * self.inv_support
-            }
+            KernelKind::CubicSpline => self.deriv_scale * spline_shape_derivative(q),
         }
     }
 
@@ -144,10 +161,11 @@ impl Kernel {
             return 0.0;
         }
         match self.kind {
-            // Avoid the division: dW/dr / r = -6σ (d² - r²)².
+            // Avoid the division: (dW/dr)/r = -6 σ/d^(D+2) (1 - q²)².
             KernelKind::Poly6 => {
-                let t = self.support_sq - r * r;
-                -6.0 * self.norm * t * t
+                let q = r * self.inv_support;
+                let t = 1.0 - q * q;
+                -6.0 * self.deriv_scale * self.inv_support * t * t
             }
             _ => self.derivative(r) / r,
         }
@@ -182,6 +200,7 @@ fn spline_shape_derivative(q: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f32::consts::PI;
 
     const KINDS: [KernelKind; 3] = [KernelKind::Poly6, KernelKind::Spiky, KernelKind::CubicSpline];
 
@@ -292,6 +311,21 @@ mod tests {
             assert_eq!(k.value_sq(1.5), 0.0);
             assert_eq!(k.value_sq(f32::NAN), 0.0);
             assert_eq!(k.value_sq(f32::INFINITY), 0.0);
+        }
+    }
+
+    #[test]
+    fn tiny_and_huge_supports_stay_finite_and_normalised() {
+        // 315/(64π d⁹) would overflow f32 below d ≈ 5.6e-5; the scaled form does not.
+        for support in [1e-6_f32, 4e-5, 1e5] {
+            for kind in KINDS {
+                for dim in [Dim::Two, Dim::Three] {
+                    let k = Kernel::new(kind, dim, support);
+                    assert!(k.value(0.0).is_finite() && k.value(0.0) > 0.0, "{kind:?} {dim:?} {support}");
+                    let integral = radial_integral(&k);
+                    assert!((integral - 1.0).abs() < 1e-3, "{kind:?} {dim:?} d={support}: {integral}");
+                }
+            }
         }
     }
 }

@@ -9,6 +9,7 @@
 //! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
 //! - [`camera`]: look-at cameras with perspective and orthographic projection.
 //! - [`validate`]: configuration problems that name the field, the value and the valid range.
+//! - [`serde_vec`]: strict `[x, y, z]` parsing for configuration files.
 //!
 //! This crate does no file, terminal or network IO.
 //!
@@ -32,5 +33,6 @@ pub mod image;
 pub mod kernel;
 pub mod noise;
 pub mod rng;
+pub mod serde_vec;
 pub mod tonemap;
 pub mod validate;

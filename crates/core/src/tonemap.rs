@@ -46,7 +46,9 @@ impl Exposure {
     #[inline]
     fn apply_scaled(&self, linear: f32, scale: f32) -> f32 {
         let x = linear * scale;
-        let x = if x.is_nan() { 0.0 } else { x.max(0.0) };
+        // Every operator is within 1e-6 of white at 1e6 (8-bit code 255); clamping there
+        // keeps x·(a·x + b) from overflowing to inf/inf = NaN for extreme radiance.
+        let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1e6) };
         let y = match self.tone_map {
             ToneMap::Clamp => x,
             ToneMap::Reinhard => x / (1.0 + x),
@@ -76,6 +78,10 @@ mod tests {
             }
             assert_eq!(e.apply(f32::NAN), 0.0);
             assert_eq!(e.apply(-5.0), 0.0);
+            // Extreme radiance saturates to white, never NaN (which would encode black).
+            for v in [1e19, 1e30, f32::MAX, f32::INFINITY] {
+                assert!(e.apply(v) >= 0.999_999, "{tone_map:?} at {v}: {}", e.apply(v));
+            }
         }
     }
 

@@ -18,7 +18,9 @@ use serde::{Deserialize, Serialize};
 pub enum Mode {
     /// The paper as printed: each particle keeps the temperature it was born with (§4.1),
     /// pressure may be negative (eq 11), and the only external force is the wind (§4.2.3).
-    /// The `[flame.extended]` table is ignored.
+    /// The `[flame.extended]` table is ignored. Rendering is chosen separately in
+    /// `[render]`: the paper's Fig 1 colours are `brightness = "normalized"` and its
+    /// per-pixel splats `resolution_scale = 1` (as in `scenes/flame-paper.toml`).
     Paper,
     /// The paper plus documented extensions from `[flame.extended]`: temperature cools with
     /// age (Newton's law) so the tips redden, hot gas is buoyant, and negative pressure
@@ -101,12 +103,14 @@ impl Default for SphParams {
 #[serde(deny_unknown_fields, default)]
 pub struct Emitter {
     /// Centre of the burner disk, metres.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub position_m: Vec3,
     /// Radius of the burner disk (in the x-z plane), metres.
     pub radius_m: f32,
     /// Particles added per second (spread evenly over frames, fractions carried over).
     pub rate_per_s: f32,
     /// Initial velocity, m/s.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub velocity_m_s: Vec3,
     /// Standard deviation of a random velocity added per axis, m/s.
     pub velocity_jitter_m_s: f32,
@@ -139,6 +143,7 @@ impl Default for Emitter {
 #[serde(deny_unknown_fields, default)]
 pub struct Wind {
     /// Constant wind force density, N/m³ (used when `keys` is empty).
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub force_n_m3: Vec3,
     /// Keyframes, linearly interpolated in time and held constant outside their span.
     pub keys: Vec<WindKey>,
@@ -151,6 +156,7 @@ pub struct WindKey {
     /// Time of the key, seconds from the start.
     pub time_s: f32,
     /// Wind force density at that time, N/m³.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub force_n_m3: Vec3,
 }
 
@@ -209,8 +215,10 @@ impl Default for Extended {
 #[serde(deny_unknown_fields, default)]
 pub struct Domain {
     /// Lower corner, metres.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub min_m: Vec3,
     /// Upper corner, metres.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub max_m: Vec3,
 }
 
@@ -220,6 +228,15 @@ impl Default for Domain {
     }
 }
 
+/// Most particles one frame may emit.
+pub const MAX_EMITTED_PER_FRAME: f64 = 100_000.0;
+
+/// Whether the burner disk lies inside the domain box.
+fn burner_inside(e: &Emitter, d: &Domain) -> bool {
+    let r = Vec3::new(e.radius_m, 0.0, e.radius_m);
+    (e.position_m - r).cmpge(d.min_m).all() && (e.position_m + r).cmple(d.max_m).all()
+}
+
 impl FlameConfig {
     /// Every problem with this configuration, each naming the field (relative to the
     /// `[flame]` table), the value and the valid range.
@@ -227,10 +244,10 @@ impl FlameConfig {
         let mut i = Issues::default();
         i.range_open_low("frame_time_s", self.frame_time_s, 0.0, 1.0);
         i.count("substeps", u64::from(self.substeps), 1..=64);
-        i.count("max_particles", u64::from(self.max_particles), 1..=10_000_000);
+        i.count("max_particles", u64::from(self.max_particles), 1..=2_000_000);
 
         let s = &self.sph;
-        i.range_open_low("sph.support_radius_m", s.support_radius_m, 0.0, 100.0);
+        i.range("sph.support_radius_m", s.support_radius_m, 1e-4..=100.0);
         i.range_open_low("sph.particle_mass_kg", s.particle_mass_kg, 0.0, 1e6);
         i.range_open_low("sph.rest_density_kg_m3", s.rest_density_kg_m3, 0.0, 1e6);
         i.range("sph.gas_constant_m2_s2", s.gas_constant_m2_s2, 0.0..=1e6);
@@ -247,6 +264,18 @@ impl FlameConfig {
         i.range("emitter.temperature_k", e.temperature_k, 1.0..=40_000.0);
         i.range_open_low("emitter.lifetime_s", e.lifetime_s, 0.0, 1e4);
         i.range("emitter.lifetime_jitter", e.lifetime_jitter, 0.0..=1.0);
+        // One frame's particles land on the burner at once: bound them so a typo cannot
+        // pile millions of particles onto one disk.
+        let per_frame = f64::from(e.rate_per_s) * f64::from(self.frame_time_s);
+        if per_frame.is_finite() && per_frame > MAX_EMITTED_PER_FRAME {
+            i.push(
+                "emitter.rate_per_s",
+                e.rate_per_s,
+                format!(
+                    "at most {MAX_EMITTED_PER_FRAME} particles per frame (rate × frame_time_s is {per_frame:.0})"
+                ),
+            );
+        }
 
         i.vector("wind.force_n_m3", &self.wind.force_n_m3.to_array(), 1e6);
         for (k, key) in self.wind.keys.iter().enumerate() {
@@ -279,6 +308,17 @@ impl FlameConfig {
         i.vector("domain.max_m", &d.max_m.to_array(), 1e6);
         if !d.max_m.cmpgt(d.min_m).all() {
             i.push("domain.max_m", format!("{:?}", d.max_m.to_array()), "every component above domain.min_m");
+        } else if !burner_inside(e, d) {
+            i.push(
+                "emitter.position_m",
+                format!("{:?}", e.position_m.to_array()),
+                format!(
+                    "a burner (radius {} m) inside the domain {:?}..{:?}",
+                    e.radius_m,
+                    d.min_m.to_array(),
+                    d.max_m.to_array()
+                ),
+            );
         } else if s.support_radius_m > 0.0 {
             let cells = ((d.max_m - d.min_m) / s.support_radius_m).ceil() + Vec3::ONE;
             let cells = f64::from(cells.x) * f64::from(cells.y) * f64::from(cells.z);

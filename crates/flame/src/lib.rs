@@ -36,9 +36,11 @@ mod config;
 mod render;
 mod sim;
 
-pub use config::{Domain, Emitter, Extended, FlameConfig, Mode, SphParams, Wind, WindKey};
+pub use config::{
+    Domain, Emitter, Extended, FlameConfig, MAX_EMITTED_PER_FRAME, Mode, SphParams, Wind, WindKey,
+};
 pub use render::{
     BAND_ROWS, Background, BlackbodyLut, Brightness, FlameRenderer, RenderError, RenderSettings, Shimmer,
     View, frame_from_srgb8,
 };
-pub use sim::{FlameError, FlameSim, FlameState, Particles, StepStats};
+pub use sim::{FlameError, FlameSim, FlameState, MAX_NEIGHBORS, Particles, StepStats};

@@ -82,17 +82,22 @@ pub enum Background {
     /// A checkerboard in image space, the clearest way to see shimmer.
     Checker {
         /// Checker squares per image height.
+        #[serde(default = "default_squares")]
         squares_per_height: f32,
         /// Linear RGB of the light squares.
+        #[serde(default = "default_light", deserialize_with = "phenomena_core::serde_vec::vec3")]
         light: Vec3,
         /// Linear RGB of the dark squares.
+        #[serde(default = "default_dark", deserialize_with = "phenomena_core::serde_vec::vec3")]
         dark: Vec3,
     },
     /// A vertical gradient from `horizon` (bottom) to `zenith` (top), linear RGB.
     Sky {
         /// Colour at the top of the image.
+        #[serde(default = "default_zenith", deserialize_with = "phenomena_core::serde_vec::vec3")]
         zenith: Vec3,
         /// Colour at the bottom of the image.
+        #[serde(default = "default_horizon", deserialize_with = "phenomena_core::serde_vec::vec3")]
         horizon: Vec3,
     },
     /// A PNG file, stretched to the frame; the path is relative to the scene file. The
@@ -103,9 +108,29 @@ pub enum Background {
     },
 }
 
+fn default_squares() -> f32 {
+    12.0
+}
+fn default_light() -> Vec3 {
+    Vec3::splat(0.08)
+}
+fn default_dark() -> Vec3 {
+    Vec3::splat(0.02)
+}
+fn default_zenith() -> Vec3 {
+    Vec3::new(0.004, 0.006, 0.02)
+}
+fn default_horizon() -> Vec3 {
+    Vec3::new(0.07, 0.035, 0.03)
+}
+
 impl Default for Background {
     fn default() -> Self {
-        Background::Checker { squares_per_height: 12.0, light: Vec3::splat(0.08), dark: Vec3::splat(0.02) }
+        Background::Checker {
+            squares_per_height: default_squares(),
+            light: default_light(),
+            dark: default_dark(),
+        }
     }
 }
 
@@ -512,16 +537,6 @@ impl FlameRenderer {
                         (false, false) => return,
                     };
                     let (lo, hi) = (lo as usize, hi as usize);
-                    // Vertical pass: blend the two source rows over the touched span
-                    // (plus one column each side for the horizontal taps).
-                    let (s_lo, s_hi) = (lo.saturating_sub(1), (hi + 1).min(sw));
-                    for (p, t) in tmp.iter_mut().enumerate() {
-                        let r0 = &planes[p].data()[y0 * sw + s_lo..y0 * sw + s_hi];
-                        let r1 = &planes[p].data()[y1 * sw + s_lo..y1 * sw + s_hi];
-                        for ((t, &a), &b) in t[s_lo..s_hi].iter_mut().zip(r0).zip(r1) {
-                            *t = a + (b - a) * ty;
-                        }
-                    }
                     // Output columns whose bilinear footprint meets the touched span.
                     let (x_lo, x_hi) = if same {
                         (lo, hi)
@@ -532,6 +547,23 @@ impl FlameRenderer {
                         )
                     };
                     *dirty = (x_lo as u32, x_hi as u32);
+                    if x_lo >= x_hi {
+                        return;
+                    }
+                    // Vertical pass over every source column those outputs read (the
+                    // splat planes are zero outside the touched span).
+                    let (s_lo, s_hi) = if same {
+                        (x_lo, x_hi)
+                    } else {
+                        (taps[x_lo].0 as usize, taps[x_hi - 1].1 as usize + 1)
+                    };
+                    for (p, t) in tmp.iter_mut().enumerate() {
+                        let r0 = &planes[p].data()[y0 * sw + s_lo..y0 * sw + s_hi];
+                        let r1 = &planes[p].data()[y1 * sw + s_lo..y1 * sw + s_hi];
+                        for ((t, &a), &b) in t[s_lo..s_hi].iter_mut().zip(r0).zip(r1) {
+                            *t = a + (b - a) * ty;
+                        }
+                    }
                     for x in x_lo..x_hi {
                         let v: [f32; 5] = if same {
                             std::array::from_fn(|p| tmp[p][x])
@@ -622,13 +654,15 @@ impl BandBuffers<'_> {
         let top = (y - radius).max(self.row0 as f32) as usize;
         let bottom = (((y + radius).max(0.0) as usize) + 2).min(self.row0 + self.rows);
         let rows = top.max(self.row0) - self.row0..bottom.max(top) - self.row0;
-        let left = (x - radius).max(0.0) as usize;
-        let right = (((x + radius).max(0.0) as usize) + 2).min(self.w);
+        let left = ((x - radius).max(0.0) as usize).min(self.w);
+        let right = ((((x + radius).max(0.0) as usize) + 2).min(self.w)).max(left);
         self.dx.clear();
-        self.dx.extend((left..right.max(left)).map(|c| c as f32 + 0.5 - x));
-        let cols = left..right.max(left);
-        for ly in rows.clone() {
-            self.touch(ly, &cols);
+        self.dx.extend((left..right).map(|c| c as f32 + 0.5 - x));
+        if left < right {
+            let cols = left..right;
+            for ly in rows.clone() {
+                self.touch(ly, &cols);
+            }
         }
         (rows, left)
     }

@@ -15,6 +15,13 @@ const EMIT: Purpose = Purpose::named("flame.emit");
 /// Particles per parallel work item: large enough to amortise scheduling, fixed so the
 /// split never depends on the thread count (each particle's sum is independent anyway).
 const CHUNK: usize = 512;
+/// Most neighbours a particle may have (within the support radius, itself included).
+/// A flame has a few dozen; thousands mean particles piled on each other, which would
+/// make the step quadratic in their number.
+pub const MAX_NEIGHBORS: usize = 2048;
+/// Candidates examined between checks of the neighbour limit.
+const LIMIT_CHECK: usize = 256;
+
 /// Grid cells per support radius. Cells of d/2 searched two rings deep test 42 % fewer
 /// candidates (15.6 d³ of volume instead of 27 d³), but a dispersing flame fills few of
 /// the 8× more cells and the grid's per-cell work then dominates: cells of d measured
@@ -28,8 +35,17 @@ pub enum FlameError {
     #[error("invalid flame configuration: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
     Config(Vec<Issue>),
     /// The neighbour grid could not be built (e.g. a particle became non-finite).
-    #[error("neighbour search failed: {0}")]
+    #[error("neighbour search failed")]
     Grid(#[from] GridError),
+    /// A particle has more neighbours than the SPH step can afford.
+    #[error(
+        "a particle has more than {limit} neighbours within the support radius: the gas is too dense \
+         (emit fewer particles per frame, widen the burner, or use a smaller support radius)"
+    )]
+    TooDense {
+        /// The neighbour limit.
+        limit: usize,
+    },
     /// Supplied particle arrays have different lengths.
     #[error("particle arrays differ in length: {0}")]
     Shape(String),
@@ -311,9 +327,13 @@ impl FlameSim {
             let t = self.time_s() as f32 + sub as f32 * h;
             self.evaluate_at(t)?;
             self.integrate(h);
+            stats.neighbor_pairs = self.scratch.neighbors.iter().map(|c| c.index.len()).sum();
+            // Remove after every substep, so the next neighbour search only sees
+            // particles inside the (validated) domain.
+            let (expired, outside) = self.remove_dead();
+            stats.expired += expired;
+            stats.left_domain += outside;
         }
-        stats.neighbor_pairs = self.scratch.neighbors.iter().map(|c| c.index.len()).sum();
-        (stats.expired, stats.left_domain) = self.remove_dead();
         self.frame += 1;
         stats.particles = self.particles.len();
         Ok(stats)
@@ -327,7 +347,7 @@ impl FlameSim {
         self.grid.build(&self.particles.position_m, d / GRID_RINGS as f32)?;
         self.particles.gather(&self.grid, &mut self.scratch);
         self.grid.mark_points_sorted();
-        self.compute_density_pressure();
+        self.compute_density_pressure()?;
         self.compute_accelerations(time_s);
         Ok(())
     }
@@ -373,7 +393,7 @@ impl FlameSim {
     /// Steps (2)-(3): find and store every pair closer than d (§4.3: "the combinations
     /// of particles are remembered"), and with them ρ_i = Σ_j m_j W_poly6(|x_i - x_j|)
     /// (eq 2, 3) and p_i = k(ρ_i - ρ0) (eq 11).
-    fn compute_density_pressure(&mut self) {
+    fn compute_density_pressure(&mut self) -> Result<(), FlameError> {
         let d2 = self.config.sph.support_radius_m.powi(2);
         let k = self.config.sph.gas_constant_m2_s2;
         let rho0 = self.config.sph.rest_density_kg_m3;
@@ -383,6 +403,7 @@ impl FlameSim {
         let chunks = n.div_ceil(CHUNK);
         self.scratch.neighbors.resize_with(chunks, NeighborChunk::default);
         let (pos, mass, grid) = (&self.particles.position_m, &self.particles.mass_kg, &self.grid);
+        let too_dense = std::sync::atomic::AtomicBool::new(false);
         self.particles
             .density_kg_m3
             .par_chunks_mut(CHUNK)
@@ -393,7 +414,8 @@ impl FlameSim {
                 nb.start.clear();
                 nb.index.clear();
                 for o in 0..rho.len() {
-                    nb.start.push(nb.index.len() as u32);
+                    let own = nb.index.len();
+                    nb.start.push(own as u32);
                     let i = c * CHUNK + o;
                     let xi = pos[i];
                     let mut sum = 0.0f32;
@@ -402,17 +424,25 @@ impl FlameSim {
                     // outside the support, and each candidate is written to the list but
                     // kept only if it is inside.
                     grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
-                        let first = run.start;
-                        let base = nb.index.len();
-                        nb.index.resize(base + run.len(), 0);
-                        let mut kept = base;
-                        for (k, (p, m)) in pos[run.clone()].iter().zip(&mass[run]).enumerate() {
-                            let r2 = (*p - xi).length_squared();
-                            nb.index[kept] = (first + k) as u32;
-                            kept += usize::from(r2 < d2);
-                            sum += m * kernel.value_sq(r2);
+                        let mut start = run.start;
+                        while start < run.end {
+                            if nb.index.len() - own > MAX_NEIGHBORS {
+                                too_dense.store(true, std::sync::atomic::Ordering::Relaxed);
+                                return;
+                            }
+                            let end = (start + LIMIT_CHECK).min(run.end);
+                            let base = nb.index.len();
+                            nb.index.resize(base + (end - start), 0);
+                            let mut kept = base;
+                            for (k, (p, m)) in pos[start..end].iter().zip(&mass[start..end]).enumerate() {
+                                let r2 = (*p - xi).length_squared();
+                                nb.index[kept] = (start + k) as u32;
+                                kept += usize::from(r2 < d2);
+                                sum += m * kernel.value_sq(r2);
+                            }
+                            nb.index.truncate(kept);
+                            start = end;
                         }
-                        nb.index.truncate(kept);
                     });
                     rho[o] = sum;
                     let pi = k * (sum - rho0);
@@ -420,6 +450,10 @@ impl FlameSim {
                 }
                 nb.start.push(nb.index.len() as u32);
             });
+        if too_dense.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(FlameError::TooDense { limit: MAX_NEIGHBORS });
+        }
+        Ok(())
     }
 
     /// Step (4)-(5a): the symmetrised pressure force of eq (12),

@@ -14,6 +14,14 @@ fn syntax_errors_name_file_line_and_column() {
 }
 
 #[test]
+fn vectors_need_exactly_three_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "v.toml", "[flame.emitter]\nposition_m = [0, 0, 0, 5]\n");
+    let e = fails(dir.path(), &["validate", &scene]);
+    assert!(e.contains("v.toml:2:14: expected an array of exactly 3 numbers, found 4"), "{e}");
+}
+
+#[test]
 fn unknown_keys_and_out_of_range_values_are_all_reported() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write(dir.path(), "typo.toml", "[flame]\n[flame.emitter]\nrate = 5\n");
@@ -27,7 +35,7 @@ fn unknown_keys_and_out_of_range_values_are_all_reported() {
     let e = fails(dir.path(), &["validate", &scene]);
     assert!(e.contains("range.toml:2:10: scene.frames = 0: expected an integer in [1, 1000000]"), "{e}");
     assert!(
-        e.contains("range.toml:4:20: flame.sph.support_radius_m = -0.1: expected a value in (0, 100]"),
+        e.contains("range.toml:4:20: flame.sph.support_radius_m = -0.1: expected a value in [0.0001, 100]"),
         "{e}"
     );
     assert!(
@@ -67,5 +75,9 @@ fn command_line_values_are_checked() {
     let out = run(dir.path(), &["render", &scene, "--out", "o", "--frames", "9..3"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("empty range"));
+    let e = fails(dir.path(), &["render", &scene, "--out", "o", "--frames", "3..6"]);
+    assert!(e.contains("--frames 3..6 goes past the scene's 4 frames"), "{e}");
+    let e = fails(dir.path(), &["render", &scene, "--out", "o", "--frames", "4000000000"]);
+    assert!(e.contains("goes past the scene's 4 frames"), "{e}");
     ok(dir.path(), &["validate", &scene]);
 }

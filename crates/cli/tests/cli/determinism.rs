@@ -18,6 +18,12 @@ fn one_and_two_threads_write_identical_files() {
         let b = std::fs::read(dir.path().join("t2").join(&name)).unwrap();
         assert!(a == b, "{name} differs between 1 and 2 threads");
     }
+    // EXR too: one writer thread, blocks in order.
+    ok(dir.path(), &["render", &scene, "--out", "e1", "--threads", "1", "--frames", "19", "--format", "exr"]);
+    ok(dir.path(), &["render", &scene, "--out", "e2", "--threads", "2", "--frames", "19", "--format", "exr"]);
+    let a = std::fs::read(dir.path().join("e1/frame_00019.exr")).unwrap();
+    let b = std::fs::read(dir.path().join("e2/frame_00019.exr")).unwrap();
+    assert!(a == b, "EXR differs between 1 and 2 threads");
     // And a different seed gives a different image.
     ok(dir.path(), &["render", &scene, "--out", "s", "--seed", "10", "--frames", "19"]);
     let a = std::fs::read(dir.path().join("t1/frame_00019.png")).unwrap();
