@@ -1,8 +1,21 @@
 //! Artist-controllable aurora, after Sekiguchi, "Artist-controllable aurora" (2018,
 //! `shared/papers/aurora-artist-controllable-sekiguchi-2018.txt`).
 //!
-//! Part 1 (this crate so far): artist shapes and keyframes ([`shape`]), the electric
-//! field from charges near the intermediate target shape, and the charged-particle motion.
+//! Part 1: artist shapes and keyframes ([`shape`], §2.2.1-2.2.2), the electric field of
+//! charges near the intermediate target shape ([`field`], §2.2.3), the charged-particle
+//! motion ([`motion`], §2.3) and the simulation that ties them together ([`AuroraSim`],
+//! with the redistribution of §2.3.4); [`plane`] draws the x-z plane from above.
+//!
+//! Lengths are km in the x-z plane; y (up) is the magnetic field's direction.
 
+mod config;
 pub mod field;
+pub mod motion;
+pub mod plane;
 pub mod shape;
+mod sim;
+
+pub use config::{
+    AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
+};
+pub use sim::{AuroraError, AuroraSim, FieldState, StepStats};

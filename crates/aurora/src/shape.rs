@@ -69,6 +69,7 @@ pub struct Keyframe {
     /// Frame number of this shape.
     pub frame: u32,
     /// One stroke (list of [x, z] samples, km) per sheet, in drawing order.
+    #[serde(deserialize_with = "phenomena_core::serde_vec::point_lists2")]
     pub sheets: Vec<Vec<[f32; 2]>>,
 }
 

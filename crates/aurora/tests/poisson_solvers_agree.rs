@@ -2,7 +2,9 @@
 //! that the thesis's Gauss-Seidel iteration (eq 2.6) converges to.
 
 use glam::Vec2;
-use phenomena_aurora::field::{Grid, Poisson, Sampler, count_per_cell, residual_max, sample_near_shape, solve_potential};
+use phenomena_aurora::field::{
+    Grid, Poisson, Sampler, count_per_cell, residual_max, sample_near_shape, solve_potential,
+};
 use phenomena_aurora::shape::Shape;
 
 #[test]

@@ -40,6 +40,27 @@ pub fn points2<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<[f32; 2]>, D::Erro
         .collect()
 }
 
+/// Lists of point lists (e.g. strokes), each point exactly `[x, y]`.
+pub fn point_lists2<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<[f32; 2]>>, D::Error> {
+    let v = Vec::<Vec<Vec<f32>>>::deserialize(d)?;
+    v.iter()
+        .enumerate()
+        .map(|(l, list)| {
+            list.iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    <[f32; 2]>::try_from(p.as_slice()).map_err(|_| {
+                        D::Error::custom(format!(
+                            "list {l}, point {i}: expected an array of exactly 2 numbers, found {}",
+                            p.len()
+                        ))
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

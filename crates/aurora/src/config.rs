@@ -1,0 +1,348 @@
+//! Aurora parameters, deserialisable from a scene's `[aurora]` table. Defaults follow
+//! the thesis's Tables 3.2 and 3.3 where it gives values; the rest are ours, documented.
+
+use glam::Vec2;
+use phenomena_core::noise::{FractalNoise, NoiseKind};
+use phenomena_core::validate::{Issue, Issues};
+use serde::{Deserialize, Serialize};
+
+use crate::field::{Poisson, Sampler};
+use crate::shape::{Keyframe, Merge, Resample, Split};
+
+/// Complete aurora configuration (part 1: shapes, field, motion, redistribution).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AuroraConfig {
+    /// The simulation plane (x-z, seen from above).
+    pub plane: Plane,
+    /// How strokes become shapes over time.
+    pub shape: ShapeParams,
+    /// The source shape (first) and target shapes (later), with their frames.
+    pub keyframes: Vec<Keyframe>,
+    /// Splits (Fig 2.4).
+    pub splits: Vec<Split>,
+    /// Merges (Fig 2.5).
+    pub merges: Vec<Merge>,
+    /// The electric field (§2.2.3).
+    pub field: FieldParams,
+
+    /// Charged-particle motion (§2.3).
+    pub motion: MotionParams,
+    /// Removing and adding particles when the shape is renewed (§2.3.4, Table 3.3).
+    pub redistribution: Redistribution,
+}
+
+impl Default for AuroraConfig {
+    fn default() -> Self {
+        Self {
+            plane: Plane::default(),
+            shape: ShapeParams::default(),
+            keyframes: default_keyframes(),
+            splits: Vec::new(),
+            merges: Vec::new(),
+            field: FieldParams::default(),
+            motion: MotionParams::default(),
+            redistribution: Redistribution::default(),
+        }
+    }
+}
+
+/// A gentle single-sheet arc that sways: something to see with no keyframes given.
+fn default_keyframes() -> Vec<Keyframe> {
+    let arc = |bend: f32| -> Vec<[f32; 2]> {
+        (0..9)
+            .map(|i| {
+                let t = i as f32 / 8.0;
+                [60.0 + 280.0 * t, 200.0 + bend * (std::f32::consts::PI * t).sin()]
+            })
+            .collect()
+    };
+    vec![Keyframe { frame: 0, sheets: vec![arc(-40.0)] }, Keyframe { frame: 140, sheets: vec![arc(50.0)] }]
+}
+
+/// The x-z simulation plane and its grid.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Plane {
+    /// Size of the plane (x, z), km; shapes are drawn in [0, size].
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec2")]
+    pub size_km: Vec2,
+    /// Grid cells along x and z (Table 3.2: 256 × 256).
+    pub cells: [u32; 2],
+}
+
+impl Default for Plane {
+    fn default() -> Self {
+        Self { size_km: Vec2::splat(400.0), cells: [256, 256] }
+    }
+}
+
+/// Shapes and their renewal.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShapeParams {
+    /// Control points per sheet, n (Fig 3.1: 32).
+    pub control_points_per_sheet: u32,
+    /// Resampling rule of eq (2.1).
+    pub resample: Resample,
+    /// The intermediate target shape is regenerated every K frames (§2.2.2: 5-10).
+    pub renew_every_frames: u32,
+    /// The renewed shape is the one this many frames ahead: where the particles should
+    /// be when the next renewal comes (0 = the current frame's shape).
+    pub lookahead_frames: u32,
+}
+
+impl Default for ShapeParams {
+    fn default() -> Self {
+        Self {
+            control_points_per_sheet: 32,
+            resample: Resample::Endpoints,
+            renew_every_frames: 7,
+            lookahead_frames: 7,
+        }
+    }
+}
+
+/// The electric field of the intermediate target shape.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FieldParams {
+    /// Charges are placed within this distance L_thr of the shape's segments, km.
+    pub reach_km: f32,
+    /// Charges placed per renewal (their counts per cell are N(i, j)).
+    pub charges: u32,
+    /// How charges are placed.
+    pub sampler: Sampler,
+    /// How the Poisson equation is solved.
+    pub poisson: Poisson,
+    /// Noise added to the potential (Fig 2.11): `amplitude` is relative to the largest
+    /// |φ|, `frequency` in cycles per km; time advances at `time_frequency_hz`.
+    pub noise: FractalNoise,
+    /// Rate at which the noise's third coordinate advances, per second.
+    pub noise_time_frequency_hz: f64,
+}
+
+impl Default for FieldParams {
+    fn default() -> Self {
+        Self {
+            reach_km: 6.0,
+            charges: 120_000,
+            sampler: Sampler::Direct,
+            poisson: Poisson::Direct,
+            noise: FractalNoise {
+                kind: NoiseKind::Perlin,
+                seed: 0,
+                octaves: 3,
+                frequency: 1.0 / 40.0,
+                amplitude: 0.15,
+                lacunarity: 2.0,
+                persistence: 0.5,
+            },
+            noise_time_frequency_hz: 0.5,
+        }
+    }
+}
+
+/// Which SPH kernels make the pseudo-Coulomb force (§2.3.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoulombKernels {
+    /// Poly6 density (eq 2.11-2.12) and spiky gradient (eq 2.15-2.16): stronger close
+    /// repulsion, a more diffuse aurora.
+    Poly6Spiky,
+    /// The cubic spline for both (eq 2.17-2.18): sharper rays; the thesis's choice for
+    /// its experiments (§3.2).
+    #[default]
+    Spline,
+}
+
+/// 0.003 electron masses: see [`MotionParams::particle_mass_kg`].
+const EFFECTIVE_MASS_KG: f64 = 0.003 * 9.109_383_701_5e-31;
+
+/// Charged-particle motion (§2.3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MotionParams {
+    /// Particles placed near the source shape at the start (Table 3.2: 120,000).
+    pub particles: u32,
+    /// Time step Δt, seconds (Table 3.2: 0.0333).
+    pub time_step_s: f32,
+    /// Kernel pair of the pseudo-Coulomb force.
+    pub kernels: CoulombKernels,
+    /// SPH support radius, km (for the spline, twice its smoothing length h). The
+    /// thesis gives none; 0.35 km gives the 120,000 particles a few dozen neighbours.
+    pub support_km: f32,
+    /// Gas constant k of eq (2.13), km⁴/s² (scales the repulsion per unit of density
+    /// excess).
+    pub gas_constant: f32,
+    /// Weight w_L of the Lorentz force in eq (2.19)-(2.20).
+    pub weight_lorentz: f32,
+    /// Weight w_P of the pseudo-Coulomb force.
+    pub weight_coulomb: f32,
+    /// Charge q0, coulombs (the elementary charge, as in §2.2.3).
+    pub charge_c: f64,
+    /// Vacuum permittivity ε0, F/m.
+    pub permittivity_f_m: f64,
+    /// Effective mass of a simulated charged particle, kg. The thesis gives none; with
+    /// its charge q0 and 120,000 charges per renewal, 2.7e-33 kg (0.003 electron masses)
+    /// lets particles follow shapes that move about 20 km/s (100 km per 140-frame
+    /// transition).
+    pub particle_mass_kg: f64,
+    /// Magnetic field along y, tesla. Earth's ~5e-5 T would spin the particles 10⁹ times
+    /// a second; the default gives a gyration of 0.5 rad/s, a slow swirl (E × B drift)
+    /// on top of the fall towards the shape.
+    pub magnetic_field_t: f64,
+    /// Speed limit, km/s: §2.3.3 normalises velocities "for energy conservation" without
+    /// saying how; we cap each particle's speed, so kinetic energy stays bounded (no
+    /// particle exceeds ½ m v²_max).
+    pub max_speed_km_s: f32,
+}
+
+impl Default for MotionParams {
+    fn default() -> Self {
+        Self {
+            particles: 120_000,
+            time_step_s: 0.0333,
+            kernels: CoulombKernels::Spline,
+            support_km: 0.35,
+            gas_constant: 2.0,
+            weight_lorentz: 0.6,
+            weight_coulomb: 0.4,
+            charge_c: 1.602_176_634e-19,
+            permittivity_f_m: 8.854_187_812_8e-12,
+            particle_mass_kg: EFFECTIVE_MASS_KG,
+            magnetic_field_t: 0.5 * EFFECTIVE_MASS_KG / 1.602_176_634e-19,
+            max_speed_km_s: 40.0,
+        }
+    }
+}
+
+/// Redistribution thresholds (Table 3.3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Redistribution {
+    /// Whether to redistribute at all (Fig 2.14 compares both).
+    pub enabled: bool,
+    /// A cell is near the shape if its charge count is at least this × the mean count.
+    pub near_count_ratio: f32,
+    /// ... and its potential at most this × the mean potential (potentials are negative
+    /// near the shape).
+    pub near_potential_ratio: f32,
+    /// Near cells with fewer particles than this gain particles.
+    pub add_below: u32,
+    /// At most this many particles are added per cell per renewal.
+    pub add_max: u32,
+    /// Near cells with more particles than this lose their farthest from the shape.
+    pub remove_above: u32,
+    /// At most this many particles are removed per cell per renewal.
+    pub remove_max: u32,
+}
+
+impl Default for Redistribution {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            near_count_ratio: 0.10,
+            near_potential_ratio: 0.25,
+            add_below: 50,
+            add_max: 10,
+            remove_above: 500,
+            remove_max: 100,
+        }
+    }
+}
+
+impl AuroraConfig {
+    /// Every problem, each naming the field (relative to `[aurora]`), value and range.
+    /// Shape problems (crossings, bad splits) are found when the shapes are built.
+    pub fn validate(&self) -> Result<(), Vec<Issue>> {
+        let mut i = Issues::default();
+        i.vector("plane.size_km", &self.plane.size_km.to_array(), 1e5);
+        if !(self.plane.size_km.min_element() > 0.0) {
+            i.push("plane.size_km", format!("{:?}", self.plane.size_km.to_array()), "positive sizes");
+        }
+        for (a, &c) in self.plane.cells.iter().enumerate() {
+            i.count(&format!("plane.cells[{a}]"), u64::from(c), 3..=4096);
+        }
+        i.count("shape.control_points_per_sheet", u64::from(self.shape.control_points_per_sheet), 2..=4096);
+        i.count("shape.renew_every_frames", u64::from(self.shape.renew_every_frames), 1..=10_000);
+        i.count("shape.lookahead_frames", u64::from(self.shape.lookahead_frames), 0..=10_000);
+        if self.keyframes.len() < 2 {
+            i.push("keyframes", self.keyframes.len(), "a source and at least one target keyframe");
+        }
+        for (k, kf) in self.keyframes.iter().enumerate() {
+            for (s, sheet) in kf.sheets.iter().enumerate() {
+                for (p, pt) in sheet.iter().enumerate() {
+                    i.vector(&format!("keyframes[{k}].sheets[{s}][{p}]"), pt, 1e5);
+                }
+            }
+        }
+        let f = &self.field;
+        i.range_open_low("field.reach_km", f.reach_km, 0.0, 1e4);
+        i.count("field.charges", u64::from(f.charges), 1..=10_000_000);
+        if let Poisson::GaussSeidel { max_iterations, tolerance } = f.poisson {
+            i.count("field.poisson.max_iterations", u64::from(max_iterations), 1..=10_000_000);
+            i.range_open_low("field.poisson.tolerance", tolerance, 0.0, 1.0);
+        }
+        i.count("field.noise.octaves", u64::from(f.noise.octaves), 0..=12);
+        i.range("field.noise.amplitude", f.noise.amplitude, 0.0..=10.0);
+        i.range("field.noise.frequency", f.noise.frequency, 0.0..=1e3);
+        i.range("field.noise_time_frequency_hz", f.noise_time_frequency_hz, 0.0..=1e3);
+        let m = &self.motion;
+        i.count("motion.particles", u64::from(m.particles), 0..=5_000_000);
+        i.range_open_low("motion.time_step_s", m.time_step_s, 0.0, 10.0);
+        i.range_open_low("motion.support_km", m.support_km, 0.0, 1e4);
+        i.range("motion.gas_constant", m.gas_constant, 0.0..=1e9);
+        i.range("motion.weight_lorentz", m.weight_lorentz, 0.0..=1e3);
+        i.range("motion.weight_coulomb", m.weight_coulomb, 0.0..=1e3);
+        i.range_open_low("motion.charge_c", m.charge_c, 0.0, 1.0);
+        i.range_open_low("motion.permittivity_f_m", m.permittivity_f_m, 0.0, 1.0);
+        i.range_open_low("motion.particle_mass_kg", m.particle_mass_kg, 0.0, 1.0);
+        i.range("motion.magnetic_field_t", m.magnetic_field_t, -1.0..=1.0);
+        i.range_open_low("motion.max_speed_km_s", m.max_speed_km_s, 0.0, 1e5);
+        let r = &self.redistribution;
+        i.range("redistribution.near_count_ratio", r.near_count_ratio, 0.0..=1e3);
+        i.range("redistribution.near_potential_ratio", r.near_potential_ratio, 0.0..=1e3);
+        i.count("redistribution.add_max", u64::from(r.add_max), 0..=1_000_000);
+        i.count("redistribution.remove_max", u64::from(r.remove_max), 0..=1_000_000);
+        if r.add_below > r.remove_above {
+            i.push(
+                "redistribution.add_below",
+                r.add_below,
+                format!("at most redistribution.remove_above ({})", r.remove_above),
+            );
+        }
+        i.into_result()
+    }
+
+    /// The grid of the plane.
+    pub fn grid(&self) -> crate::field::Grid {
+        let cells = [self.plane.cells[0].max(1) as usize, self.plane.cells[1].max(1) as usize];
+        crate::field::Grid {
+            nx: cells[0],
+            nz: cells[1],
+            origin_km: Vec2::ZERO,
+            cell_km: (self.plane.size_km.x / cells[0] as f32).max(self.plane.size_km.y / cells[1] as f32),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid() {
+        assert_eq!(AuroraConfig::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn problems_are_named() {
+        let mut c = AuroraConfig::default();
+        c.motion.time_step_s = f32::NAN;
+        c.plane.cells = [2, 256];
+        c.keyframes.truncate(1);
+        let fields: Vec<String> = c.validate().unwrap_err().into_iter().map(|i| i.field).collect();
+        assert_eq!(fields, ["plane.cells[0]", "keyframes", "motion.time_step_s"]);
+    }
+}

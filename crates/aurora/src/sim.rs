@@ -1,0 +1,326 @@
+//! The aurora simulation of part 1: every K frames the intermediate target shape is
+//! renewed (particles redistributed against the old shape, §2.3.4; a new field computed,
+//! §2.2.3); every frame the particles move (§2.3).
+
+use std::time::Instant;
+
+use glam::Vec2;
+use phenomena_core::grid::GridError;
+use phenomena_core::noise::NoiseSampler;
+use phenomena_core::rng::{Purpose, Stream};
+use phenomena_core::validate::Issue;
+use serde::{Deserialize, Serialize};
+
+use crate::config::AuroraConfig;
+use crate::field::{Grid, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential};
+use crate::motion::{ForceModel, MotionScratch, Particles, step};
+use crate::shape::{Animation, Shape, ShapeError};
+
+const REDISTRIBUTE: Purpose = Purpose::named("aurora.redistribute");
+/// Stream numbers of the charge samples: the initial particles use stream 0, each
+/// renewal r its own stream 1 + r.
+const INITIAL_STREAM: u64 = 0;
+
+/// Why an aurora simulation could not be created or stepped.
+#[derive(Debug, thiserror::Error)]
+pub enum AuroraError {
+    /// Invalid parameters; every problem listed.
+    #[error("invalid aurora configuration: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
+    Config(Vec<Issue>),
+    /// The shapes could not be built.
+    #[error("invalid aurora shapes: {0}")]
+    Shape(#[from] ShapeError),
+    /// The neighbour grid could not be built.
+    #[error("neighbour search failed")]
+    Grid(#[from] GridError),
+}
+
+/// The field of the current intermediate target shape.
+#[derive(Clone, Debug, Default)]
+pub struct FieldState {
+    /// The intermediate target shape the field was made for.
+    pub shape: Shape,
+    /// Charges per cell, N(i, j).
+    pub counts: Vec<u32>,
+    /// Potential before noise, units of q0/ε0 (eq 2.6).
+    pub potential: Vec<f64>,
+    /// Potential with noise (what E comes from).
+    pub potential_noisy: Vec<f64>,
+    /// Electric field, (q0/ε0)/km, per cell (eq 2.8-2.9).
+    pub e: Vec<Vec2>,
+    /// The reference density δ0 of eq (2.13): the particles spread evenly over the
+    /// cells near the shape, per km².
+    pub rest_density: f32,
+    /// Renewals so far (this field is number `renewal`).
+    pub renewal: u64,
+}
+
+/// What one frame did, with timings of its parts (milliseconds).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepStats {
+    /// Particles after the frame.
+    pub particles: usize,
+    /// Whether the shape was renewed this frame.
+    pub renewed: bool,
+    /// Particles removed for leaving the plane.
+    pub left_plane: usize,
+    /// Particles removed by redistribution (not near the shape, or crowded cells).
+    pub redistributed_removed: usize,
+    /// Particles added by redistribution (sparse cells).
+    pub redistributed_added: usize,
+    /// Time spent placing charges, ms.
+    pub sampling_ms: f64,
+    /// Time spent solving the Poisson equation, adding noise and differentiating, ms.
+    pub poisson_ms: f64,
+    /// Time spent redistributing, ms.
+    pub redistribution_ms: f64,
+    /// Time spent on forces and integration, ms.
+    pub forces_ms: f64,
+}
+
+/// The aurora simulation (part 1): shapes, field, particles.
+///
+/// ```
+/// use phenomena_aurora::{AuroraConfig, AuroraSim};
+/// let mut config = AuroraConfig::default();
+/// config.motion.particles = 2000;
+/// config.field.charges = 5000;
+/// let mut sim = AuroraSim::new(config, 1).unwrap();
+/// for _ in 0..10 {
+///     sim.step().unwrap();
+/// }
+/// assert!(sim.particles().len() > 1000);
+/// ```
+#[derive(Clone, Debug)]
+pub struct AuroraSim {
+    config: AuroraConfig,
+    seed: u64,
+    frame: u64,
+    next_id: u64,
+    animation: Animation,
+    grid: Grid,
+    model: ForceModel,
+    noise: NoiseSampler,
+    particles: Particles,
+    field: FieldState,
+    scratch: MotionScratch,
+}
+
+impl AuroraSim {
+    /// Build the shapes, place the particles near the source shape and compute its field.
+    pub fn new(config: AuroraConfig, seed: u64) -> Result<Self, AuroraError> {
+        config.validate().map_err(AuroraError::Config)?;
+        let animation = Animation::build(
+            &config.keyframes,
+            &config.splits,
+            &config.merges,
+            config.shape.control_points_per_sheet as usize,
+            config.shape.resample,
+        )?;
+        let grid = config.grid();
+        let model = ForceModel::new(&config.motion);
+        let noise = config.field.noise.sampler();
+        let source = animation.shape_at(animation.keyframe_frames()[0]);
+        let positions = sample_near_shape(
+            &source,
+            config.field.reach_km,
+            config.motion.particles as usize,
+            config.field.sampler,
+            seed,
+            INITIAL_STREAM,
+        );
+        let n = positions.len();
+        let particles = Particles {
+            id: (0..n as u64).collect(),
+            position_km: positions,
+            velocity_km_s: vec![Vec2::ZERO; n],
+        };
+        let mut sim = Self {
+            config,
+            seed,
+            frame: 0,
+            next_id: n as u64,
+            animation,
+            grid,
+            model,
+            noise,
+            particles,
+            field: FieldState::default(),
+            scratch: MotionScratch::default(),
+        };
+        let mut stats = StepStats::default();
+        sim.renew(&mut stats, false);
+        Ok(sim)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AuroraConfig {
+        &self.config
+    }
+
+    /// Frames completed.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// The plane's grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// The particles.
+    pub fn particles(&self) -> &Particles {
+        &self.particles
+    }
+
+    /// The current field and the shape it was made for.
+    pub fn field(&self) -> &FieldState {
+        &self.field
+    }
+
+    /// The shapes over time.
+    pub fn animation(&self) -> &Animation {
+        &self.animation
+    }
+
+    /// Advance one frame: renew the shape every K frames, then move the particles.
+    pub fn step(&mut self) -> Result<StepStats, AuroraError> {
+        let mut stats = StepStats::default();
+        let k = u64::from(self.config.shape.renew_every_frames);
+        if self.frame > 0 && self.frame.is_multiple_of(k) {
+            self.renew(&mut stats, self.config.redistribution.enabled);
+        }
+        let t = Instant::now();
+        stats.left_plane = step(
+            &mut self.particles,
+            &self.model,
+            &self.grid,
+            &self.field.e,
+            self.field.rest_density,
+            &mut self.scratch,
+        )?;
+        stats.forces_ms = ms(t);
+        self.frame += 1;
+        stats.particles = self.particles.len();
+        Ok(stats)
+    }
+
+    /// Renew the intermediate target shape: redistribute against the old field, then
+    /// sample charges near the new shape and compute its potential and field.
+    fn renew(&mut self, stats: &mut StepStats, redistribute: bool) {
+        stats.renewed = true;
+        if redistribute && !self.field.counts.is_empty() {
+            let t = Instant::now();
+            (stats.redistributed_removed, stats.redistributed_added) = self.redistribute();
+            stats.redistribution_ms = ms(t);
+        }
+        let renewal = if self.field.counts.is_empty() { 0 } else { self.field.renewal + 1 };
+        let target_frame = self.frame as f32 + self.config.shape.lookahead_frames as f32;
+        let shape = self.animation.shape_at(target_frame);
+        let t = Instant::now();
+        let f = &self.config.field;
+        let charges =
+            sample_near_shape(&shape, f.reach_km, f.charges as usize, f.sampler, self.seed, 1 + renewal);
+        let counts = count_per_cell(&self.grid, &charges);
+        stats.sampling_ms = ms(t);
+        let t = Instant::now();
+        let source: Vec<f64> = counts.iter().map(|&n| f64::from(n)).collect();
+        let (potential, _) = solve_potential(&self.grid, &source, f.poisson);
+        let mut noisy = potential.clone();
+        let time = self.frame as f64 * f64::from(self.config.motion.time_step_s) * f.noise_time_frequency_hz;
+        add_noise(&self.grid, &mut noisy, &self.noise, time, f.noise.amplitude);
+        let e = electric_field(&self.grid, &noisy);
+        stats.poisson_ms = ms(t);
+        let near_cells = counts.iter().filter(|&&n| n > 0).count().max(1);
+        let cell_area = self.grid.cell_km * self.grid.cell_km;
+        let rest_density = self.particles.len() as f32 / (near_cells as f32 * cell_area);
+        self.field =
+            FieldState { shape, counts, potential, potential_noisy: noisy, e, rest_density, renewal };
+    }
+
+    /// §2.3.4 with Table 3.3's thresholds: remove particles in cells that are not near
+    /// the (old) shape, thin crowded near cells from the particle farthest from the shape
+    /// on, and top up sparse near cells with particles at random positions moving with
+    /// their neighbours' mean velocity. Returns (removed, added).
+    fn redistribute(&mut self) -> (usize, usize) {
+        let r = &self.config.redistribution;
+        let (grid, field) = (&self.grid, &self.field);
+        let cells = grid.len();
+        let mean_n = field.counts.iter().map(|&n| f64::from(n)).sum::<f64>() / cells as f64;
+        let mean_phi = field.potential.iter().sum::<f64>() / cells as f64;
+        let near: Vec<bool> = (0..cells)
+            .map(|c| {
+                f64::from(field.counts[c]) >= f64::from(r.near_count_ratio) * mean_n
+                    && field.potential[c] <= f64::from(r.near_potential_ratio) * mean_phi
+                    && field.counts[c] > 0
+            })
+            .collect();
+        // Particles per cell, in particle order.
+        let p = &self.particles;
+        let mut by_cell: Vec<Vec<u32>> = vec![Vec::new(); cells];
+        let mut keep = vec![true; p.len()];
+        for (i, &x) in p.position_km.iter().enumerate() {
+            match grid.cell_of(x) {
+                Some((ci, cj)) => by_cell[grid.index(ci, cj)].push(i as u32),
+                None => keep[i] = false,
+            }
+        }
+        let mut removed = 0usize;
+        let mut additions: Vec<(u64, Vec2, Vec2)> = Vec::new();
+        for c in 0..cells {
+            let members = &by_cell[c];
+            if !near[c] {
+                for &i in members {
+                    keep[i as usize] = false;
+                }
+                removed += members.len();
+                continue;
+            }
+            let count = members.len() as u32;
+            if count > r.remove_above {
+                let excess = ((count - r.remove_above).min(r.remove_max)) as usize;
+                let mut by_distance: Vec<(f32, u32)> =
+                    members.iter().map(|&i| (field.shape.distance(p.position_km[i as usize]), i)).collect();
+                // Farthest first; ties broken by index for determinism.
+                by_distance.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                for &(_, i) in &by_distance[..excess] {
+                    keep[i as usize] = false;
+                }
+                removed += excess;
+            } else if count < r.add_below {
+                let add = (r.add_below - count).min(r.add_max);
+                let (ci, cj) = (c % grid.nx, c / grid.nx);
+                let mut mean_v = Vec2::ZERO;
+                let mut neighbours = 0usize;
+                for nj in cj.saturating_sub(1)..=(cj + 1).min(grid.nz - 1) {
+                    for ni in ci.saturating_sub(1)..=(ci + 1).min(grid.nx - 1) {
+                        for &i in &by_cell[grid.index(ni, nj)] {
+                            mean_v += p.velocity_km_s[i as usize];
+                            neighbours += 1;
+                        }
+                    }
+                }
+                if neighbours > 0 {
+                    mean_v /= neighbours as f32;
+                }
+                let mut rng = Stream::new(self.seed, REDISTRIBUTE, field.renewal * cells as u64 + c as u64);
+                let corner = grid.origin_km + Vec2::new(ci as f32, cj as f32) * grid.cell_km;
+                for _ in 0..add {
+                    let x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
+                    additions.push((0, x, mean_v));
+                }
+            }
+        }
+        let added = additions.len();
+        self.particles.retain(&keep);
+        for (_, x, v) in additions {
+            self.particles.push(self.next_id, x, v);
+            self.next_id += 1;
+        }
+        (removed, added)
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
