@@ -18,4 +18,5 @@ mod sim;
 pub use config::{
     AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
 };
+pub use plane::{PlaneView, RenderSettings};
 pub use sim::{AuroraError, AuroraSim, FieldState, StepStats};

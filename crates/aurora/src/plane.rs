@@ -27,6 +27,15 @@ impl Default for PlaneView {
     }
 }
 
+/// Render settings of an aurora scene (`[render]`). Part 1 draws the plane view; the
+/// sky view (cameras, emission, colour) comes with part 2.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSettings {
+    /// The plane view's layers.
+    pub plane: PlaneView,
+}
+
 /// Maps plane km to pixels, preserving aspect (the plane is centred, letterboxed).
 struct Mapping {
     scale: f32,

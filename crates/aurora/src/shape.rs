@@ -190,6 +190,28 @@ pub enum ShapeError {
     },
 }
 
+impl ShapeError {
+    /// The scene field (relative to `[aurora]`) the problem is in, for error locations.
+    pub fn field(&self) -> String {
+        match *self {
+            ShapeError::TooFewKeyframes(_) => "keyframes".into(),
+            ShapeError::KeyframeOrder { index, .. } => format!("keyframes[{index}].frame"),
+            ShapeError::SheetCount { keyframe, .. } => format!("keyframes[{keyframe}].sheets"),
+            ShapeError::ShortStroke { keyframe, sheet, .. }
+            | ShapeError::NonFinite { keyframe, sheet, .. } => {
+                format!("keyframes[{keyframe}].sheets[{sheet}]")
+            }
+            ShapeError::TooFewControlPoints(_) => "shape.control_points_per_sheet".into(),
+            ShapeError::Crossing { keyframe, b, .. } => format!("keyframes[{keyframe}].sheets[{b}]"),
+            ShapeError::OpKeyframe { op, index, .. } | ShapeError::NoSuchPoint { op, index, .. } => {
+                format!("{op}s[{index}]")
+            }
+            ShapeError::NoSegment { index, .. } => format!("splits[{index}]"),
+            ShapeError::NotAnEnd { index, .. } => format!("merges[{index}]"),
+        }
+    }
+}
+
 /// Resample a stroke to `n` control points by eq (2.1).
 pub fn resample(stroke: &[Vec2], n: usize, rule: Resample) -> Vec<Vec2> {
     let m = stroke.len();

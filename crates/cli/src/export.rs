@@ -9,6 +9,8 @@ use phenomena_core::color::{
 };
 
 use crate::output;
+use crate::scene::Scene;
+use phenomena_aurora::AuroraSim;
 
 /// Output format of the blackbody table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -80,6 +82,60 @@ pub(crate) fn blackbody(
         }
     }
     Ok(format!("wrote {} temperatures ({min_k}-{max_k} K) to {}", temps.len(), out.display()))
+}
+
+/// What `export` writes of an aurora.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum AuroraData {
+    /// `x,z,vx,vz` per particle.
+    Particles,
+    /// `sheet,index,x,z,next` per control point of the intermediate target shape.
+    Shape,
+}
+
+/// Simulate an aurora scene through frame `frame` and write its particles or shape.
+pub(crate) fn aurora(scene_path: &Path, frame: u32, out: &Path, what: AuroraData) -> Result<String> {
+    let scene = crate::scene::load(scene_path)?;
+    let Scene::Aurora(s) = &scene else {
+        bail!(
+            "{} holds a {} scene; particles and shapes are exported from aurora scenes",
+            scene_path.display(),
+            scene.phenomenon()
+        );
+    };
+    if frame >= s.scene.frames {
+        bail!("--frame {frame} is past the scene's {} frames (0..{})", s.scene.frames, s.scene.frames);
+    }
+    let mut sim = AuroraSim::new(s.aurora.clone(), s.scene.seed)?;
+    for _ in 0..=frame {
+        sim.step()?;
+    }
+    let mut text = String::new();
+    let rows = match what {
+        AuroraData::Particles => {
+            text.push_str("x,z,vx,vz\n");
+            let p = sim.particles();
+            for (x, v) in p.position_km.iter().zip(&p.velocity_km_s) {
+                let _ = writeln!(text, "{},{},{},{}", x.x, x.y, v.x, v.y);
+            }
+            p.len()
+        }
+        AuroraData::Shape => {
+            text.push_str("sheet,index,x,z,next\n");
+            let sh = &sim.field().shape;
+            for i in 0..sh.points.len() {
+                let next = sh.next[i].map(|j| sh.index_in_sheet[j as usize].to_string()).unwrap_or_default();
+                let p = sh.points[i];
+                let _ = writeln!(text, "{},{},{},{},{next}", sh.sheet[i], sh.index_in_sheet[i], p.x, p.y);
+            }
+            sh.points.len()
+        }
+    };
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        output::ensure_dir(parent)?;
+    }
+    output::write_bytes_atomic(out, text.as_bytes())?;
+    Ok(format!("wrote {rows} rows after frame {frame} to {}", out.display()))
 }
 
 #[cfg(test)]

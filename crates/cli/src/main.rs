@@ -12,11 +12,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use phenomena_flame::View;
 
 use crate::export::TableFormat;
 use crate::output::ImageFormat;
-use crate::render::RenderJob;
+use crate::render::{RenderJob, ViewArg};
 
 /// Simulate and render natural phenomena (flame; aurora, snow and sparkle to come).
 #[derive(Parser, Debug)]
@@ -63,7 +62,7 @@ enum Command {
         /// Write one JSON object per frame (timings, particle counts) to this file.
         #[arg(long)]
         stats: Option<PathBuf>,
-        /// What to draw: the flame, or particles coloured by density (paper Fig 7).
+        /// What to draw: flame or density (flame scenes), plane (aurora scenes).
         #[arg(long, value_enum)]
         view: Option<ViewArg>,
     },
@@ -107,6 +106,28 @@ enum NewWhat {
 
 #[derive(Subcommand, Debug)]
 enum ExportWhat {
+    /// An aurora's particles after frame F: CSV `x,z,vx,vz` (km, km/s).
+    Particles {
+        /// The aurora scene file.
+        scene: PathBuf,
+        /// The frame after which to export (0 = after the first step).
+        #[arg(long)]
+        frame: u32,
+        /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// An aurora's intermediate target shape at frame F: CSV `sheet,index,x,z,next`.
+    Shape {
+        /// The aurora scene file.
+        scene: PathBuf,
+        /// The frame after which to export.
+        #[arg(long)]
+        frame: u32,
+        /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// The blackbody colour table (paper Fig 1): CIE 1931 xy and normalised linear sRGB.
     Blackbody {
         /// Lowest temperature, K.
@@ -127,12 +148,6 @@ enum ExportWhat {
     },
 }
 
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-enum ViewArg {
-    Flame,
-    Density,
-}
-
 fn run(cli: Cli) -> anyhow::Result<String> {
     match cli.command {
         Command::Render { scene, out, frames, width, height, seed, threads, format, resume, stats, view } => {
@@ -147,15 +162,18 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                 format,
                 resume,
                 stats,
-                view: view.map(|v| match v {
-                    ViewArg::Flame => View::Flame,
-                    ViewArg::Density => View::Density,
-                }),
+                view,
                 quiet: false,
             })
         }
         Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
             export::blackbody(min_k, max_k, step_k, format, &out)
+        }
+        Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
+            export::aurora(&scene, frame, &out, export::AuroraData::Particles)
+        }
+        Command::Export { what: ExportWhat::Shape { scene, frame, out } } => {
+            export::aurora(&scene, frame, &out, export::AuroraData::Shape)
         }
         Command::New { phenomenon: NewWhat::Flame, path, force } => {
             let path = path.unwrap_or_else(|| PathBuf::from("flame.toml"));

@@ -7,6 +7,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use phenomena_aurora::plane::render_plane;
+use phenomena_aurora::{AuroraSim, RenderSettings as AuroraRenderSettings};
 use phenomena_core::image::Frame;
 use phenomena_flame::{Background, FlameRenderer, FlameSim, View, frame_from_srgb8};
 use serde::Serialize;
@@ -27,7 +29,7 @@ pub(crate) struct RenderJob {
     pub(crate) format: ImageFormat,
     pub(crate) resume: bool,
     pub(crate) stats: Option<PathBuf>,
-    pub(crate) view: Option<View>,
+    pub(crate) view: Option<ViewArg>,
     pub(crate) quiet: bool,
 }
 
@@ -50,25 +52,34 @@ pub(crate) fn parse_frame_range(s: &str) -> Result<Range<u32>, String> {
     Ok(range)
 }
 
+/// What to draw, over all phenomena (each accepts some).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum ViewArg {
+    /// The phenomenon as seen by the camera (flame).
+    Flame,
+    /// Flame particles as squares coloured by density (flame paper Fig 7).
+    Density,
+    /// The aurora's x-z simulation plane from above (thesis Figs 2.9-2.14).
+    Plane,
+}
+
 /// A phenomenon's simulation and renderer, stepped together.
 pub(crate) enum Runner {
     Flame { sim: Box<FlameSim>, renderer: Box<FlameRenderer> },
+    Aurora { sim: Box<AuroraSim>, settings: AuroraRenderSettings, frame: Frame },
 }
 
-/// Per-frame statistics, one JSON object per line of `--stats`.
+/// Per-frame statistics, one JSON object per line of `--stats`: the frame's timings
+/// and the phenomenon's own counters (flattened).
 #[derive(Serialize)]
 struct FrameStats {
     frame: u32,
-    particles: usize,
-    emitted: usize,
-    expired: usize,
-    left_domain: usize,
-    capped: usize,
-    neighbor_pairs: usize,
     step_ms: f64,
     render_ms: Option<f64>,
     write_ms: Option<f64>,
     skipped: bool,
+    #[serde(flatten)]
+    detail: serde_json::Value,
 }
 
 impl Runner {
@@ -97,40 +108,37 @@ impl Runner {
                 )?;
                 Ok(Runner::Flame { sim: Box::new(sim), renderer: Box::new(renderer) })
             }
-        }
-    }
-
-    fn step(&mut self) -> Result<FrameStats> {
-        match self {
-            Runner::Flame { sim, .. } => {
-                let s = sim.step()?;
-                Ok(FrameStats {
-                    frame: 0,
-                    particles: s.particles,
-                    emitted: s.emitted,
-                    expired: s.expired,
-                    left_domain: s.left_domain,
-                    capped: s.capped,
-                    neighbor_pairs: s.neighbor_pairs,
-                    step_ms: 0.0,
-                    render_ms: None,
-                    write_ms: None,
-                    skipped: false,
-                })
+            Scene::Aurora(s) => {
+                let sim = AuroraSim::new(s.aurora.clone(), s.scene.seed)?;
+                let frame = Frame::new(s.scene.width as usize, s.scene.height as usize);
+                Ok(Runner::Aurora { sim: Box::new(sim), settings: s.render, frame })
             }
         }
     }
 
-    /// Render the current state (into the renderer's own frame, reused across frames).
+    /// Advance one frame; the phenomenon's counters as JSON.
+    fn step(&mut self) -> Result<serde_json::Value> {
+        Ok(match self {
+            Runner::Flame { sim, .. } => serde_json::to_value(sim.step()?)?,
+            Runner::Aurora { sim, .. } => serde_json::to_value(sim.step()?)?,
+        })
+    }
+
+    /// Render the current state (into a frame reused across frames).
     pub(crate) fn render(&mut self) -> &Frame {
         match self {
             Runner::Flame { sim, renderer } => renderer.render(sim),
+            Runner::Aurora { sim, settings, frame } => {
+                *frame = render_plane(sim, frame.width(), frame.height(), &settings.plane);
+                frame
+            }
         }
     }
 }
 
-/// Apply command-line overrides to a scene.
-pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) {
+/// Apply command-line overrides to a scene; a view the phenomenon cannot draw is an
+/// error naming the ones it can.
+pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) -> Result<()> {
     let s = scene.settings_mut();
     if let Some(w) = job.width {
         s.width = w;
@@ -141,11 +149,17 @@ pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) {
     if let Some(seed) = job.seed {
         s.seed = seed;
     }
-    if let Some(view) = job.view {
-        match scene {
-            Scene::Flame(f) => f.render.view = view,
+    match (scene, job.view) {
+        (_, None) => {}
+        (Scene::Flame(f), Some(ViewArg::Flame)) => f.render.view = View::Flame,
+        (Scene::Flame(f), Some(ViewArg::Density)) => f.render.view = View::Density,
+        (Scene::Aurora(_), Some(ViewArg::Plane)) => {}
+        (Scene::Flame(_), Some(v)) => bail!("--view {v:?} is not a flame view: use flame or density"),
+        (Scene::Aurora(_), Some(v)) => {
+            bail!("--view {v:?} is not an aurora view: use plane (the sky view comes with aurora part 2)")
         }
     }
+    Ok(())
 }
 
 /// Run a render job; returns a one-line summary.
@@ -157,7 +171,7 @@ pub(crate) fn run(job: &RenderJob) -> Result<String> {
 /// Render an already parsed scene with a job's options (relative asset paths resolve
 /// against the directory of `job.scene_path`).
 pub(crate) fn run_scene(mut scene: Scene, job: &RenderJob) -> Result<String> {
-    apply_overrides(&mut scene, job);
+    apply_overrides(&mut scene, job)?;
     let issues = scene.validate();
     if !issues.is_empty() {
         let list: Vec<String> = issues.iter().map(|i| format!("  {i}")).collect();
@@ -242,9 +256,15 @@ fn render_loop(
 ) -> Result<()> {
     for frame in 0..range.end {
         let t0 = Instant::now();
-        let mut stats = runner.step().with_context(|| format!("simulation failed at frame {frame}"))?;
-        stats.frame = frame;
-        stats.step_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let detail = runner.step().with_context(|| format!("simulation failed at frame {frame}"))?;
+        let mut stats = FrameStats {
+            frame,
+            step_ms: t0.elapsed().as_secs_f64() * 1e3,
+            render_ms: None,
+            write_ms: None,
+            skipped: false,
+            detail,
+        };
         if frame >= range.start {
             let path = job.out_dir.join(format!("frame_{frame:05}.{}", job.format.extension()));
             if job.resume && path.is_file() {

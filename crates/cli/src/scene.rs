@@ -4,6 +4,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use phenomena_aurora::{AuroraConfig, RenderSettings as AuroraRenderSettings};
 use phenomena_core::tonemap::{Exposure, ToneMap};
 use phenomena_core::validate::{Issue, Issues};
 use phenomena_flame::{FlameConfig, RenderSettings as FlameRenderSettings};
@@ -59,28 +60,44 @@ pub(crate) struct FlameScene {
     pub(crate) render: FlameRenderSettings,
 }
 
+/// An aurora scene file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct AuroraScene {
+    #[serde(default)]
+    pub(crate) scene: SceneSettings,
+    #[serde(default)]
+    pub(crate) aurora: AuroraConfig,
+    #[serde(default)]
+    pub(crate) render: AuroraRenderSettings,
+}
+
 /// Any scene, by phenomenon.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) enum Scene {
     Flame(Box<FlameScene>),
+    Aurora(Box<AuroraScene>),
 }
 
 impl Scene {
     pub(crate) fn settings(&self) -> &SceneSettings {
         match self {
             Scene::Flame(s) => &s.scene,
+            Scene::Aurora(s) => &s.scene,
         }
     }
 
     pub(crate) fn settings_mut(&mut self) -> &mut SceneSettings {
         match self {
             Scene::Flame(s) => &mut s.scene,
+            Scene::Aurora(s) => &mut s.scene,
         }
     }
 
     pub(crate) fn phenomenon(&self) -> &'static str {
         match self {
             Scene::Flame(_) => "flame",
+            Scene::Aurora(_) => "aurora",
         }
     }
 
@@ -101,13 +118,28 @@ impl Scene {
                     i.extend_prefixed("render", e);
                 }
             }
+            Scene::Aurora(s) => match s.aurora.validate() {
+                Err(e) => i.extend_prefixed("aurora", e),
+                Ok(()) => {
+                    let a = &s.aurora;
+                    if let Err(e) = phenomena_aurora::shape::Animation::build(
+                        &a.keyframes,
+                        &a.splits,
+                        &a.merges,
+                        a.shape.control_points_per_sheet as usize,
+                        a.shape.resample,
+                    ) {
+                        i.extend_prefixed("aurora", vec![Issue::described(e.field(), e.to_string())]);
+                    }
+                }
+            },
         }
         i.into_result().err().unwrap_or_default()
     }
 }
 
 /// The phenomena a scene file may hold, by table name.
-pub(crate) const PHENOMENA: [&str; 1] = ["flame"];
+pub(crate) const PHENOMENA: [&str; 2] = ["flame", "aurora"];
 
 /// A problem at a place in a file.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -163,6 +195,7 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
     let present: Vec<&str> = PHENOMENA.iter().copied().filter(|p| root.get_ref().get(*p).is_some()).collect();
     let scene = match present.as_slice() {
         ["flame"] => deserialize_all::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
+        ["aurora"] => deserialize_all::<AuroraScene>(text).map(|s| Scene::Aurora(Box::new(s))),
         [] => {
             return Err(SceneErrors(vec![at(
                 0,

@@ -98,6 +98,7 @@ mod tests {
     fn the_starter_holds_exactly_the_defaults() {
         match parse(FLAME, Path::new("flame.toml")) {
             Ok(Scene::Flame(s)) => assert_eq!(*s, FlameScene::default()),
+            Ok(other) => panic!("the flame starter parsed as a {} scene", other.phenomenon()),
             Err(e) => panic!("{e}"),
         }
     }

@@ -23,9 +23,21 @@ pub struct Issue {
     pub expected: String,
 }
 
+impl Issue {
+    /// A problem explained in words rather than as a value outside a range (e.g. two
+    /// strokes that cross): displayed as `field: text`.
+    pub fn described(field: impl Into<String>, text: impl Into<String>) -> Self {
+        Self { field: field.into(), value: String::new(), expected: text.into() }
+    }
+}
+
 impl fmt::Display for Issue {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {}: expected {}", self.field, self.value, self.expected)
+        if self.value.is_empty() {
+            write!(f, "{}: {}", self.field, self.expected)
+        } else {
+            write!(f, "{} = {}: expected {}", self.field, self.value, self.expected)
+        }
     }
 }
 

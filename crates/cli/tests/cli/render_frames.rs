@@ -21,8 +21,10 @@ fn renders_numbered_png_frames_and_stats() {
     let lines: Vec<&str> = stats.lines().collect();
     assert_eq!(lines.len(), 4);
     for (k, line) in lines.iter().enumerate() {
-        assert!(line.starts_with(&format!("{{\"frame\":{k},\"particles\":")), "{line}");
-        for field in ["\"step_ms\":", "\"render_ms\":", "\"emitted\":20", "\"skipped\":false"] {
+        assert!(line.starts_with(&format!("{{\"frame\":{k},\"step_ms\":")), "{line}");
+        for field in
+            ["\"render_ms\":", "\"particles\":", "\"emitted\":20", "\"neighbor_pairs\":", "\"skipped\":false"]
+        {
             assert!(line.contains(field), "{field} missing from {line}");
         }
     }
