@@ -6,6 +6,7 @@
 use glam::Vec2;
 use phenomena_core::grid::{GridError, NeighborGrid};
 use phenomena_core::kernel::{Dim, Kernel, KernelKind};
+use phenomena_core::neighbors::{NeighborLists, TooManyNeighbors};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -14,6 +15,20 @@ use crate::field::Grid;
 
 /// Particles per parallel work item (fixed, so results do not depend on thread count).
 const CHUNK: usize = 1024;
+/// Most neighbours a particle may have within the support radius; more means particles
+/// piled on each other and a step quadratic in their number.
+pub const MAX_NEIGHBORS: usize = 4096;
+
+/// Why a motion step failed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MotionError {
+    /// The neighbour grid could not be built.
+    #[error("neighbour search failed")]
+    Grid(#[from] GridError),
+    /// Too many particles within one support radius.
+    #[error("particles are packed too densely")]
+    TooDense(#[source] TooManyNeighbors),
+}
 
 /// Charged particles, structure-of-arrays.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -113,14 +128,31 @@ impl ForceModel {
 }
 
 /// Reusable buffers of the motion step.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct MotionScratch {
     grid: NeighborGrid,
+    lists: NeighborLists,
     density: Vec<f32>,
+    inv_2density: Vec<f32>,
     pressure: Vec<f32>,
     accel: Vec<Vec2>,
     tmp2: Vec<Vec2>,
     tmp_id: Vec<u64>,
+}
+
+impl Default for MotionScratch {
+    fn default() -> Self {
+        Self {
+            grid: NeighborGrid::default(),
+            lists: NeighborLists::new(CHUNK),
+            density: Vec::new(),
+            inv_2density: Vec::new(),
+            pressure: Vec::new(),
+            accel: Vec::new(),
+            tmp2: Vec::new(),
+            tmp_id: Vec::new(),
+        }
+    }
 }
 
 impl MotionScratch {
@@ -141,9 +173,9 @@ pub fn step(
     e_field: &[Vec2],
     rest_density: f32,
     s: &mut MotionScratch,
-) -> Result<usize, GridError> {
+) -> Result<usize, MotionError> {
     let h = model.support_km();
-    s.grid.build(&p.position_km, h)?;
+    s.grid.build(&p.position_km, h / 2.0)?;
     // Reorder into cell order: runs of cells become contiguous index ranges.
     s.grid.gather(&p.position_km, &mut s.tmp2);
     std::mem::swap(&mut p.position_km, &mut s.tmp2);
@@ -154,52 +186,44 @@ pub fn step(
     s.grid.mark_points_sorted();
 
     let n = p.len();
-    let h2 = h * h;
-    let (pos, grid) = (&p.position_km, &s.grid);
+    s.lists.build(&p.position_km, &s.grid, 2, h, MAX_NEIGHBORS).map_err(MotionError::TooDense)?;
+    let (pos, lists) = (&p.position_km, &s.lists);
     s.density.resize(n, 0.0);
     s.pressure.resize(n, 0.0);
     let (kd, k, rho0) = (model.density, model.gas_constant, rest_density);
-    s.density.par_chunks_mut(CHUNK).zip(s.pressure.par_chunks_mut(CHUNK)).enumerate().for_each(
-        |(c, (d, pr))| {
+    s.density
+        .par_chunks_mut(CHUNK)
+        .zip(s.pressure.par_chunks_mut(CHUNK))
+        .zip(lists.chunks().par_iter())
+        .for_each(|((d, pr), list)| {
             for o in 0..d.len() {
-                let xi = pos[c * CHUNK + o];
-                let mut sum = 0.0f32;
-                grid.for_each_candidate_run(xi, 1, |run| {
-                    for q in &pos[run] {
-                        let r2 = (*q - xi).length_squared();
-                        if r2 < h2 {
-                            sum += kd.value_sq(r2);
-                        }
-                    }
-                });
+                // eq (2.11): δ_i = Σ_j m_j W(x_j - x_i), unit mass.
+                let (_, dist) = list.neighbors(o);
+                let sum: f32 = dist.iter().map(|&r| kd.value(r)).sum();
                 d[o] = sum;
-                pr[o] = k * (sum - rho0);
+                pr[o] = k * (sum - rho0); // eq (2.13)
             }
-        },
-    );
+        });
 
-    let (dens, pres, vel) = (&s.density, &s.pressure, &p.velocity_km_s);
+    // 1/(2δ_j) once per particle rather than a division per pair.
+    s.inv_2density.clear();
+    s.inv_2density.extend(s.density.iter().map(|&d| 0.5 / d));
+    let (inv2d, pres, vel) = (&s.inv_2density, &s.pressure, &p.velocity_km_s);
     let kg = model.gradient;
     s.accel.resize(n, Vec2::ZERO);
-    s.accel.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
+    s.accel.par_chunks_mut(CHUNK).zip(lists.chunks().par_iter()).enumerate().for_each(|(c, (out, list))| {
         for (o, a) in out.iter_mut().enumerate() {
             let i = c * CHUNK + o;
             let xi = pos[i];
             let pi = pres[i];
+            let (idx, dist) = list.neighbors(o);
             let mut f = Vec2::ZERO;
-            grid.for_each_candidate_run(xi, 1, |run| {
-                let first = run.start;
-                for (k, q) in pos[run].iter().enumerate() {
-                    let j = first + k;
-                    let r = *q - xi; // x_j - x_i
-                    let r2 = r.length_squared();
-                    if j != i && r2 < h2 {
-                        // eq (2.14): F_P = Σ m_j (p_i + p_j)/(2 δ_j) ∇W(x_j - x_i); ∇W points
-                        // from j to i (g < 0), so positive pressure repels.
-                        f += r * ((pi + pres[j]) / (2.0 * dens[j]) * kg.gradient_factor(r2.sqrt()));
-                    }
-                }
-            });
+            for (&j, &r) in idx.iter().zip(dist) {
+                let j = j as usize;
+                // eq (2.14): F_P = Σ m_j (p_i + p_j)/(2 δ_j) ∇W(x_j - x_i); ∇W points from
+                // j to i (g < 0), so positive pressure repels. The self-pair has g = 0.
+                f += (pos[j] - xi) * ((pi + pres[j]) * inv2d[j] * kg.gradient_factor(r));
+            }
             let lorentz = model.lorentz(field_grid.interpolate(e_field, xi), vel[i]);
             *a = lorentz * model.weight_lorentz + f * model.weight_coulomb;
         }

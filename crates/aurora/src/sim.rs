@@ -5,7 +5,6 @@
 use std::time::Instant;
 
 use glam::Vec2;
-use phenomena_core::grid::GridError;
 use phenomena_core::noise::NoiseSampler;
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::Issue;
@@ -13,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::AuroraConfig;
 use crate::field::{Grid, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential};
-use crate::motion::{ForceModel, MotionScratch, Particles, step};
+use crate::motion::{ForceModel, MotionError, MotionScratch, Particles, step};
 use crate::shape::{Animation, Shape, ShapeError};
 
 const REDISTRIBUTE: Purpose = Purpose::named("aurora.redistribute");
@@ -30,9 +29,9 @@ pub enum AuroraError {
     /// The shapes could not be built.
     #[error("invalid aurora shapes: {0}")]
     Shape(#[from] ShapeError),
-    /// The neighbour grid could not be built.
-    #[error("neighbour search failed")]
-    Grid(#[from] GridError),
+    /// A motion step failed.
+    #[error("particle motion failed")]
+    Motion(#[from] MotionError),
 }
 
 /// The field of the current intermediate target shape.

@@ -32,6 +32,8 @@ pub trait GridPoint: Copy + Send + Sync {
     const DIM: usize;
     /// Coordinates padded to three (the third is 0 in 2-D).
     fn coords(self) -> [f32; 3];
+    /// Squared distance to another point.
+    fn distance_squared(self, other: Self) -> f32;
 }
 
 impl GridPoint for Vec2 {
@@ -40,6 +42,10 @@ impl GridPoint for Vec2 {
     fn coords(self) -> [f32; 3] {
         [self.x, self.y, 0.0]
     }
+    #[inline]
+    fn distance_squared(self, other: Self) -> f32 {
+        (self - other).length_squared()
+    }
 }
 
 impl GridPoint for Vec3 {
@@ -47,6 +53,10 @@ impl GridPoint for Vec3 {
     #[inline]
     fn coords(self) -> [f32; 3] {
         [self.x, self.y, self.z]
+    }
+    #[inline]
+    fn distance_squared(self, other: Self) -> f32 {
+        (self - other).length_squared()
     }
 }
 
@@ -113,7 +123,8 @@ impl NeighborGrid {
         let mut cells = 1usize;
         for a in 0..3 {
             let n = if a < P::DIM {
-                (((hi[a] - lo[a]) * self.inv_cell).floor() as usize).saturating_add(1)
+                // Non-negative extent: truncation is floor (no libm call on the hot path).
+                (((hi[a] - lo[a]) * self.inv_cell) as usize).saturating_add(1)
             } else {
                 1
             };
@@ -158,7 +169,8 @@ impl NeighborGrid {
         #[allow(clippy::needless_range_loop)] // three parallel arrays indexed by axis
         for a in 0..self.dim {
             let k =
-                (((c[a] - self.origin[a]) * self.inv_cell).floor().max(0.0) as usize).min(self.dims[a] - 1);
+                // Inside the box the offset is non-negative: truncation is floor.
+                ((((c[a] - self.origin[a]) * self.inv_cell).max(0.0)) as usize).min(self.dims[a] - 1);
             idx += k * stride;
             stride *= self.dims[a];
         }

@@ -175,26 +175,19 @@ impl Kernel {
 /// Cubic spline shape in terms of q = r/d ∈ [0, 1] (h = d/2, so q_h = 2q).
 #[inline]
 fn spline_shape(q: f32) -> f32 {
-    if q <= 0.5 {
-        6.0 * (q * q * q - q * q) + 1.0
-    } else if q < 1.0 {
-        let t = 1.0 - q;
-        2.0 * t * t * t
-    } else {
-        0.0
-    }
+    // Both pieces computed, one selected: no unpredictable branch in neighbour loops.
+    let inner = 6.0 * (q * q * q - q * q) + 1.0;
+    let t = (1.0 - q).max(0.0);
+    let outer = 2.0 * t * t * t;
+    if q <= 0.5 { inner } else { outer }
 }
 
 #[inline]
 fn spline_shape_derivative(q: f32) -> f32 {
-    if q <= 0.5 {
-        6.0 * (3.0 * q * q - 2.0 * q)
-    } else if q < 1.0 {
-        let t = 1.0 - q;
-        -6.0 * t * t
-    } else {
-        0.0
-    }
+    let inner = 6.0 * (3.0 * q * q - 2.0 * q);
+    let t = (1.0 - q).max(0.0);
+    let outer = -6.0 * t * t;
+    if q <= 0.5 { inner } else { outer }
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 //! - [`tonemap`]: exposure and tone mapping for display.
 //! - [`kernel`]: normalised SPH kernels (poly6, spiky, cubic spline) in 2-D and 3-D.
 //! - [`grid`]: uniform-grid neighbour search by counting sort.
+//! - [`neighbors`]: neighbour lists built once per step and shared by SPH passes.
 //! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
 //! - [`noise`]: Perlin / simplex noise over space and time.
 //! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
@@ -31,6 +32,7 @@ pub mod color;
 pub mod grid;
 pub mod image;
 pub mod kernel;
+pub mod neighbors;
 pub mod noise;
 pub mod rng;
 pub mod serde_vec;
