@@ -1,9 +1,26 @@
-//! Aurora hot paths (filled in as part 1 lands): see issue 3's speed targets.
+//! Aurora hot paths at Table 3.2's settings (120,000 particles, 256×256 grid): one
+//! renewal of the intermediate shape's field and one motion step (issue 3's targets:
+//! ≤ 20 ms and ≤ 15 ms), plus the Poisson solvers alone.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use glam::Vec2;
 use phenomena_aurora::field::{Grid, Poisson, solve_potential};
+use phenomena_aurora::motion::{ForceModel, MotionScratch, step};
+use phenomena_aurora::{AuroraConfig, AuroraSim, FieldInputs, FieldState, StepStats};
 use std::hint::black_box;
+
+/// The default scene after 20 frames with redistribution off, so the particle count
+/// stays at Table 3.2's 120,000 (less any that left the plane).
+fn settled() -> AuroraSim {
+    let mut config = AuroraConfig::default();
+    config.redistribution.enabled = false;
+    let mut sim = AuroraSim::new(config, 1).expect("default aurora");
+    for _ in 0..20 {
+        sim.step().expect("step");
+    }
+    assert!(sim.particles().len() > 119_000, "{} particles", sim.particles().len());
+    sim
+}
 
 fn poisson(c: &mut Criterion) {
     let grid = Grid { nx: 256, nz: 256, origin_km: Vec2::ZERO, cell_km: 1.5625 };
@@ -13,5 +30,35 @@ fn poisson(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, poisson);
+fn renewal_and_motion(c: &mut Criterion) {
+    let sim = settled();
+    let config = sim.config();
+    let noise = config.field.noise.sampler();
+    let shape = sim.animation().shape_at(27.0);
+    let inputs = FieldInputs {
+        grid: sim.grid(),
+        params: &config.field,
+        noise: &noise,
+        seed: 1,
+        renewal: 3,
+        time_s: 0.7,
+        particles: sim.particles().len(),
+    };
+    c.bench_function("renewal_field_120k_charges_256", |b| {
+        b.iter(|| FieldState::build(shape.clone(), black_box(&inputs), &mut StepStats::default()))
+    });
+
+    let model = ForceModel::new(&config.motion);
+    let field = sim.field();
+    let mut scratch = MotionScratch::default();
+    c.bench_function("motion_step_120k", |b| {
+        b.iter_batched_ref(
+            || sim.particles().clone(),
+            |p| step(p, &model, sim.grid(), &field.e, field.rest_density, &mut scratch).expect("step"),
+            BatchSize::LargeInput,
+        )
+    });
+}
+
+criterion_group!(benches, poisson, renewal_and_motion);
 criterion_main!(benches);

@@ -196,6 +196,11 @@ pub struct MotionParams {
     /// saying how; we cap each particle's speed, so kinetic energy stays bounded (no
     /// particle exceeds ½ m v²_max).
     pub max_speed_km_s: f32,
+    /// Velocity damping rate γ, 1/s (v is scaled by exp(-γΔt) each step). Without it a
+    /// particle that falls into the shape's potential well oscillates across it forever
+    /// and spends most of its time at the turning points, doubling the sheet. Part of
+    /// our reading of §2.3.3's "velocity normalisation for energy conservation".
+    pub damping_per_s: f32,
 }
 
 impl Default for MotionParams {
@@ -213,6 +218,7 @@ impl Default for MotionParams {
             particle_mass_kg: EFFECTIVE_MASS_KG,
             magnetic_field_t: 0.5 * EFFECTIVE_MASS_KG / 1.602_176_634e-19,
             max_speed_km_s: 40.0,
+            damping_per_s: 2.0,
         }
     }
 }
@@ -300,6 +306,7 @@ impl AuroraConfig {
         i.range_open_low("motion.particle_mass_kg", m.particle_mass_kg, 0.0, 1.0);
         i.range("motion.magnetic_field_t", m.magnetic_field_t, -1.0..=1.0);
         i.range_open_low("motion.max_speed_km_s", m.max_speed_km_s, 0.0, 1e5);
+        i.range("motion.damping_per_s", m.damping_per_s, 0.0..=1e3);
         let r = &self.redistribution;
         i.range("redistribution.near_count_ratio", r.near_count_ratio, 0.0..=1e3);
         i.range("redistribution.near_potential_ratio", r.near_potential_ratio, 0.0..=1e3);

@@ -19,4 +19,4 @@ pub use config::{
     AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
 };
 pub use plane::{PlaneView, RenderSettings};
-pub use sim::{AuroraError, AuroraSim, FieldState, StepStats};
+pub use sim::{AuroraError, AuroraSim, FieldInputs, FieldState, StepStats};

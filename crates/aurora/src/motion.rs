@@ -89,6 +89,7 @@ pub struct ForceModel {
     weight_lorentz: f32,
     weight_coulomb: f32,
     max_speed: f32,
+    damping: f32,
     dt: f32,
 }
 
@@ -110,6 +111,7 @@ impl ForceModel {
             weight_lorentz: m.weight_lorentz,
             weight_coulomb: m.weight_coulomb,
             max_speed: m.max_speed_km_s,
+            damping: (-m.damping_per_s * m.time_step_s).exp(),
             dt: m.time_step_s,
         }
     }
@@ -165,7 +167,7 @@ impl MotionScratch {
 /// One motion step: sort particles by cell, SPH density δ (eq 2.11) and pressure
 /// p = k(δ - δ0) (eq 2.13), the pseudo-Coulomb force (eq 2.14), the Lorentz force with E
 /// interpolated bilinearly (eq 2.10), then eq (2.19)-(2.20) with the weights w_L, w_P,
-/// and the speed limit. Particles leaving the plane are removed; returns how many.
+/// and the velocity normalisation (damping, then the speed limit). Particles leaving the plane are removed; returns how many.
 pub fn step(
     p: &mut Particles,
     model: &ForceModel,
@@ -230,14 +232,14 @@ pub fn step(
     });
 
     // eq (2.19)-(2.20), then the speed limit.
-    let (dt, vmax) = (model.dt, model.max_speed);
+    let (dt, vmax, damping) = (model.dt, model.max_speed, model.damping);
     let accel = &s.accel;
     p.position_km.par_chunks_mut(CHUNK).zip(p.velocity_km_s.par_chunks_mut(CHUNK)).enumerate().for_each(
         |(c, (x, v))| {
             for o in 0..x.len() {
                 let a = accel[c * CHUNK + o];
                 x[o] += v[o] * dt + a * (0.5 * dt * dt);
-                v[o] += a * dt;
+                v[o] = (v[o] + a * dt) * damping;
                 let speed = v[o].length();
                 if speed > vmax {
                     v[o] *= vmax / speed;

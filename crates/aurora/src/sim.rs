@@ -10,7 +10,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::Issue;
 use serde::{Deserialize, Serialize};
 
-use crate::config::AuroraConfig;
+use crate::config::{AuroraConfig, FieldParams};
 use crate::field::{Grid, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential};
 use crate::motion::{ForceModel, MotionError, MotionScratch, Particles, step};
 use crate::shape::{Animation, Shape, ShapeError};
@@ -54,6 +54,57 @@ pub struct FieldState {
     pub renewal: u64,
 }
 
+/// What, besides the shape, a field is built from.
+#[derive(Clone, Copy, Debug)]
+pub struct FieldInputs<'a> {
+    /// The plane's grid.
+    pub grid: &'a Grid,
+    /// Field parameters.
+    pub params: &'a FieldParams,
+    /// The potential's noise.
+    pub noise: &'a NoiseSampler,
+    /// The simulation's seed.
+    pub seed: u64,
+    /// Renewal number (picks the charge samples' random stream).
+    pub renewal: u64,
+    /// Simulation time, seconds (the noise's time coordinate follows it).
+    pub time_s: f64,
+    /// Particles in the simulation (for the reference density δ0).
+    pub particles: usize,
+}
+
+impl FieldState {
+    /// One renewal's field (§2.2.3): sample charges near `shape`, count them per cell,
+    /// solve the Poisson equation, add the noise, take E by central differences. Records
+    /// the times of sampling and of the rest in `stats`.
+    pub fn build(shape: Shape, inputs: &FieldInputs<'_>, stats: &mut StepStats) -> Self {
+        let (grid, f) = (inputs.grid, inputs.params);
+        let t = Instant::now();
+        let stream = 1 + inputs.renewal;
+        let charges =
+            sample_near_shape(&shape, f.reach_km, f.charges as usize, f.sampler, inputs.seed, stream);
+        let counts = count_per_cell(grid, &charges);
+        stats.sampling_ms = ms(t);
+        let t = Instant::now();
+        let source: Vec<f64> = counts.iter().map(|&n| f64::from(n)).collect();
+        let (potential, _) = solve_potential(grid, &source, f.poisson);
+        let mut noisy = potential.clone();
+        add_noise(
+            grid,
+            &mut noisy,
+            inputs.noise,
+            inputs.time_s * f.noise_time_frequency_hz,
+            f.noise.amplitude,
+        );
+        let e = electric_field(grid, &noisy);
+        stats.poisson_ms = ms(t);
+        let near_cells = counts.iter().filter(|&&n| n > 0).count().max(1);
+        let cell_area = grid.cell_km * grid.cell_km;
+        let rest_density = inputs.particles as f32 / (near_cells as f32 * cell_area);
+        Self { shape, counts, potential, potential_noisy: noisy, e, rest_density, renewal: inputs.renewal }
+    }
+}
+
 /// What one frame did, with timings of its parts (milliseconds).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepStats {
@@ -67,6 +118,9 @@ pub struct StepStats {
     pub redistributed_removed: usize,
     /// Particles added by redistribution (sparse cells).
     pub redistributed_added: usize,
+    /// Cells still over the upper threshold after redistribution (its per-cell removal
+    /// cap was not enough).
+    pub crowded_cells: usize,
     /// Time spent placing charges, ms.
     pub sampling_ms: f64,
     /// Time spent solving the Poisson equation, adding noise and differentiating, ms.
@@ -210,38 +264,31 @@ impl AuroraSim {
         stats.renewed = true;
         if redistribute && !self.field.counts.is_empty() {
             let t = Instant::now();
-            (stats.redistributed_removed, stats.redistributed_added) = self.redistribute();
+            (stats.redistributed_removed, stats.redistributed_added, stats.crowded_cells) =
+                self.redistribute();
             stats.redistribution_ms = ms(t);
         }
         let renewal = if self.field.counts.is_empty() { 0 } else { self.field.renewal + 1 };
         let target_frame = self.frame as f32 + self.config.shape.lookahead_frames as f32;
         let shape = self.animation.shape_at(target_frame);
-        let t = Instant::now();
-        let f = &self.config.field;
-        let charges =
-            sample_near_shape(&shape, f.reach_km, f.charges as usize, f.sampler, self.seed, 1 + renewal);
-        let counts = count_per_cell(&self.grid, &charges);
-        stats.sampling_ms = ms(t);
-        let t = Instant::now();
-        let source: Vec<f64> = counts.iter().map(|&n| f64::from(n)).collect();
-        let (potential, _) = solve_potential(&self.grid, &source, f.poisson);
-        let mut noisy = potential.clone();
-        let time = self.frame as f64 * f64::from(self.config.motion.time_step_s) * f.noise_time_frequency_hz;
-        add_noise(&self.grid, &mut noisy, &self.noise, time, f.noise.amplitude);
-        let e = electric_field(&self.grid, &noisy);
-        stats.poisson_ms = ms(t);
-        let near_cells = counts.iter().filter(|&&n| n > 0).count().max(1);
-        let cell_area = self.grid.cell_km * self.grid.cell_km;
-        let rest_density = self.particles.len() as f32 / (near_cells as f32 * cell_area);
-        self.field =
-            FieldState { shape, counts, potential, potential_noisy: noisy, e, rest_density, renewal };
+        let time_s = self.frame as f64 * f64::from(self.config.motion.time_step_s);
+        let inputs = FieldInputs {
+            grid: &self.grid,
+            params: &self.config.field,
+            noise: &self.noise,
+            seed: self.seed,
+            renewal,
+            time_s,
+            particles: self.particles.len(),
+        };
+        self.field = FieldState::build(shape, &inputs, stats);
     }
 
     /// §2.3.4 with Table 3.3's thresholds: remove particles in cells that are not near
     /// the (old) shape, thin crowded near cells from the particle farthest from the shape
     /// on, and top up sparse near cells with particles at random positions moving with
-    /// their neighbours' mean velocity. Returns (removed, added).
-    fn redistribute(&mut self) -> (usize, usize) {
+    /// their neighbours' mean velocity. Returns (removed, added, cells still crowded).
+    fn redistribute(&mut self) -> (usize, usize, usize) {
         let r = &self.config.redistribution;
         let (grid, field) = (&self.grid, &self.field);
         let cells = grid.len();
@@ -265,6 +312,7 @@ impl AuroraSim {
             }
         }
         let mut removed = 0usize;
+        let mut crowded = 0usize;
         let mut additions: Vec<(u64, Vec2, Vec2)> = Vec::new();
         for c in 0..cells {
             let members = &by_cell[c];
@@ -278,6 +326,7 @@ impl AuroraSim {
             let count = members.len() as u32;
             if count > r.remove_above {
                 let excess = ((count - r.remove_above).min(r.remove_max)) as usize;
+                crowded += usize::from(count - excess as u32 > r.remove_above);
                 let mut by_distance: Vec<(f32, u32)> =
                     members.iter().map(|&i| (field.shape.distance(p.position_km[i as usize]), i)).collect();
                 // Farthest first; ties broken by index for determinism.
@@ -316,7 +365,7 @@ impl AuroraSim {
             self.particles.push(self.next_id, x, v);
             self.next_id += 1;
         }
-        (removed, added)
+        (removed, added, crowded)
     }
 }
 

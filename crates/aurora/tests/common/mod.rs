@@ -1,0 +1,101 @@
+//! Helpers shared by the aurora scenario tests: load a shipped scene, run it, measure
+//! the particle cloud.
+
+#![allow(dead_code)]
+
+use glam::Vec2;
+use phenomena_aurora::field::Grid;
+use phenomena_aurora::shape::Shape;
+use phenomena_aurora::{AuroraConfig, AuroraSim};
+use serde::Deserialize;
+
+#[derive(Deserialize)]
+struct SceneFile {
+    scene: SceneTable,
+    aurora: AuroraConfig,
+}
+
+#[derive(Deserialize)]
+struct SceneTable {
+    frames: u32,
+    seed: u64,
+}
+
+/// The `[aurora]` table, frame count and seed of `scenes/NAME`.
+pub(crate) fn load(name: &str) -> (AuroraConfig, u32, u64) {
+    let path = format!("{}/../../scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).expect("scene file");
+    let file: SceneFile = toml::from_str(&text).expect("valid scene");
+    (file.aurora, file.scene.frames, file.scene.seed)
+}
+
+/// Run a simulation for `frames` frames.
+pub(crate) fn run(config: AuroraConfig, seed: u64, frames: u32) -> AuroraSim {
+    let mut sim = AuroraSim::new(config, seed).expect("valid aurora");
+    for _ in 0..frames {
+        sim.step().expect("step");
+    }
+    sim
+}
+
+/// Fraction of particles within `reach` of the shape's segments.
+pub(crate) fn fraction_near(sim: &AuroraSim, shape: &Shape, reach: f32) -> f64 {
+    let p = &sim.particles().position_km;
+    p.iter().filter(|&&x| shape.distance(x) < reach).count() as f64 / p.len() as f64
+}
+
+/// Points every `step` km along every segment of `shape` that have no particle within
+/// `reach` (gaps in the cloud along the shape).
+pub(crate) fn gaps_along(sim: &AuroraSim, shape: &Shape, step: f32, reach: f32) -> Vec<Vec2> {
+    let p = &sim.particles().position_km;
+    let mut grid = phenomena_core::grid::NeighborGrid::default();
+    grid.build(p, reach).expect("finite");
+    let mut gaps = Vec::new();
+    for (a, b) in shape.segments() {
+        let n = ((b - a).length() / step).ceil().max(1.0) as usize;
+        for k in 0..=n {
+            let q = a.lerp(b, k as f32 / n as f32);
+            if grid.neighbors_within(p, q, reach).is_empty() {
+                gaps.push(q);
+            }
+        }
+    }
+    gaps
+}
+
+/// Connected components (8-neighbour) of the cells holding at least `min_count`
+/// particles, ignoring components smaller than `min_cells` cells.
+pub(crate) fn components(sim: &AuroraSim, min_count: u32, min_cells: usize) -> usize {
+    let grid: &Grid = sim.grid();
+    let counts = phenomena_aurora::field::count_per_cell(grid, &sim.particles().position_km);
+    let mut label = vec![usize::MAX; grid.len()];
+    let mut found = 0;
+    for start in 0..grid.len() {
+        if counts[start] < min_count || label[start] != usize::MAX {
+            continue;
+        }
+        let mut stack = vec![start];
+        label[start] = start;
+        let mut size = 0;
+        while let Some(c) = stack.pop() {
+            size += 1;
+            let (i, j) = ((c % grid.nx) as i64, (c / grid.nx) as i64);
+            for dj in -1..=1 {
+                for di in -1..=1 {
+                    let (ni, nj) = (i + di, j + dj);
+                    if ni >= 0 && nj >= 0 && (ni as usize) < grid.nx && (nj as usize) < grid.nz {
+                        let k = grid.index(ni as usize, nj as usize);
+                        if counts[k] >= min_count && label[k] == usize::MAX {
+                            label[k] = start;
+                            stack.push(k);
+                        }
+                    }
+                }
+            }
+        }
+        if size >= min_cells {
+            found += 1;
+        }
+    }
+    found
+}
