@@ -7,6 +7,7 @@ mod export_blackbody;
 mod new_and_demo;
 mod render_frames;
 mod resume;
+mod shipped_scenes;
 
 use std::path::Path;
 use std::process::Output;
