@@ -167,7 +167,8 @@ impl MotionScratch {
 /// One motion step: sort particles by cell, SPH density δ (eq 2.11) and pressure
 /// p = k(δ - δ0) (eq 2.13), the pseudo-Coulomb force (eq 2.14), the Lorentz force with E
 /// interpolated bilinearly (eq 2.10), then eq (2.19)-(2.20) with the weights w_L, w_P,
-/// and the velocity normalisation (damping, then the speed limit). Particles leaving the plane are removed; returns how many.
+/// and the velocity normalisation (damping, then the speed limit). Particles leaving the
+/// plane are removed; returns how many.
 pub fn step(
     p: &mut Particles,
     model: &ForceModel,
@@ -231,7 +232,7 @@ pub fn step(
         }
     });
 
-    // eq (2.19)-(2.20), then the speed limit.
+    // eq (2.19)-(2.20), then damping and the speed limit.
     let (dt, vmax, damping) = (model.dt, model.max_speed, model.damping);
     let accel = &s.accel;
     p.position_km.par_chunks_mut(CHUNK).zip(p.velocity_km_s.par_chunks_mut(CHUNK)).enumerate().for_each(
