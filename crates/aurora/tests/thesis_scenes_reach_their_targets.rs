@@ -8,8 +8,8 @@ mod common;
 use phenomena_aurora::AuroraSim;
 
 /// Run scene `name`, calling `at(frame, sim)` after every frame, then check the cloud
-/// against the final target shape.
-fn check(name: &str, mut at: impl FnMut(u32, &AuroraSim)) {
+/// against the final target shape; returns the simulation at its end.
+fn check(name: &str, mut at: impl FnMut(u32, &AuroraSim)) -> AuroraSim {
     let (config, frames, seed) = common::load(name);
     let reach = config.field.reach_km;
     let mut sim = AuroraSim::new(config, seed).expect("valid aurora");
@@ -29,6 +29,7 @@ fn check(name: &str, mut at: impl FnMut(u32, &AuroraSim)) {
         gaps.len(),
         &gaps[..gaps.len().min(5)]
     );
+    sim
 }
 
 /// Connected clouds: cells with at least 5 particles (a tenth of Table 3.3's lower
@@ -43,28 +44,28 @@ fn scene1_peeling() {
     check("aurora-scene1.toml", |_, _| {});
 }
 
+/// Run scene `name` through [`check`] and return its clouds at frame `before` and at
+/// the end.
+fn clouds_before_and_after(name: &str, before: u32) -> (usize, usize) {
+    let mut at_before = 0;
+    let sim = check(name, |frame, sim| {
+        if frame == before {
+            at_before = clouds(sim);
+        }
+    });
+    (at_before, clouds(&sim))
+}
+
 #[test]
 fn scene2_s_shape_and_split() {
-    let (mut before, mut after) = (0, 0);
-    check("aurora-scene2.toml", |frame, sim| {
-        if frame == 140 {
-            before = clouds(sim);
-        }
-        after = clouds(sim);
-    });
-    assert_eq!((before, after), (1, 2), "clouds at the S (frame 140) and after the split");
+    let clouds = clouds_before_and_after("aurora-scene2.toml", 140);
+    assert_eq!(clouds, (1, 2), "clouds at the S (frame 140) and after the split");
 }
 
 #[test]
 fn scene3_merge() {
-    let (mut before, mut after) = (0, 0);
-    check("aurora-scene3.toml", |frame, sim| {
-        if frame == 1 {
-            before = clouds(sim);
-        }
-        after = clouds(sim);
-    });
-    assert_eq!((before, after), (3, 2), "clouds at the start and after the merge");
+    let clouds = clouds_before_and_after("aurora-scene3.toml", 1);
+    assert_eq!(clouds, (3, 2), "clouds at the start and after the merge");
 }
 
 #[test]
