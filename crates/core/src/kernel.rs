@@ -11,6 +11,7 @@
 //! | cubic spline | 8 / (π d³) | 40 / (7π d²) | Monaghan 1992; aurora thesis eq (2.17)-(2.18) with h = d/2 |
 
 use serde::{Deserialize, Serialize};
+use wide::f32x8;
 
 /// Which kernel function.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -119,9 +120,9 @@ impl Kernel {
         }
     }
 
-    /// W from the squared distance; poly6 needs no square root and no branch (so it can
-    /// be summed over every candidate, inside the support or not: it is exactly 0
-    /// outside, and for NaN or infinite input).
+    /// W from the squared distance, without a branch, so it can be summed over every
+    /// candidate of a neighbour search, inside the support or not: exactly 0 outside, and
+    /// for NaN or infinite input. Poly6 needs no square root.
     #[inline]
     pub fn value_sq(&self, r_sq: f32) -> f32 {
         match self.kind {
@@ -129,7 +130,11 @@ impl Kernel {
                 let t = (1.0 - r_sq * self.inv_support_sq).max(0.0);
                 self.value_scale * t * t * t
             }
-            _ => self.value(r_sq.sqrt()),
+            KernelKind::Spiky => {
+                let t = (1.0 - r_sq.sqrt() * self.inv_support).max(0.0);
+                self.value_scale * t * t * t
+            }
+            KernelKind::CubicSpline => self.value_scale * spline_shape(r_sq.sqrt() * self.inv_support),
         }
     }
 
@@ -169,6 +174,90 @@ impl Kernel {
             }
             _ => self.derivative(r) / r,
         }
+    }
+    /// [`Self::gradient_factor`] from the squared distance, without a branch (for loops
+    /// over every candidate): 0 at r = 0, outside the support, and for NaN or infinite
+    /// input.
+    #[inline]
+    pub fn gradient_factor_sq(&self, r_sq: f32) -> f32 {
+        let inside = r_sq > 0.0 && r_sq < self.support_sq;
+        let g = match self.kind {
+            KernelKind::Poly6 => {
+                let t = 1.0 - r_sq * self.inv_support_sq;
+                -6.0 * self.deriv_scale * self.inv_support * t * t
+            }
+            KernelKind::Spiky => {
+                let r = r_sq.sqrt();
+                let t = 1.0 - r * self.inv_support;
+                -3.0 * self.deriv_scale * t * t / r
+            }
+            KernelKind::CubicSpline => {
+                // Inner piece 6(3q² - 2q)/r = 6(3q - 2)/d: no division there.
+                let r = r_sq.sqrt();
+                let q = r * self.inv_support;
+                let inner = 6.0 * self.inv_support * (3.0 * q - 2.0);
+                let t = 1.0 - q;
+                let outer = -6.0 * t * t / r;
+                self.deriv_scale * if q <= 0.5 { inner } else { outer }
+            }
+        };
+        if inside { g } else { 0.0 }
+    }
+
+    /// [`Self::value_sq`] on eight squared distances at once, bit-identical to it lane by
+    /// lane for finite input (the same IEEE operations in the same order).
+    #[inline]
+    pub fn value_sq_x8(&self, r_sq: f32x8) -> f32x8 {
+        let one = f32x8::splat(1.0);
+        let zero = f32x8::ZERO;
+        let scale = f32x8::splat(self.value_scale);
+        match self.kind {
+            KernelKind::Poly6 => {
+                let t = (one - r_sq * f32x8::splat(self.inv_support_sq)).max(zero);
+                scale * t * t * t
+            }
+            KernelKind::Spiky => {
+                let t = (one - r_sq.sqrt() * f32x8::splat(self.inv_support)).max(zero);
+                scale * t * t * t
+            }
+            KernelKind::CubicSpline => {
+                let q = r_sq.sqrt() * f32x8::splat(self.inv_support);
+                let inner = f32x8::splat(6.0) * (q * q * q - q * q) + one;
+                let t = (one - q).max(zero);
+                let outer = f32x8::splat(2.0) * t * t * t;
+                scale * q.simd_le(f32x8::splat(0.5)).select(inner, outer)
+            }
+        }
+    }
+
+    /// [`Self::gradient_factor_sq`] on eight squared distances at once, bit-identical to
+    /// it lane by lane for finite input.
+    #[inline]
+    pub fn gradient_factor_sq_x8(&self, r_sq: f32x8) -> f32x8 {
+        let one = f32x8::splat(1.0);
+        let inside = r_sq.simd_gt(f32x8::ZERO) & r_sq.simd_lt(f32x8::splat(self.support_sq));
+        let ds = f32x8::splat(self.deriv_scale);
+        let inv_d = f32x8::splat(self.inv_support);
+        let g = match self.kind {
+            KernelKind::Poly6 => {
+                let t = one - r_sq * f32x8::splat(self.inv_support_sq);
+                f32x8::splat(-6.0) * ds * inv_d * t * t
+            }
+            KernelKind::Spiky => {
+                let r = r_sq.sqrt();
+                let t = one - r * inv_d;
+                f32x8::splat(-3.0) * ds * t * t / r
+            }
+            KernelKind::CubicSpline => {
+                let r = r_sq.sqrt();
+                let q = r * inv_d;
+                let inner = f32x8::splat(6.0) * inv_d * (f32x8::splat(3.0) * q - f32x8::splat(2.0));
+                let t = one - q;
+                let outer = f32x8::splat(-6.0) * t * t / r;
+                ds * q.simd_le(f32x8::splat(0.5)).select(inner, outer)
+            }
+        };
+        inside.select(g, f32x8::ZERO)
     }
 }
 
@@ -280,6 +369,48 @@ mod tests {
     }
 
     #[test]
+    fn squared_distance_forms_agree_with_the_plain_ones() {
+        // Same formulas, rearranged (the spline's inner gradient without the division):
+        // a few f32 roundings apart, relative 1e-5 of the kernel's scale at r = 0.
+        for kind in KINDS {
+            for dim in [Dim::Two, Dim::Three] {
+                let k = Kernel::new(kind, dim, 0.35);
+                let (w0, g0) = (k.value(0.0), k.derivative(0.0).abs().max(k.gradient_factor(0.01).abs()));
+                for i in 0..=400 {
+                    let r = i as f32 * 0.001;
+                    assert!((k.value_sq(r * r) - k.value(r)).abs() <= 1e-5 * w0, "{kind:?} {dim:?} W r={r}");
+                    let (a, b) = (k.gradient_factor_sq(r * r), k.gradient_factor(r));
+                    assert!((a - b).abs() <= 1e-5 * g0 + 1e-5 * b.abs(), "{kind:?} {dim:?} g r={r}: {a} {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn eight_lane_forms_are_bit_identical_to_the_scalar_ones() {
+        for kind in KINDS {
+            for dim in [Dim::Two, Dim::Three] {
+                let k = Kernel::new(kind, dim, 0.35);
+                for c in 0..100 {
+                    // Squared distances from 0 to past the support, exact 0 included.
+                    let r_sq: [f32; 8] = std::array::from_fn(|l| ((c * 8 + l) as f32 * 0.000_2).powi(2));
+                    let w = k.value_sq_x8(f32x8::from(r_sq)).to_array();
+                    let g = k.gradient_factor_sq_x8(f32x8::from(r_sq)).to_array();
+                    for l in 0..8 {
+                        assert_eq!(w[l].to_bits(), k.value_sq(r_sq[l]).to_bits(), "{kind:?} W {}", r_sq[l]);
+                        assert_eq!(
+                            g[l].to_bits(),
+                            k.gradient_factor_sq(r_sq[l]).to_bits(),
+                            "{kind:?} g {}",
+                            r_sq[l]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn thesis_spline_gradient_agrees() {
         // Aurora thesis eq (2.18), h = d/2: ∇W = 45/(14π h⁴) (q_h - 4/3) r⃗ for q_h < 1.
         let d = 2.0_f32;
@@ -304,6 +435,9 @@ mod tests {
             assert_eq!(k.value_sq(1.5), 0.0);
             assert_eq!(k.value_sq(f32::NAN), 0.0);
             assert_eq!(k.value_sq(f32::INFINITY), 0.0);
+            for bad in [0.0, 1.0, 1.5, f32::NAN, f32::INFINITY] {
+                assert_eq!(k.gradient_factor_sq(bad), 0.0, "{kind:?} {bad}");
+            }
         }
     }
 
