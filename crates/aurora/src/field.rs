@@ -17,7 +17,7 @@ use rustfft::num_complex::Complex;
 use rustfft::{Fft, FftPlannerScalar};
 use serde::{Deserialize, Serialize};
 
-use crate::shape::{Shape, point_segment_distance};
+use crate::shape::Shape;
 
 const SAMPLE: Purpose = Purpose::named("aurora.field.sample");
 /// Samples per parallel work item; fixed so results do not depend on the thread count.
@@ -101,17 +101,20 @@ pub enum Sampler {
     /// kept when within L_thr of a segment. §3.3 names it the bottleneck: most points are
     /// rejected for long thin shapes.
     Paper,
-    /// Uniform points drawn directly from the region within L_thr of the segments: a
-    /// capsule chosen by area, a uniform point in it, kept with probability 1/(number of
-    /// capsules covering it) so overlaps are not counted twice. The same distribution
-    /// (tested by chi-square over cells), no wasted draws.
+    /// Uniform points drawn from the region within L_thr of the segments directly: the
+    /// plane is cut into cells a quarter of L_thr wide, classified once per shape as
+    /// outside, wholly inside or partly inside the region; a point is drawn uniformly in
+    /// a cell chosen uniformly among the last two kinds and kept if it is inside. The
+    /// same distribution as the thesis's rejection from the bounding box (tested by
+    /// chi-square over cells), with few rejections and most distance tests skipped.
     #[default]
     Direct,
 }
 
 /// Segments bucketed into square cells for distance queries.
 struct SegmentIndex {
-    segments: Vec<(Vec2, Vec2)>,
+    /// Per segment: start a, direction b - a, and 1/|b - a|² (0 for a point).
+    lines: Vec<(Vec2, Vec2, f32)>,
     origin: Vec2,
     cell: f32,
     nx: usize,
@@ -153,7 +156,14 @@ impl SegmentIndex {
             items.extend_from_slice(b);
         }
         start.push(items.len() as u32);
-        Self { segments, origin, cell, nx, nz, start, items }
+        let lines = segments
+            .iter()
+            .map(|&(a, b)| {
+                let len2 = (b - a).length_squared();
+                (a, b - a, if len2 > 0.0 { 1.0 / len2 } else { 0.0 })
+            })
+            .collect();
+        Self { lines, origin, cell, nx, nz, start, items }
     }
 
     fn clamp_cell(origin: Vec2, cell: f32, nx: usize, nz: usize, p: Vec2) -> (usize, usize) {
@@ -171,15 +181,67 @@ impl SegmentIndex {
         &self.items[self.start[k] as usize..self.start[k + 1] as usize]
     }
 
-    /// Number of segments within `reach` of `p`.
-    fn coverage(&self, p: Vec2, reach: f32) -> usize {
+    /// Whether some segment lies within `reach` of `p` (squared distances: no root, no
+    /// division).
+    fn covers(&self, p: Vec2, reach: f32) -> bool {
+        let reach_sq = reach * reach;
+        self.near(p).iter().any(|&s| self.distance_squared(p, s as usize) < reach_sq)
+    }
+
+    /// Distance from `p` to the nearest segment listed near it (∞ if none).
+    fn nearest(&self, p: Vec2) -> f32 {
         self.near(p)
             .iter()
-            .filter(|&&s| {
-                let (a, b) = self.segments[s as usize];
-                point_segment_distance(p, a, b) < reach
+            .map(|&s| self.distance_squared(p, s as usize))
+            .fold(f32::INFINITY, f32::min)
+            .sqrt()
+    }
+
+    /// Squared distance from `p` to segment `s`.
+    #[inline]
+    fn distance_squared(&self, p: Vec2, s: usize) -> f32 {
+        let (a, ab, inv_len2) = self.lines[s];
+        let t = ((p - a).dot(ab) * inv_len2).clamp(0.0, 1.0);
+        (a + ab * t).distance_squared(p)
+    }
+}
+
+/// The cells of a fine square grid that meet the neighbourhood of the segments, each
+/// marked when it lies wholly inside it.
+struct CellCover {
+    origin: Vec2,
+    size: f32,
+    nx: usize,
+    /// (cell index, wholly inside).
+    cells: Vec<(u32, bool)>,
+}
+
+/// Fine cells per L_thr for [`CellCover`]: a quarter of L_thr wide, most cells that meet
+/// the neighbourhood lie wholly inside it.
+const COVER_CELLS_PER_REACH: f32 = 4.0;
+/// Most cells a [`CellCover`] may have (coarser cells beyond).
+const MAX_COVER_CELLS: f32 = 4.0e6;
+
+impl CellCover {
+    /// Classify the cells by the distance d from their centre to the nearest segment:
+    /// with h the half-diagonal, d ≥ reach + h means no point of the cell is near
+    /// (dropped), d + h < reach means every point is (kept, inside), else some may be
+    /// (kept, to test). `index` must list every segment within reach + h of a point.
+    fn new(index: &SegmentIndex, lo: Vec2, hi: Vec2, reach: f32, size: f32) -> Self {
+        let nx = ((hi.x - lo.x) / size).ceil().max(1.0) as usize;
+        let nz = ((hi.y - lo.y) / size).ceil().max(1.0) as usize;
+        let half_diagonal = size * std::f32::consts::FRAC_1_SQRT_2;
+        let cells = (0..nz)
+            .into_par_iter()
+            .flat_map_iter(|j| {
+                (0..nx).filter_map(move |i| {
+                    let centre = lo + (Vec2::new(i as f32, j as f32) + 0.5) * size;
+                    let d = index.nearest(centre);
+                    (d < reach + half_diagonal).then_some(((j * nx + i) as u32, d + half_diagonal < reach))
+                })
             })
-            .count()
+            .collect();
+        Self { origin: lo, size, nx, cells }
     }
 }
 
@@ -193,30 +255,22 @@ pub fn sample_near_shape(
     seed: u64,
     stream: u64,
 ) -> Vec<Vec2> {
-    let index = SegmentIndex::new(shape, reach_km);
-    if index.segments.is_empty() || count == 0 || !(reach_km > 0.0) {
+    let r = reach_km;
+    if shape.segments().next().is_none() || count == 0 || !(r > 0.0) {
         return Vec::new();
     }
-    let r = reach_km;
-    // Capsule areas for the direct sampler: 2r·len (the band) + πr² (the two caps).
-    let areas: Vec<f64> = index
-        .segments
-        .iter()
-        .map(|&(a, b)| {
-            2.0 * f64::from(r) * f64::from(a.distance(b)) + std::f64::consts::PI * f64::from(r * r)
-        })
-        .collect();
-    let mut cumulative = Vec::with_capacity(areas.len());
-    let mut total = 0.0;
-    for a in &areas {
-        total += a;
-        cumulative.push(total);
-    }
-    let (lo, hi) = index
-        .segments
-        .iter()
-        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &(a, b)| (lo.min(a).min(b), hi.max(a).max(b)));
+    let (lo, hi) = shape
+        .segments()
+        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a).min(b), hi.max(a).max(b)));
     let (box_lo, box_hi) = (lo - Vec2::splat(r), hi + Vec2::splat(r));
+    let span = box_hi - box_lo;
+    let size = (r / COVER_CELLS_PER_REACH).max((span.x * span.y / MAX_COVER_CELLS).sqrt());
+    // The index lists segments within reach + the cover cells' half-diagonal of a point.
+    let index = SegmentIndex::new(shape, r + size * std::f32::consts::FRAC_1_SQRT_2);
+    let cover = match sampler {
+        Sampler::Paper => None,
+        Sampler::Direct => Some(CellCover::new(&index, box_lo, box_hi, r, size)),
+    };
     let chunks = count.div_ceil(SAMPLE_CHUNK);
     let parts: Vec<Vec<Vec2>> = (0..chunks)
         .into_par_iter()
@@ -225,21 +279,21 @@ pub fn sample_near_shape(
             let mut rng = Stream::new(seed, SAMPLE, stream.wrapping_mul(1 << 20).wrapping_add(c as u64));
             let mut out = Vec::with_capacity(want);
             while out.len() < want {
-                match sampler {
-                    Sampler::Paper => {
+                match &cover {
+                    None => {
                         let p = Vec2::new(rng.uniform(box_lo.x, box_hi.x), rng.uniform(box_lo.y, box_hi.y));
-                        if index.coverage(p, r) > 0 {
+                        if index.covers(p, r) {
                             out.push(p);
                         }
                     }
-                    Sampler::Direct => {
-                        let u = rng.next_f64() * total;
-                        let s = cumulative.partition_point(|&c| c <= u).min(areas.len() - 1);
-                        let (a, b) = index.segments[s];
-                        let p = sample_capsule(a, b, r, &mut rng);
-                        // Keep with probability 1/coverage: uniform over the union.
-                        let cover = index.coverage(p, r).max(1);
-                        if cover == 1 || rng.below(cover as u32) == 0 {
+                    Some(cover) => {
+                        // A cell uniformly among those that meet the neighbourhood (all of
+                        // equal area), a uniform point in it, kept if near a segment.
+                        let (k, inside) = cover.cells[rng.below(cover.cells.len() as u32) as usize];
+                        let (i, j) = (k as usize % cover.nx, k as usize / cover.nx);
+                        let corner = cover.origin + Vec2::new(i as f32, j as f32) * cover.size;
+                        let p = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * cover.size;
+                        if inside || index.covers(p, r) {
                             out.push(p);
                         }
                     }
@@ -249,24 +303,6 @@ pub fn sample_near_shape(
         })
         .collect();
     parts.concat()
-}
-
-/// A uniform point in the capsule of radius r around segment ab.
-fn sample_capsule(a: Vec2, b: Vec2, r: f32, rng: &mut Stream) -> Vec2 {
-    let ab = b - a;
-    let len = ab.length();
-    let band = 2.0 * r * len;
-    let caps = std::f32::consts::PI * r * r;
-    let dir = if len > 0.0 { ab / len } else { Vec2::X };
-    let normal = dir.perp();
-    if rng.next_f32() * (band + caps) < band {
-        a + dir * (rng.next_f32() * len) + normal * rng.uniform(-r, r)
-    } else {
-        // A uniform point of the disk, sent to the half-disk behind a or beyond b.
-        let (x, y) = rng.in_unit_disk();
-        let d = Vec2::new(x, y) * r;
-        if d.dot(dir) < 0.0 { a + d } else { b + d }
-    }
 }
 
 /// Count points per grid cell (points outside the plane are not counted).
@@ -339,18 +375,25 @@ fn gauss_seidel(grid: &Grid, s: &[f64], max_iterations: u32, tolerance: f64) -> 
 }
 
 /// DST-I of every row of length `n` in `data` (rows of stride `n`), in place, by an FFT
-/// of the odd extension of length 2(n + 1).
+/// of the odd extension of length 2(n + 1). Rows go two at a time through one complex
+/// FFT: the transform of a real odd sequence is purely imaginary, so with z = a + i·b,
+/// Im Z carries a's transform and -Re Z carries b's.
 fn dst_rows(data: &mut [f64], n: usize, fft: &Arc<dyn Fft<f64>>) {
-    data.par_chunks_mut(n).for_each(|row| {
+    data.par_chunks_mut(2 * n).for_each(|pair| {
         let m = 2 * (n + 1);
         let mut buf = vec![Complex::new(0.0, 0.0); m];
-        for (k, &v) in row.iter().enumerate() {
-            buf[k + 1] = Complex::new(v, 0.0);
-            buf[m - 1 - k] = Complex::new(-v, 0.0);
+        let (a, b) = pair.split_at_mut(n);
+        for k in 0..n {
+            let v = Complex::new(a[k], b.get(k).copied().unwrap_or(0.0));
+            buf[k + 1] = v;
+            buf[m - 1 - k] = -v;
         }
         fft.process(&mut buf);
-        for (k, out) in row.iter_mut().enumerate() {
-            *out = -0.5 * buf[k + 1].im;
+        for k in 0..n {
+            a[k] = -0.5 * buf[k + 1].im;
+        }
+        for (k, out) in b.iter_mut().enumerate() {
+            *out = 0.5 * buf[k + 1].re;
         }
     });
 }
@@ -505,5 +548,46 @@ mod tests {
             let b = pool.install(|| sample_near_shape(&shape, 3.0, 10_000, sampler, 7, 0));
             assert_eq!(a, b);
         }
+    }
+
+    #[test]
+    fn the_cell_cover_keeps_every_cell_that_meets_the_region_and_marks_inside_ones_truly() {
+        let shape = Shape {
+            points: vec![
+                Vec2::new(10.0, 10.0),
+                Vec2::new(50.0, 20.0),
+                Vec2::new(52.0, 21.0),
+                Vec2::new(30.0, 60.0),
+            ],
+            next: vec![Some(1), Some(2), Some(3), None],
+            sheet: vec![0; 4],
+            index_in_sheet: vec![0, 1, 2, 3],
+        };
+        let (r, size) = (6.0, 1.5);
+        let index = SegmentIndex::new(&shape, r + size * std::f32::consts::FRAC_1_SQRT_2);
+        let (lo, hi) = (Vec2::splat(4.0), Vec2::new(58.0, 66.0));
+        let cover = CellCover::new(&index, lo, hi, r, size);
+        let kept: std::collections::HashMap<u32, bool> = cover.cells.iter().copied().collect();
+        let (mut inside, mut partial) = (0, 0);
+        // A dense lattice of test points (8 per cell side), checked against the plain
+        // distance to the shape.
+        let step = size / 8.0;
+        for j in 0..((hi.y - lo.y) / step) as usize {
+            for i in 0..((hi.x - lo.x) / step) as usize {
+                let p = lo + (Vec2::new(i as f32, j as f32) + 0.5) * step;
+                let c = ((p - lo) / size).floor();
+                let k = (c.y as usize * cover.nx + c.x as usize) as u32;
+                let near = shape.distance(p) < r;
+                match kept.get(&k) {
+                    None => assert!(!near, "{p} is near the shape but its cell was dropped"),
+                    Some(true) => {
+                        assert!(near, "{p} is not near the shape but its cell is marked inside");
+                        inside += 1;
+                    }
+                    Some(false) => partial += 1,
+                }
+            }
+        }
+        assert!(inside > 2 * partial, "most kept cells are wholly inside: {inside} vs {partial}");
     }
 }
