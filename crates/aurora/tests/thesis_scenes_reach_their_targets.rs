@@ -1,7 +1,9 @@
 //! Issue 3's evidence on the shipped thesis scenes 1-5: after the transitions finish,
 //! at least 90 % of the particles lie within L_thr of the final target shape, and every
 //! segment of it has particles within L_thr along its whole length; a split turns one
-//! connected particle cloud into two (scene 2), a merge three into two (scene 3).
+//! connected particle cloud into two (scene 2), a merge three into two (scene 3); and
+//! after every redistribution (§2.3.4) no cell holds more than Table 3.3's upper
+//! threshold of particles.
 
 mod common;
 
@@ -12,9 +14,14 @@ use phenomena_aurora::AuroraSim;
 fn check(name: &str, mut at: impl FnMut(u32, &AuroraSim)) -> AuroraSim {
     let (config, frames, seed) = common::load(name);
     let reach = config.field.reach_km;
+    let upper = config.redistribution.remove_above;
     let mut sim = AuroraSim::new(config, seed).expect("valid aurora");
     for frame in 1..=frames {
-        sim.step().expect("step");
+        let stats = sim.step().expect("step");
+        assert_eq!(
+            stats.crowded_cells, 0,
+            "{name}, frame {frame}: cells over {upper} particles after redistribution"
+        );
         at(frame, &sim);
     }
     let last = *sim.animation().keyframe_frames().last().expect("keyframes");
