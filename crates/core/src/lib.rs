@@ -4,7 +4,6 @@
 //! - [`tonemap`]: exposure and tone mapping for display.
 //! - [`kernel`]: normalised SPH kernels (poly6, spiky, cubic spline) in 2-D and 3-D.
 //! - [`grid`]: uniform-grid neighbour search by counting sort.
-//! - [`neighbors`]: neighbour lists built once per step and shared by SPH passes.
 //! - [`pairs`]: every close pair once, in parallel and thread-count independent (2-D).
 //! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
 //! - [`noise`]: Perlin / simplex noise over space and time.
@@ -33,7 +32,6 @@ pub mod color;
 pub mod grid;
 pub mod image;
 pub mod kernel;
-pub mod neighbors;
 pub mod noise;
 pub mod pairs;
 pub mod rng;
