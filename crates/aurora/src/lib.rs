@@ -6,8 +6,12 @@
 //! motion ([`motion`], §2.3) and the simulation that ties them together ([`AuroraSim`],
 //! with the redistribution of §2.3.4); [`plane`] draws the x-z plane from above.
 //!
+//! Part 2 (issue 4, in progress): [`atmosphere`], the NRLMSIS neutral atmosphere of the
+//! physical colour mode.
+//!
 //! Lengths are km in the x-z plane; y (up) is the magnetic field's direction.
 
+pub mod atmosphere;
 mod config;
 pub mod field;
 pub mod motion;

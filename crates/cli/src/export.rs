@@ -84,6 +84,21 @@ pub(crate) fn blackbody(
     Ok(format!("wrote {} temperatures ({min_k}-{max_k} K) to {}", temps.len(), out.display()))
 }
 
+/// Write the aurora's model atmosphere table.
+pub(crate) fn atmosphere(out: &Path) -> Result<String> {
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        output::ensure_dir(parent)?;
+    }
+    let air = phenomena_aurora::atmosphere::Atmosphere::msis21();
+    output::write_bytes_atomic(out, air.to_csv().as_bytes())?;
+    let (lo, hi) = air.range_km();
+    Ok(format!(
+        "wrote the NRLMSIS 2.1 atmosphere ({lo}-{hi} km, {} rows) to {}",
+        air.samples().len(),
+        out.display()
+    ))
+}
+
 /// What `export` writes of an aurora.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum AuroraData {

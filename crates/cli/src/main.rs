@@ -104,6 +104,13 @@ enum NewWhat {
     Flame,
 }
 
+/// Format of a data table.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum DataFormat {
+    /// Comma-separated values with a header row.
+    Csv,
+}
+
 #[derive(Subcommand, Debug)]
 enum ExportWhat {
     /// An aurora's particles after frame F: CSV `x,z,vx,vz` (km, km/s).
@@ -125,6 +132,16 @@ enum ExportWhat {
         #[arg(long)]
         frame: u32,
         /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// The aurora's model atmosphere (NRLMSIS 2.1, 80-500 km at 1 km): CSV
+    /// `altitude_km,n_o,n_n2,n_o2,temperature_k` (m⁻³, K).
+    Atmosphere {
+        /// Only csv.
+        #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
+        format: DataFormat,
+        /// Output file.
         #[arg(long)]
         out: PathBuf,
     },
@@ -168,6 +185,9 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         }
         Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
             export::blackbody(min_k, max_k, step_k, format, &out)
+        }
+        Command::Export { what: ExportWhat::Atmosphere { format: DataFormat::Csv, out } } => {
+            export::atmosphere(&out)
         }
         Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
             export::aurora(&scene, frame, &out, export::AuroraData::Particles)

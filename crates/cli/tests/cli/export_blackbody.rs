@@ -1,4 +1,5 @@
-//! `export blackbody` writes the paper's Fig 1 table, matching colour-science.
+//! `export blackbody` writes the paper's Fig 1 table, matching colour-science;
+//! `export atmosphere` the aurora's model atmosphere.
 
 use crate::{fails, ok, png_size};
 
@@ -78,4 +79,22 @@ fn bad_ranges_are_refused() {
     let e = fails(dir.path(), &["export", "blackbody", "--step-k", "0", "--out", "x.csv"]);
     assert!(e.contains("--step-k 0"), "{e}");
     assert!(!dir.path().join("x.csv").exists());
+}
+
+#[test]
+fn the_atmosphere_table_has_its_header_and_421_altitudes() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(dir.path(), &["export", "atmosphere", "--format", "csv", "--out", "out/air.csv"]);
+    let text = std::fs::read_to_string(dir.path().join("out/air.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("altitude_km,n_o,n_n2,n_o2,temperature_k"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|f| f.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 421);
+    assert_eq!((rows[0][0], rows[420][0]), (80.0, 500.0));
+    assert!(rows.iter().all(|r| r.len() == 5 && r[1..].iter().all(|&v| v > 0.0)));
+    // A usage error: clap's exit code 2, naming the value and the valid ones.
+    let out = crate::run(dir.path(), &["export", "atmosphere", "--format", "xml", "--out", "a.csv"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("'xml'") && err.contains("possible values: csv"), "{err}");
 }

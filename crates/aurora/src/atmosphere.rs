@@ -1,0 +1,208 @@
+//! The neutral atmosphere of the `physical` colour mode (issue 4): number densities of
+//! O, N2 and O2 and the temperature from 80 to 500 km, from NRLMSIS 2.1 (Emmert et al.
+//! 2021) for a winter night over the auroral oval. The table is embedded; how it was made
+//! is in `crates/aurora/data/README.md` and `tools/gen_atmosphere.py`.
+//!
+//! ```
+//! use phenomena_aurora::atmosphere::Atmosphere;
+//! let air = Atmosphere::msis21();
+//! let at_110 = air.at(110.0);
+//! // N2 dominates at 110 km; atomic oxygen overtakes it near 200 km.
+//! assert!(at_110.n_n2_m3 > 5.0 * at_110.n_o_m3);
+//! assert!(air.at(300.0).n_o_m3 > air.at(300.0).n_n2_m3);
+//! ```
+
+use std::sync::OnceLock;
+
+/// The embedded table: `altitude_km,n_o,n_n2,n_o2,temperature_k`, 1 km apart.
+const MSIS21_CSV: &str = include_str!("../data/atmosphere_msis21.csv");
+
+/// The atmosphere at one altitude.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Altitude, km.
+    pub altitude_km: f64,
+    /// Atomic oxygen, m⁻³.
+    pub n_o_m3: f64,
+    /// Molecular nitrogen, m⁻³.
+    pub n_n2_m3: f64,
+    /// Molecular oxygen, m⁻³.
+    pub n_o2_m3: f64,
+    /// Neutral temperature, K.
+    pub temperature_k: f64,
+}
+
+/// An altitude profile of the neutral atmosphere at even altitude steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Atmosphere {
+    samples: Vec<Sample>,
+    step_km: f64,
+}
+
+impl Atmosphere {
+    /// The NRLMSIS 2.1 table shipped with the crate (80-500 km at 1 km).
+    pub fn msis21() -> &'static Atmosphere {
+        static TABLE: OnceLock<Atmosphere> = OnceLock::new();
+        TABLE
+            .get_or_init(|| Atmosphere::from_csv(MSIS21_CSV).expect("the embedded atmosphere table is valid"))
+    }
+
+    /// Parse a table with the header `altitude_km,n_o,n_n2,n_o2,temperature_k`, at least
+    /// two rows at even, increasing altitude steps, densities and temperatures positive.
+    pub fn from_csv(text: &str) -> Result<Self, String> {
+        let mut lines = text.lines().enumerate();
+        match lines.next() {
+            Some((_, "altitude_km,n_o,n_n2,n_o2,temperature_k")) => {}
+            other => {
+                return Err(format!(
+                    "line 1: expected the header altitude_km,n_o,n_n2,n_o2,temperature_k, got {other:?}"
+                ));
+            }
+        }
+        let mut samples = Vec::new();
+        for (k, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+            let v: Vec<f64> = line
+                .split(',')
+                .map(|f| f.trim().parse::<f64>().map_err(|e| format!("line {}: {f:?}: {e}", k + 1)))
+                .collect::<Result<_, _>>()?;
+            let [altitude_km, n_o_m3, n_n2_m3, n_o2_m3, temperature_k] = v[..] else {
+                return Err(format!("line {}: expected 5 fields, got {}", k + 1, v.len()));
+            };
+            if ![n_o_m3, n_n2_m3, n_o2_m3, temperature_k].iter().all(|x| x.is_finite() && *x > 0.0) {
+                return Err(format!("line {}: densities and temperature must be positive", k + 1));
+            }
+            samples.push(Sample { altitude_km, n_o_m3, n_n2_m3, n_o2_m3, temperature_k });
+        }
+        if samples.len() < 2 {
+            return Err("the table needs at least two altitudes".into());
+        }
+        let step_km = samples[1].altitude_km - samples[0].altitude_km;
+        for (k, w) in samples.windows(2).enumerate() {
+            if !(step_km > 0.0) || ((w[1].altitude_km - w[0].altitude_km) - step_km).abs() > 1e-9 * step_km {
+                return Err(format!("line {}: altitudes must increase in even steps", k + 3));
+            }
+        }
+        Ok(Self { samples, step_km })
+    }
+
+    /// The tabulated samples, lowest first.
+    pub fn samples(&self) -> &[Sample] {
+        &self.samples
+    }
+
+    /// Lowest and highest tabulated altitude, km.
+    pub fn range_km(&self) -> (f64, f64) {
+        (self.samples[0].altitude_km, self.samples[self.samples.len() - 1].altitude_km)
+    }
+
+    /// The atmosphere at `altitude_km`, clamped to the table's range: number densities
+    /// interpolated linearly in their logarithm (they fall off exponentially, so this is
+    /// exact for a constant scale height within a step), temperature linearly.
+    pub fn at(&self, altitude_km: f64) -> Sample {
+        let (lo, hi) = self.range_km();
+        let a = if altitude_km.is_nan() { lo } else { altitude_km.clamp(lo, hi) };
+        let x = (a - lo) / self.step_km;
+        let k = (x.floor() as usize).min(self.samples.len() - 2);
+        let t = x - k as f64;
+        let (s0, s1) = (&self.samples[k], &self.samples[k + 1]);
+        // p·(q/p)^t: exactly p at t = 0.
+        let log_lerp = |p: f64, q: f64| p * (q / p).powf(t);
+        Sample {
+            altitude_km: a,
+            n_o_m3: log_lerp(s0.n_o_m3, s1.n_o_m3),
+            n_n2_m3: log_lerp(s0.n_n2_m3, s1.n_n2_m3),
+            n_o2_m3: log_lerp(s0.n_o2_m3, s1.n_o2_m3),
+            temperature_k: s0.temperature_k * (1.0 - t) + s1.temperature_k * t,
+        }
+    }
+
+    /// The table as CSV, in the format [`Atmosphere::from_csv`] reads (what `phenomena
+    /// export atmosphere` writes).
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from("altitude_km,n_o,n_n2,n_o2,temperature_k\n");
+        for s in &self.samples {
+            out.push_str(&format!(
+                "{},{:.6e},{:.6e},{:.6e},{:.3}\n",
+                s.altitude_km, s.n_o_m3, s.n_n2_m3, s.n_o2_m3, s.temperature_k
+            ));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_covers_80_to_500_km_at_1_km() {
+        let air = Atmosphere::msis21();
+        assert_eq!(air.range_km(), (80.0, 500.0));
+        assert_eq!(air.samples().len(), 421);
+    }
+
+    #[test]
+    fn magnitudes_at_110_km_match_the_reference() {
+        // shared/aurora-physics.md's check for these conditions: N2 ≈ 1.4e18 m⁻³,
+        // O ≈ 1.7e17 m⁻³, T ≈ 230 K. MSIS varies by some 10 % with season and activity;
+        // 15 % is the tolerance of "≈" here.
+        let s = Atmosphere::msis21().at(110.0);
+        let near = |x: f64, want: f64| (x / want - 1.0).abs() < 0.15;
+        assert!(near(s.n_n2_m3, 1.4e18), "N2 {}", s.n_n2_m3);
+        assert!(near(s.n_o_m3, 1.7e17), "O {}", s.n_o_m3);
+        assert!(near(s.temperature_k, 230.0), "T {}", s.temperature_k);
+    }
+
+    #[test]
+    fn densities_fall_with_altitude_and_oxygen_takes_over() {
+        let air = Atmosphere::msis21();
+        for w in air.samples().windows(2) {
+            assert!(w[1].n_n2_m3 < w[0].n_n2_m3 && w[1].n_o2_m3 < w[0].n_o2_m3, "at {} km", w[1].altitude_km);
+        }
+        // The O/N2 crossover of the thermosphere lies near 200 km.
+        let cross = air.samples().iter().find(|s| s.n_o_m3 > s.n_n2_m3).expect("a crossover").altitude_km;
+        assert!((170.0..=240.0).contains(&cross), "crossover at {cross} km");
+    }
+
+    #[test]
+    fn interpolation_hits_the_table_and_stays_between_neighbours() {
+        let air = Atmosphere::msis21();
+        let s = air.samples();
+        for k in [0, 30, 200, 420] {
+            let got = air.at(s[k].altitude_km);
+            assert!((got.n_o_m3 / s[k].n_o_m3 - 1.0).abs() < 1e-12);
+            assert!((got.temperature_k - s[k].temperature_k).abs() < 1e-9);
+        }
+        let mid = air.at(110.5);
+        assert!(mid.n_n2_m3 < s[30].n_n2_m3 && mid.n_n2_m3 > s[31].n_n2_m3);
+        // Geometric mean halfway: log-linear.
+        assert!((mid.n_n2_m3 / (s[30].n_n2_m3 * s[31].n_n2_m3).sqrt() - 1.0).abs() < 1e-12);
+        // Outside the table: clamped, never NaN.
+        assert_eq!(air.at(50.0), Sample { altitude_km: 80.0, ..s[0] });
+        assert_eq!(air.at(f64::NAN).altitude_km, 80.0);
+        assert_eq!(air.at(900.0).altitude_km, 500.0);
+    }
+
+    #[test]
+    fn csv_round_trips_and_bad_tables_are_named() {
+        let air = Atmosphere::msis21();
+        // Six significant digits both ways (Python writes e+16 where Rust writes e16).
+        let again = Atmosphere::from_csv(&air.to_csv()).unwrap();
+        assert!(again == *air, "the table survives a round trip through CSV");
+        let bad = [
+            ("altitude,n\n", "line 1"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n", "at least two"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,x,1,200\n", "line 3"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,1,1\n", "5 fields"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,-1,1,200\n", "positive"),
+            (
+                "altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,1,1,200\n83,1,1,1,200\n",
+                "even steps",
+            ),
+        ];
+        for (text, needle) in bad {
+            let e = Atmosphere::from_csv(text).unwrap_err();
+            assert!(e.contains(needle), "{text:?}: {e}");
+        }
+    }
+}
