@@ -32,11 +32,35 @@ pub struct Sample {
     pub temperature_k: f64,
 }
 
+/// Atomic mass unit, kg (CODATA 2018).
+const DALTON_KG: f64 = 1.660_539_066_60e-27;
+/// Molar masses of O, N2 and O2, g/mol (IUPAC standard atomic weights).
+const MASS_O: f64 = 15.999;
+const MASS_N2: f64 = 28.014;
+const MASS_O2: f64 = 31.998;
+
+impl Sample {
+    /// Mass density of O, N2 and O2 together, kg/m³ (the minor species, Ar at about
+    /// 1 % by mass near 100 km and He, H, N higher up, are not in the table).
+    pub fn mass_density_kg_m3(&self) -> f64 {
+        (self.n_o_m3 * MASS_O + self.n_n2_m3 * MASS_N2 + self.n_o2_m3 * MASS_O2) * DALTON_KG
+    }
+}
+
+/// Range of an electron of `energy_kev` in air as a column mass, kg/m²:
+/// R = 4.5e-6 E^1.65 g cm⁻² (E in keV), the range law of Lawlor and Genetti's aurora
+/// renderer (shared/aurora-physics.md); 1 g cm⁻² = 10 kg m⁻².
+pub fn electron_range_kg_m2(energy_kev: f64) -> f64 {
+    4.5e-6 * energy_kev.powf(1.65) * 10.0
+}
+
 /// An altitude profile of the neutral atmosphere at even altitude steps.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Atmosphere {
     samples: Vec<Sample>,
     step_km: f64,
+    /// Column mass above each sample up to the top of the table, kg/m².
+    column_kg_m2: Vec<f64>,
 }
 
 impl Atmosphere {
@@ -82,7 +106,55 @@ impl Atmosphere {
                 return Err(format!("line {}: altitudes must increase in even steps", k + 3));
             }
         }
-        Ok(Self { samples, step_km })
+        // Between samples the density falls exponentially (as it is interpolated), so
+        // each step integrates exactly to Δz (ρ0 - ρ1) / ln(ρ0 / ρ1).
+        let mut column_kg_m2 = vec![0.0; samples.len()];
+        for k in (0..samples.len() - 1).rev() {
+            column_kg_m2[k] = column_kg_m2[k + 1]
+                + exponential_integral(
+                    samples[k].mass_density_kg_m3(),
+                    samples[k + 1].mass_density_kg_m3(),
+                    step_km * 1e3,
+                );
+        }
+        Ok(Self { samples, step_km, column_kg_m2 })
+    }
+
+    /// Column mass above `altitude_km` up to the top of the table, kg/m² (what an
+    /// electron coming down has crossed; the air above 500 km, about 3e-8 kg/m² (O at
+    /// 4.8e-13 kg/m³ with a 56 km scale height), is under 0.1 % of even a 1 keV
+    /// electron's range). Clamped to the table's range.
+    pub fn column_mass_above_kg_m2(&self, altitude_km: f64) -> f64 {
+        let (lo, hi) = self.range_km();
+        let a = if altitude_km.is_nan() { lo } else { altitude_km.clamp(lo, hi) };
+        let x = (a - lo) / self.step_km;
+        let k = (x.floor() as usize).min(self.samples.len() - 2);
+        let t = x - k as f64;
+        let (r0, r1) = (self.samples[k].mass_density_kg_m3(), self.samples[k + 1].mass_density_kg_m3());
+        // From a up to the next sample: the tail 1 - t of the step's exponential.
+        let rho_a = r0 * (r1 / r0).powf(t);
+        self.column_kg_m2[k + 1] + exponential_integral(rho_a, r1, self.step_km * 1e3 * (1.0 - t))
+    }
+
+    /// The altitude where an electron of `energy_kev` coming straight down stops: where
+    /// the column mass above equals its range ([`electron_range_kg_m2`]). `None` when it
+    /// would reach below the table (above about 60 keV).
+    pub fn stopping_altitude_km(&self, energy_kev: f64) -> Option<f64> {
+        let range = electron_range_kg_m2(energy_kev);
+        if !(range > 0.0) || range > self.column_kg_m2[0] {
+            return None;
+        }
+        // The column grows monotonically downwards: bisect on altitude.
+        let (mut below, mut above) = self.range_km();
+        for _ in 0..60 {
+            let mid = 0.5 * (below + above);
+            if self.column_mass_above_kg_m2(mid) > range {
+                below = mid;
+            } else {
+                above = mid;
+            }
+        }
+        Some(0.5 * (below + above))
     }
 
     /// The tabulated samples, lowest first.
@@ -128,6 +200,16 @@ impl Atmosphere {
         }
         out
     }
+}
+
+/// ∫ over `length_m` of a density falling exponentially from `rho_start` to `rho_end`:
+/// length·(ρs - ρe)/ln(ρs/ρe), or length·ρ when the two are equal.
+fn exponential_integral(rho_start: f64, rho_end: f64, length_m: f64) -> f64 {
+    let ratio = rho_start / rho_end;
+    if (ratio - 1.0).abs() < 1e-12 {
+        return rho_start * length_m;
+    }
+    length_m * (rho_start - rho_end) / ratio.ln()
 }
 
 #[cfg(test)]
@@ -181,6 +263,37 @@ mod tests {
         assert_eq!(air.at(50.0), Sample { altitude_km: 80.0, ..s[0] });
         assert_eq!(air.at(f64::NAN).altitude_km, 80.0);
         assert_eq!(air.at(900.0).altitude_km, 500.0);
+    }
+
+    #[test]
+    fn electrons_stop_where_the_reference_says() {
+        // shared/aurora-physics.md's rough stopping altitudes for the range law (to the
+        // km, from another model atmosphere): 3 km of slack.
+        let air = Atmosphere::msis21();
+        for (kev, km) in [(1.0, 150.0), (2.0, 127.0), (5.0, 110.0), (10.0, 103.0), (20.0, 96.0)] {
+            let z = air.stopping_altitude_km(kev).expect("stops inside the table");
+            assert!((z - km).abs() <= 3.0, "{kev} keV stops at {z:.1} km, reference {km} km");
+        }
+        assert_eq!(air.stopping_altitude_km(500.0), None, "reaches below 80 km");
+        assert_eq!(air.stopping_altitude_km(0.0), None);
+    }
+
+    #[test]
+    fn the_column_integral_is_exact_for_an_exponential_atmosphere() {
+        // ρ = ρ0 exp(-z/H): column above z up to the top = ρ0 H (e^(-z/H) - e^(-top/H)).
+        let h_km = 7.0;
+        let mut text = String::from("altitude_km,n_o,n_n2,n_o2,temperature_k\n");
+        for z in 0..=20 {
+            let n = 1e20 * (-(z as f64 * 5.0) / h_km).exp();
+            text.push_str(&format!("{},{n:e},{n:e},{n:e},300\n", z * 5));
+        }
+        let air = Atmosphere::from_csv(&text).unwrap();
+        let rho0 = air.samples()[0].mass_density_kg_m3();
+        for z in [0.0, 12.5, 33.3, 99.0] {
+            let want = rho0 * h_km * 1e3 * ((-z / h_km).exp() - (-100.0 / h_km).exp());
+            let got = air.column_mass_above_kg_m2(z);
+            assert!((got / want - 1.0).abs() < 1e-9, "z {z}: {got} vs {want}");
+        }
     }
 
     #[test]
