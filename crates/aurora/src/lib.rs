@@ -7,12 +7,14 @@
 //! with the redistribution of §2.3.4); [`plane`] draws the x-z plane from above.
 //!
 //! Part 2 (issue 4, in progress): [`atmosphere`], the NRLMSIS neutral atmosphere of the
-//! physical colour mode.
+//! physical colour mode, and [`emission`], the five lines and their quenching (the
+//! thesis's eq 2.25-2.26 and rate coefficients).
 //!
 //! Lengths are km in the x-z plane; y (up) is the magnetic field's direction.
 
 pub mod atmosphere;
 mod config;
+pub mod emission;
 pub mod field;
 pub mod motion;
 pub mod plane;
