@@ -170,7 +170,7 @@ pub struct MotionParams {
     /// Kernel pair of the pseudo-Coulomb force.
     pub kernels: CoulombKernels,
     /// SPH support radius, km (for the spline, twice its smoothing length h). The
-    /// thesis gives none; 0.35 km gives the 120,000 particles a few dozen neighbours.
+    /// thesis gives none; 0.35 km gives the 120,000 particles about twenty neighbours.
     pub support_km: f32,
     /// Gas constant k of eq (2.13), km⁴/s² (scales the repulsion per unit of density
     /// excess). The thesis gives none. 3 keeps every cell of thesis scenes 1-5 under
