@@ -10,6 +10,10 @@
 //! With real densities the first quenches the green line almost completely at 110 km,
 //! where real aurora is brightest; the second leaves most of it (tested below).
 //!
+//! The colour of each line: Table 2.1's x̄ȳz̄ as printed (`paper`) or the CIE 2015 2°
+//! observer of the core (the same values to Table 2.1's four digits), and XYZ -> RGB by
+//! the matrix of eq (2.30).
+//!
 //! ```
 //! use phenomena_aurora::atmosphere::Atmosphere;
 //! use phenomena_aurora::emission::Line;
@@ -17,6 +21,9 @@
 //! assert!(Line::O557.radiated_fraction(&at_110) > 0.8);
 //! assert!(Line::O630.radiated_fraction(&at_110) < 1e-3); // red is quenched down here
 //! ```
+
+use glam::DVec3;
+use phenomena_core::color::{Observer, spectral_line_xyz};
 
 use crate::atmosphere::Sample;
 
@@ -53,6 +60,24 @@ impl Line {
             Line::O630 => 630.0,
             Line::N2_670 => 670.5,
         }
+    }
+
+    /// Colour-matching values (x̄, ȳ, z̄) as printed in the thesis's Table 2.1 (the `paper`
+    /// mode's colour map, §2.4.3).
+    pub fn table_2_1_cmf(self) -> DVec3 {
+        match self {
+            Line::O557 => DVec3::new(0.5739, 0.9993, 0.0018),
+            Line::O630 => DVec3::new(0.6924, 0.2981, 0.0000),
+            Line::N2p391 => DVec3::new(0.0049, 0.0005, 0.0239),
+            Line::N2p428 => DVec3::new(0.2736, 0.0299, 1.4463),
+            Line::N2_670 => DVec3::new(0.0893, 0.0345, 0.0000),
+        }
+    }
+
+    /// Colour-matching values (x̄, ȳ, z̄) from the CIE 2015 2° observer tabulated in the
+    /// core (linear between its 1 nm samples): what Table 2.1 lists, to its 4 digits.
+    pub fn cie2015_cmf(self) -> DVec3 {
+        spectral_line_xyz(Observer::Cie2015TwoDegree, self.wavelength_nm(), 1.0)
     }
 
     /// Einstein coefficient of the line and total radiative rate of its upper state
@@ -99,6 +124,16 @@ impl Line {
     }
 }
 
+/// XYZ to RGB by the matrix of the thesis's eq (2.30) as printed (the sRGB / BT.709
+/// primaries with a D65 white, to six digits).
+pub fn xyz_to_rgb_eq_2_30(xyz: DVec3) -> DVec3 {
+    DVec3::new(
+        3.24097 * xyz.x - 1.53738 * xyz.y - 0.498612 * xyz.z,
+        -0.969241 * xyz.x + 1.87596 * xyz.y + 0.0415554 * xyz.z,
+        0.0556299 * xyz.x - 0.203976 * xyz.y + 1.05697 * xyz.z,
+    )
+}
+
 /// Mean thermal speed of a gas particle of mass `mass_kg` at `temperature_k`, m/s:
 /// v_a = √(8 k_B T / (π m_a)) (thesis eq 2.26).
 pub fn mean_speed_m_s(temperature_k: f64, mass_kg: f64) -> f64 {
@@ -117,6 +152,31 @@ pub fn paper_quenching_probability(n_m3: f64, radius_m: f64, speed_m_s: f64, lif
 mod tests {
     use super::*;
     use crate::atmosphere::Atmosphere;
+
+    #[test]
+    fn table_2_1_is_the_cie_2015_observer() {
+        // Table 2.1 prints 4 decimals; linear interpolation between the 1 nm samples
+        // differs from the printed values by at most one unit in the last digit here
+        // (measured: 1e-4 at 557.7 ȳ, 391.4 z̄, 427.8 z̄, 630.0 x̄, 670.5 x̄).
+        for line in Line::ALL {
+            let (printed, ours) = (line.table_2_1_cmf(), line.cie2015_cmf());
+            assert!((printed - ours).abs().max_element() <= 1.5e-4, "{line:?}: {printed} vs {ours}");
+        }
+    }
+
+    #[test]
+    fn eq_2_30_is_the_srgb_matrix() {
+        // The core's sRGB matrix (flame paper eq 17, the older IEC 61966-2-1 digits) and
+        // eq (2.30) (derived from the exact D65 chromaticity) are two published roundings
+        // of one matrix; their elements differ by at most 4.9e-4 (3.24097 vs 3.240479).
+        for xyz in [DVec3::X, DVec3::Y, DVec3::Z] {
+            let (a, b) = (xyz_to_rgb_eq_2_30(xyz), phenomena_core::color::xyz_to_linear_srgb(xyz));
+            assert!((a - b).abs().max_element() <= 5e-4, "{xyz}: {a} vs {b}");
+        }
+        // D65 white (x, y = 0.3127, 0.3290) maps to equal R, G, B.
+        let w = xyz_to_rgb_eq_2_30(DVec3::new(0.3127 / 0.3290, 1.0, (1.0 - 0.3127 - 0.3290) / 0.3290));
+        assert!((w.x - w.y).abs() < 1e-3 && (w.y - w.z).abs() < 1e-3, "{w}");
+    }
 
     #[test]
     fn lifetimes_are_the_tabulated_ones() {
