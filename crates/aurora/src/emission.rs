@@ -23,12 +23,10 @@
 //! ```
 
 use glam::DVec3;
-use phenomena_core::color::{Observer, spectral_line_xyz};
+use phenomena_core::color::{BOLTZMANN_J_PER_K, Observer, spectral_line_xyz};
 
 use crate::atmosphere::Sample;
 
-/// Boltzmann constant, J/K (exact, SI 2019).
-pub const BOLTZMANN_J_K: f64 = 1.380_649e-23;
 /// m³ per cm³: rate coefficients are tabulated in cm³ s⁻¹, densities kept in m⁻³.
 const M3_PER_CM3: f64 = 1e-6;
 
@@ -137,7 +135,7 @@ pub fn xyz_to_rgb_eq_2_30(xyz: DVec3) -> DVec3 {
 /// Mean thermal speed of a gas particle of mass `mass_kg` at `temperature_k`, m/s:
 /// v_a = √(8 k_B T / (π m_a)) (thesis eq 2.26).
 pub fn mean_speed_m_s(temperature_k: f64, mass_kg: f64) -> f64 {
-    (8.0 * BOLTZMANN_J_K * temperature_k / (std::f64::consts::PI * mass_kg)).sqrt()
+    (8.0 * BOLTZMANN_J_PER_K * temperature_k / (std::f64::consts::PI * mass_kg)).sqrt()
 }
 
 /// The thesis's probability that an excited particle is de-excited by a collision before
