@@ -32,8 +32,8 @@ pub struct Sample {
     pub temperature_k: f64,
 }
 
-/// Atomic mass unit, kg (CODATA 2018).
-const DALTON_KG: f64 = 1.660_539_066_60e-27;
+/// Atomic mass unit (dalton), kg (CODATA 2018).
+pub const DALTON_KG: f64 = 1.660_539_066_60e-27;
 /// Molar masses of O, N2 and O2, g/mol (IUPAC standard atomic weights).
 const MASS_O: f64 = 15.999;
 const MASS_N2: f64 = 28.014;
