@@ -125,11 +125,7 @@ impl Atmosphere {
     /// 4.8e-13 kg/m³ with a 56 km scale height), is under 0.1 % of even a 1 keV
     /// electron's range). Clamped to the table's range.
     pub fn column_mass_above_kg_m2(&self, altitude_km: f64) -> f64 {
-        let (lo, hi) = self.range_km();
-        let a = if altitude_km.is_nan() { lo } else { altitude_km.clamp(lo, hi) };
-        let x = (a - lo) / self.step_km;
-        let k = (x.floor() as usize).min(self.samples.len() - 2);
-        let t = x - k as f64;
+        let (_, k, t) = self.locate(altitude_km);
         let (r0, r1) = (self.samples[k].mass_density_kg_m3(), self.samples[k + 1].mass_density_kg_m3());
         // From a up to the next sample: the tail 1 - t of the step's exponential.
         let rho_a = r0 * (r1 / r0).powf(t);
@@ -162,6 +158,16 @@ impl Atmosphere {
         &self.samples
     }
 
+    /// `altitude_km` clamped to the table (NaN to its bottom), the step k it falls in
+    /// and its fraction t of the way from sample k to k + 1.
+    fn locate(&self, altitude_km: f64) -> (f64, usize, f64) {
+        let (lo, hi) = self.range_km();
+        let a = if altitude_km.is_nan() { lo } else { altitude_km.clamp(lo, hi) };
+        let x = (a - lo) / self.step_km;
+        let k = (x.floor() as usize).min(self.samples.len() - 2);
+        (a, k, x - k as f64)
+    }
+
     /// Lowest and highest tabulated altitude, km.
     pub fn range_km(&self) -> (f64, f64) {
         (self.samples[0].altitude_km, self.samples[self.samples.len() - 1].altitude_km)
@@ -171,11 +177,7 @@ impl Atmosphere {
     /// interpolated linearly in their logarithm (they fall off exponentially, so this is
     /// exact for a constant scale height within a step), temperature linearly.
     pub fn at(&self, altitude_km: f64) -> Sample {
-        let (lo, hi) = self.range_km();
-        let a = if altitude_km.is_nan() { lo } else { altitude_km.clamp(lo, hi) };
-        let x = (a - lo) / self.step_km;
-        let k = (x.floor() as usize).min(self.samples.len() - 2);
-        let t = x - k as f64;
+        let (a, k, t) = self.locate(altitude_km);
         let (s0, s1) = (&self.samples[k], &self.samples[k + 1]);
         // p·(q/p)^t: exactly p at t = 0.
         let log_lerp = |p: f64, q: f64| p * (q / p).powf(t);
