@@ -1,8 +1,10 @@
-//! Cameras: look-at placement with a perspective or orthographic projection to pixels.
+//! Cameras: look-at placement with a perspective, orthographic, fisheye (dome master) or
+//! equirectangular (360°) projection to pixels.
 //!
 //! World space is right-handed with +y up. A camera looks from `position` towards
 //! `look_at`; image x grows to the right and image y grows downwards, in continuous pixel
-//! coordinates (pixel centres at +0.5).
+//! coordinates (pixel centres at +0.5). Lengths are "metres" in the names below but any
+//! unit works as long as the scene uses one throughout (the aurora uses km).
 //!
 //! ```
 //! use glam::Vec3;
@@ -38,6 +40,32 @@ pub enum Projection {
     Orthographic {
         /// World-space height of the view, metres.
         height_m: f32,
+    },
+    /// Equidistant fisheye, the planetarium "dome master" format: the angle from the
+    /// view direction maps linearly to the distance from the image centre, and the circle
+    /// inscribed in the image spans `fov_deg` (180 for a dome). Outside it is black.
+    Fisheye {
+        /// Full field of view across the inscribed circle, degrees, in (0, 360].
+        fov_deg: f32,
+    },
+    /// Equirectangular 360° × 180° panorama: image x is the azimuth around the camera's
+    /// up vector (the view direction at the centre), image y the elevation (+90° at the top).
+    Equirectangular,
+}
+
+/// The projection's mapping from view-space directions to pixels, prepared for one size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Perspective,
+    Orthographic,
+    /// Half the field of view, radians.
+    Fisheye {
+        half_fov_rad: f32,
+    },
+    /// Pixels per radian of elevation (`scale` is per radian of azimuth); equal for a 2:1
+    /// image.
+    Equirectangular {
+        scale_y: f32,
     },
 }
 
@@ -85,9 +113,10 @@ pub struct CameraView {
     forward: Vec3,
     width: f32,
     height: f32,
-    /// Focal length in pixels (perspective) or pixels per metre (orthographic).
+    /// Focal length in pixels (perspective), pixels per metre (orthographic) or pixels per
+    /// radian (fisheye, equirectangular).
     scale: f32,
-    perspective: bool,
+    kind: Kind,
 }
 
 /// Distance below which a point counts as behind a perspective camera, metres.
@@ -121,7 +150,17 @@ impl Camera {
             Projection::Orthographic { height_m } => {
                 issues.range_open_low(&format!("{prefix}.projection.height_m"), height_m, 0.0, 1e9)
             }
+            Projection::Fisheye { fov_deg } => {
+                issues.range_open_low(&format!("{prefix}.projection.fov_deg"), fov_deg, 0.0, 360.0)
+            }
+            Projection::Equirectangular => {}
         }
+    }
+
+    /// Whether the projection maps straight lines to straight lines (perspective and
+    /// orthographic), which image-space effects such as screen-space stepping assume.
+    pub fn is_planar(&self) -> bool {
+        matches!(self.projection, Projection::Perspective { .. } | Projection::Orthographic { .. })
     }
 
     /// Prepare the camera for a `width × height` image; `None` if the camera is
@@ -133,11 +172,19 @@ impl Camera {
         if width == 0 || height == 0 {
             return None;
         }
-        let (scale, perspective) = match self.projection {
+        let (w, h) = (width as f32, height as f32);
+        let (scale, kind) = match self.projection {
             Projection::Perspective { fov_y_deg } if fov_y_deg > 0.0 && fov_y_deg < 180.0 => {
-                (0.5 * height as f32 / (0.5 * fov_y_deg.to_radians()).tan(), true)
+                (0.5 * h / (0.5 * fov_y_deg.to_radians()).tan(), Kind::Perspective)
             }
-            Projection::Orthographic { height_m } if height_m > 0.0 => (height as f32 / height_m, false),
+            Projection::Orthographic { height_m } if height_m > 0.0 => (h / height_m, Kind::Orthographic),
+            Projection::Fisheye { fov_deg } if fov_deg > 0.0 && fov_deg <= 360.0 => {
+                let half_fov_rad = 0.5 * fov_deg.to_radians();
+                (0.5 * w.min(h) / half_fov_rad, Kind::Fisheye { half_fov_rad })
+            }
+            Projection::Equirectangular => {
+                (w / std::f32::consts::TAU, Kind::Equirectangular { scale_y: h / std::f32::consts::PI })
+            }
             _ => return None,
         };
         Some(CameraView {
@@ -148,42 +195,96 @@ impl Camera {
             width: width as f32,
             height: height as f32,
             scale,
-            perspective,
+            kind,
         })
     }
 }
 
 impl CameraView {
-    /// Project a world point; `None` if it is behind (or at) a perspective camera.
+    /// Project a world point; `None` if it is behind (or at) a perspective camera, or
+    /// outside a fisheye's circle.
     #[inline]
     pub fn project(&self, p: Vec3) -> Option<Projected> {
         let d = p - self.eye;
         let depth = d.dot(self.forward);
-        let px_per_m = if self.perspective {
-            if !(depth > NEAR_M) {
-                return None;
+        let (cx, cy) = (0.5 * self.width, 0.5 * self.height);
+        match self.kind {
+            Kind::Perspective | Kind::Orthographic => {
+                let px_per_m = if self.kind == Kind::Perspective {
+                    if !(depth > NEAR_M) {
+                        return None;
+                    }
+                    self.scale / depth
+                } else {
+                    self.scale
+                };
+                Some(Projected {
+                    x_px: cx + d.dot(self.right) * px_per_m,
+                    y_px: cy - d.dot(self.up) * px_per_m,
+                    depth,
+                    px_per_m,
+                })
             }
-            self.scale / depth
-        } else {
-            self.scale
-        };
-        Some(Projected {
-            x_px: 0.5 * self.width + d.dot(self.right) * px_per_m,
-            y_px: 0.5 * self.height - d.dot(self.up) * px_per_m,
-            depth,
-            px_per_m,
-        })
+            Kind::Fisheye { half_fov_rad } => {
+                let distance = d.length();
+                if !(distance > NEAR_M) {
+                    return None;
+                }
+                let (dx, dy) = (d.dot(self.right), d.dot(self.up));
+                let rho = dx.hypot(dy);
+                let theta = rho.atan2(depth);
+                if theta > half_fov_rad {
+                    return None;
+                }
+                let r_px = theta * self.scale;
+                let (ux, uy) = if rho > 0.0 { (dx / rho, dy / rho) } else { (0.0, 0.0) };
+                Some(Projected {
+                    x_px: cx + r_px * ux,
+                    y_px: cy - r_px * uy,
+                    depth: distance,
+                    px_per_m: self.scale / distance,
+                })
+            }
+            Kind::Equirectangular { scale_y } => {
+                let distance = d.length();
+                if !(distance > NEAR_M) {
+                    return None;
+                }
+                let (dx, dy) = (d.dot(self.right), d.dot(self.up));
+                let azimuth = dx.atan2(depth);
+                let elevation = (dy / distance).clamp(-1.0, 1.0).asin();
+                Some(Projected {
+                    x_px: cx + azimuth * self.scale,
+                    y_px: cy - elevation * scale_y,
+                    depth: distance,
+                    px_per_m: self.scale / distance,
+                })
+            }
+        }
     }
 
     /// The primary ray through continuous pixel position `(x_px, y_px)`: origin and unit
-    /// direction.
+    /// direction. For a fisheye, positions outside its circle give directions past the
+    /// field of view.
     pub fn ray(&self, x_px: f32, y_px: f32) -> (Vec3, Vec3) {
         let sx = (x_px - 0.5 * self.width) / self.scale;
         let sy = (0.5 * self.height - y_px) / self.scale;
-        if self.perspective {
-            (self.eye, (self.forward + self.right * sx + self.up * sy).normalize())
-        } else {
-            (self.eye + self.right * sx + self.up * sy, self.forward)
+        match self.kind {
+            Kind::Perspective => (self.eye, (self.forward + self.right * sx + self.up * sy).normalize()),
+            Kind::Orthographic => (self.eye + self.right * sx + self.up * sy, self.forward),
+            Kind::Fisheye { .. } => {
+                // (sx, sy) is the angle from the view direction times the unit image direction.
+                let theta = sx.hypot(sy);
+                let (ux, uy) = if theta > 0.0 { (sx / theta, sy / theta) } else { (0.0, 0.0) };
+                let (s, c) = theta.sin_cos();
+                (self.eye, (self.forward * c + (self.right * ux + self.up * uy) * s).normalize())
+            }
+            Kind::Equirectangular { scale_y } => {
+                let (azimuth, elevation) = (sx, (0.5 * self.height - y_px) / scale_y);
+                let (sa, ca) = azimuth.sin_cos();
+                let (se, ce) = elevation.sin_cos();
+                (self.eye, (self.forward * (ca * ce) + self.right * (sa * ce) + self.up * se).normalize())
+            }
         }
     }
 
@@ -214,16 +315,52 @@ mod tests {
 
     #[test]
     fn ray_and_project_are_inverse() {
-        for projection in
-            [Projection::Perspective { fov_y_deg: 50.0 }, Projection::Orthographic { height_m: 3.0 }]
-        {
+        for projection in [
+            Projection::Perspective { fov_y_deg: 50.0 },
+            Projection::Orthographic { height_m: 3.0 },
+            Projection::Fisheye { fov_deg: 180.0 },
+            Projection::Equirectangular,
+        ] {
             let v = cam(projection).view(320, 200).unwrap();
-            for (x, y) in [(0.5, 0.5), (160.0, 100.0), (300.2, 12.7)] {
+            // The fisheye's circle has radius 100 px about (160, 100): corners lie outside.
+            let corners = !matches!(projection, Projection::Fisheye { .. });
+            let inner = [(160.0, 100.0), (120.3, 60.7), (200.2, 150.1), (161.0, 100.0)];
+            let outer = [(0.5, 0.5), (300.2, 12.7)];
+            for (x, y) in inner.into_iter().chain(outer.into_iter().filter(|_| corners)) {
                 let (o, d) = v.ray(x, y);
                 let p = v.project(o + d * 4.0).unwrap();
                 assert!((p.x_px - x).abs() < 1e-3 && (p.y_px - y).abs() < 1e-3, "{projection:?}");
             }
         }
+    }
+
+    #[test]
+    fn dome_and_panorama_place_directions_where_their_formats_say() {
+        let up = Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::Y,
+            up: Vec3::Z,
+            projection: Projection::Fisheye { fov_deg: 180.0 },
+        };
+        let v = up.view(200, 200).unwrap();
+        // Zenith at the centre; the horizon on the circle's edge (radius 100 px); 45°
+        // elevation half way out (equidistant mapping).
+        let z = v.project(Vec3::new(0.0, 5.0, 0.0)).unwrap();
+        assert!((z.x_px - 100.0).abs() < 1e-4 && (z.y_px - 100.0).abs() < 1e-4);
+        let h = v.project(Vec3::new(3.0, 0.0, 0.0)).unwrap();
+        assert!(((h.x_px - 100.0).hypot(h.y_px - 100.0) - 100.0).abs() < 1e-3);
+        let m = v.project(Vec3::new(0.0, 1.0, 1.0)).unwrap();
+        assert!(((m.x_px - 100.0).hypot(m.y_px - 100.0) - 50.0).abs() < 1e-3);
+        assert!(v.project(Vec3::new(0.0, -1.0, 0.2)).is_none(), "below the horizon");
+
+        let pano = Camera { projection: Projection::Equirectangular, look_at: Vec3::Z, up: Vec3::Y, ..up };
+        let v = pano.view(360, 180).unwrap();
+        // Straight ahead at the centre, straight up on the top edge, behind at the side edges.
+        let a = v.project(Vec3::Z).unwrap();
+        assert!((a.x_px - 180.0).abs() < 1e-3 && (a.y_px - 90.0).abs() < 1e-3);
+        assert!(v.project(Vec3::Y * 2.0).unwrap().y_px.abs() < 1e-3);
+        let behind = v.project(Vec3::new(-1e-3, 0.0, -1.0)).unwrap();
+        assert!((behind.x_px - 360.0).abs() < 0.1 || behind.x_px.abs() < 0.1, "{behind:?}");
     }
 
     #[test]
