@@ -15,6 +15,7 @@
 pub mod atmosphere;
 mod config;
 pub mod emission;
+pub mod fall;
 pub mod field;
 pub mod motion;
 pub mod plane;
