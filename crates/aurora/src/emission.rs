@@ -49,6 +49,17 @@ impl Line {
     /// All five, in the order of Table 2.1's wavelengths sorted ascending.
     pub const ALL: [Line; 5] = [Line::N2p391, Line::N2p428, Line::O557, Line::O630, Line::N2_670];
 
+    /// Position in [`Line::ALL`].
+    pub fn index(self) -> usize {
+        match self {
+            Line::N2p391 => 0,
+            Line::N2p428 => 1,
+            Line::O557 => 2,
+            Line::O630 => 3,
+            Line::N2_670 => 4,
+        }
+    }
+
     /// Wavelength, nm.
     pub fn wavelength_nm(self) -> f64 {
         match self {

@@ -339,7 +339,8 @@ mod tests {
         let mut total = 0usize;
         let seeds = 40u32;
         for seed in 0..u64::from(seeds) {
-            total += collisions(DVec3::new(0.0, 400.0, 0.0), &params, seed).iter().filter(|p| p.y > 150.0).count();
+            total +=
+                collisions(DVec3::new(0.0, 400.0, 0.0), &params, seed).iter().filter(|p| p.y > 150.0).count();
         }
         let mean = total as f64 / f64::from(seeds);
         // Poisson: the mean of 40 counts has σ = √(expected/40); allow 4σ plus the
@@ -441,12 +442,11 @@ mod tests {
         };
         let start = DVec3::new(12.0, 380.0, 3.0);
         let mut points = Vec::new();
-        fall(start, -DVec3::Y, &params, &air, &mut Stream::new(9, TEST, 2), in_plane, |p, _| {
-            points.push(p)
-        });
+        fall(start, -DVec3::Y, &params, &air, &mut Stream::new(9, TEST, 2), in_plane, |p, _| points.push(p));
         assert_eq!(points.len(), 30);
         let end = *points.last().unwrap();
-        let screen = screen_space_fall(start, end, &params, &view, &air, &mut Stream::new(9, TEST, 2), in_plane);
+        let screen =
+            screen_space_fall(start, end, &params, &view, &air, &mut Stream::new(9, TEST, 2), in_plane);
         assert_eq!(screen.len(), points.len());
         for (p3, ps) in points.iter().zip(&screen) {
             let q = view.project(p3.as_vec3()).unwrap();

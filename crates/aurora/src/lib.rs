@@ -6,14 +6,16 @@
 //! motion ([`motion`], §2.3) and the simulation that ties them together ([`AuroraSim`],
 //! with the redistribution of §2.3.4); [`plane`] draws the x-z plane from above.
 //!
-//! Part 2 (issue 4, in progress): [`atmosphere`], the NRLMSIS neutral atmosphere of the
-//! physical colour mode, and [`emission`], the five lines and their quenching (the
-//! thesis's eq 2.25-2.26 and rate coefficients).
+//! Part 2: the sky view ([`sky`], §2.4): the thesis's stepped fall and emission
+//! ([`fall`], `paper` mode) or the physical column model ([`deposition`] over the
+//! NRLMSIS [`atmosphere`], default), the five lines and their quenching ([`emission`]),
+//! per-line splats, XYZ and sRGB; ground, orbit, dome-master and panorama cameras.
 //!
 //! Lengths are km in the x-z plane; y (up) is the magnetic field's direction.
 
 pub mod atmosphere;
 mod config;
+pub mod deposition;
 pub mod emission;
 pub mod fall;
 pub mod field;
@@ -21,9 +23,11 @@ pub mod motion;
 pub mod plane;
 pub mod shape;
 mod sim;
+pub mod sky;
 
 pub use config::{
     AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
 };
-pub use plane::{PlaneView, RenderSettings};
+pub use plane::{AuroraView, PlaneView, RenderSettings};
 pub use sim::{AuroraError, AuroraSim, FieldInputs, FieldState, StepStats};
+pub use sky::{ColourMode, SkyCamera, SkyRenderer, SkySettings};

@@ -211,6 +211,11 @@ impl AuroraSim {
         &self.config
     }
 
+    /// The seed the simulation was made with.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
     /// Frames completed.
     pub fn frame(&self) -> u64 {
         self.frame

@@ -99,6 +99,44 @@ pub(crate) fn atmosphere(out: &Path) -> Result<String> {
     ))
 }
 
+/// Write the aurora's 1-D column model for one precipitation.
+pub(crate) fn aurora_profile(
+    energy_kev: f64,
+    spectrum: phenomena_aurora::deposition::Spectrum,
+    flux_erg: f64,
+    out: &Path,
+) -> Result<String> {
+    use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
+    let precipitation = Precipitation { spectrum, energy_kev, flux_erg_cm2_s: flux_erg };
+    let mut issues = phenomena_core::validate::Issues::default();
+    precipitation.validate(&mut issues, "");
+    if let Err(list) = issues.into_result() {
+        let text: Vec<String> = list
+            .iter()
+            .map(|i| {
+                i.to_string().replace(".energy_kev", "--energy-kev").replace(".flux_erg_cm2_s", "--flux-erg")
+            })
+            .collect();
+        bail!("{}", text.join("; "));
+    }
+    let model = ColumnModel::new(
+        phenomena_aurora::atmosphere::Atmosphere::msis21(),
+        &precipitation,
+        &Yields::default(),
+    );
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        output::ensure_dir(parent)?;
+    }
+    output::write_bytes_atomic(out, model.to_csv().as_bytes())?;
+    let green = model.column_photons_cm2_s(phenomena_aurora::emission::Line::O557) / 1e6;
+    Ok(format!(
+        "wrote the column model ({} rows; 557.7 nm column {green:.0} R, peak at {} km) to {}",
+        model.altitudes_km().len(),
+        model.peak_altitude_km(phenomena_aurora::emission::Line::O557),
+        out.display()
+    ))
+}
+
 /// What `export` writes of an aurora.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum AuroraData {

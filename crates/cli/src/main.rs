@@ -111,6 +111,15 @@ enum DataFormat {
     Csv,
 }
 
+/// Spectrum of precipitating electrons.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum SpectrumArg {
+    /// All electrons at one energy.
+    Mono,
+    /// Maxwellian with the given characteristic energy.
+    Maxwellian,
+}
+
 #[derive(Subcommand, Debug)]
 enum ExportWhat {
     /// An aurora's particles after frame F: CSV `x,z,vx,vz` (km, km/s).
@@ -138,6 +147,26 @@ enum ExportWhat {
     /// The aurora's model atmosphere (NRLMSIS 2.1, 80-500 km at 1 km): CSV
     /// `altitude_km,n_o,n_n2,n_o2,temperature_k` (m⁻³, K).
     Atmosphere {
+        /// Only csv.
+        #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
+        format: DataFormat,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// The aurora's 1-D column model (physical mode): volume emission rate of each line,
+    /// photons cm⁻³ s⁻¹, 80-500 km at 1 km: CSV
+    /// `altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5`.
+    AuroraProfile {
+        /// Mono-energetic energy or Maxwellian characteristic energy, keV (0.1-1000).
+        #[arg(long)]
+        energy_kev: f64,
+        /// Electron spectrum.
+        #[arg(long, value_enum, default_value_t = SpectrumArg::Maxwellian)]
+        spectrum: SpectrumArg,
+        /// Energy flux, erg cm⁻² s⁻¹.
+        #[arg(long, default_value_t = 1.0)]
+        flux_erg: f64,
         /// Only csv.
         #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
         format: DataFormat,
@@ -188,6 +217,15 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         }
         Command::Export { what: ExportWhat::Atmosphere { format: DataFormat::Csv, out } } => {
             export::atmosphere(&out)
+        }
+        Command::Export {
+            what: ExportWhat::AuroraProfile { energy_kev, spectrum, flux_erg, format: DataFormat::Csv, out },
+        } => {
+            let spectrum = match spectrum {
+                SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
+                SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
+            };
+            export::aurora_profile(energy_kev, spectrum, flux_erg, &out)
         }
         Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
             export::aurora(&scene, frame, &out, export::AuroraData::Particles)

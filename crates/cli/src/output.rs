@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use phenomena_core::color::srgb_encode_u8_fast;
-use phenomena_core::image::Frame;
+use phenomena_core::image::{Frame, Plane};
 use phenomena_core::tonemap::Exposure;
 
 /// Image formats for frames.
@@ -64,16 +64,34 @@ pub(crate) fn to_srgb8(frame: &Frame, exposure: &Exposure) -> Vec<u8> {
     out
 }
 
-/// Write a frame as PNG (tone mapped) or EXR (linear), atomically.
+/// Write a frame as PNG (tone mapped) or EXR (linear, with `layers` as extra
+/// channels named as given, e.g. `aurora_557_7.Y`), atomically.
 pub(crate) fn write_frame(
     path: &Path,
     frame: &Frame,
+    layers: &[(String, &Plane)],
     format: ImageFormat,
     exposure: &Exposure,
 ) -> Result<()> {
     let (w, h) = (frame.width() as u32, frame.height() as u32);
     match format {
         ImageFormat::Png => write_png_rgb8(path, w, h, &to_srgb8(frame, exposure)),
+        ImageFormat::Exr if !layers.is_empty() => write_atomic(path, |tmp| {
+            use exr::prelude::*;
+            let mut list: Vec<AnyChannel<FlatSamples>> = vec![
+                AnyChannel::new("R", FlatSamples::F32(frame.c0.data().to_vec())),
+                AnyChannel::new("G", FlatSamples::F32(frame.c1.data().to_vec())),
+                AnyChannel::new("B", FlatSamples::F32(frame.c2.data().to_vec())),
+            ];
+            for (name, plane) in layers {
+                list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(plane.data().to_vec())));
+            }
+            Image::from_channels((frame.width(), frame.height()), AnyChannels::sort(SmallVec::from_vec(list)))
+                .write()
+                .non_parallel()
+                .to_file(tmp)
+                .with_context(|| format!("cannot write {}", tmp.display()))
+        }),
         ImageFormat::Exr => write_atomic(path, |tmp| {
             use exr::prelude::*;
             let data = frame.to_interleaved();

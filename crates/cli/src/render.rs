@@ -8,8 +8,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use phenomena_aurora::plane::render_plane;
-use phenomena_aurora::{AuroraSim, RenderSettings as AuroraRenderSettings};
-use phenomena_core::image::Frame;
+use phenomena_aurora::{AuroraSim, AuroraView, RenderSettings as AuroraRenderSettings, SkyRenderer};
+use phenomena_core::image::{Frame, Plane};
 use phenomena_flame::{Background, FlameRenderer, FlameSim, View, frame_from_srgb8};
 use serde::Serialize;
 
@@ -61,12 +61,22 @@ pub(crate) enum ViewArg {
     Density,
     /// The aurora's x-z simulation plane from above (thesis Figs 2.9-2.14).
     Plane,
+    /// The aurora in the sky, through the scene's camera (thesis §2.4).
+    Sky,
 }
 
 /// A phenomenon's simulation and renderer, stepped together.
 pub(crate) enum Runner {
-    Flame { sim: Box<FlameSim>, renderer: Box<FlameRenderer> },
-    Aurora { sim: Box<AuroraSim>, settings: AuroraRenderSettings, frame: Frame },
+    Flame {
+        sim: Box<FlameSim>,
+        renderer: Box<FlameRenderer>,
+    },
+    Aurora {
+        sim: Box<AuroraSim>,
+        settings: Box<AuroraRenderSettings>,
+        frame: Frame,
+        sky: Option<Box<SkyRenderer>>,
+    },
 }
 
 /// Per-frame statistics, one JSON object per line of `--stats`: the frame's timings
@@ -76,6 +86,9 @@ struct FrameStats {
     frame: u32,
     step_ms: f64,
     render_ms: Option<f64>,
+    /// The renderer's own breakdown of `render_ms` (the aurora's sky view).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    render_detail: Option<serde_json::Value>,
     write_ms: Option<f64>,
     skipped: bool,
     #[serde(flatten)]
@@ -110,8 +123,13 @@ impl Runner {
             }
             Scene::Aurora(s) => {
                 let sim = AuroraSim::new(s.aurora.clone(), s.scene.seed)?;
-                let frame = Frame::new(s.scene.width as usize, s.scene.height as usize);
-                Ok(Runner::Aurora { sim: Box::new(sim), settings: s.render, frame })
+                let (w, h) = (s.scene.width as usize, s.scene.height as usize);
+                let frame = Frame::new(w, h);
+                let sky = match s.render.view {
+                    AuroraView::Sky => Some(Box::new(SkyRenderer::new(s.render.sky, w, h)?)),
+                    AuroraView::Plane => None,
+                };
+                Ok(Runner::Aurora { sim: Box::new(sim), settings: Box::new(s.render), frame, sky })
             }
         }
     }
@@ -128,10 +146,43 @@ impl Runner {
     pub(crate) fn render(&mut self) -> &Frame {
         match self {
             Runner::Flame { sim, renderer } => renderer.render(sim),
-            Runner::Aurora { sim, settings, frame } => {
+            Runner::Aurora { sim, sky: Some(sky), .. } => sky.render(sim),
+            Runner::Aurora { sim, settings, frame, sky: None } => {
                 *frame = render_plane(sim, frame.width(), frame.height(), &settings.plane);
                 frame
             }
+        }
+    }
+
+    /// The renderer's timing breakdown of the last render, where it has one.
+    fn render_detail(&self) -> Option<serde_json::Value> {
+        match self {
+            Runner::Aurora { sky: Some(sky), .. } => serde_json::to_value(sky.timings()).ok(),
+            _ => None,
+        }
+    }
+
+    /// The frame of the last [`Runner::render`].
+    pub(crate) fn last_frame(&self) -> &Frame {
+        match self {
+            Runner::Flame { renderer, .. } => renderer.frame(),
+            Runner::Aurora { sky: Some(sky), .. } => sky.frame(),
+            Runner::Aurora { frame, .. } => frame,
+        }
+    }
+
+    /// Extra image layers of the last render, for EXR: the aurora's five line images
+    /// (named `aurora_557_7.Y` etc., rayleighs in physical mode).
+    pub(crate) fn layers(&self) -> Vec<(String, &Plane)> {
+        match self {
+            Runner::Aurora { sky: Some(sky), .. } => phenomena_aurora::emission::Line::ALL
+                .iter()
+                .zip(sky.line_images())
+                .map(|(line, plane)| {
+                    (format!("aurora_{}.Y", format!("{:.1}", line.wavelength_nm()).replace('.', "_")), plane)
+                })
+                .collect(),
+            _ => Vec::new(),
         }
     }
 }
@@ -153,11 +204,10 @@ pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) -> Result<()> 
         (_, None) => {}
         (Scene::Flame(f), Some(ViewArg::Flame)) => f.render.view = View::Flame,
         (Scene::Flame(f), Some(ViewArg::Density)) => f.render.view = View::Density,
-        (Scene::Aurora(_), Some(ViewArg::Plane)) => {}
+        (Scene::Aurora(a), Some(ViewArg::Plane)) => a.render.view = AuroraView::Plane,
+        (Scene::Aurora(a), Some(ViewArg::Sky)) => a.render.view = AuroraView::Sky,
         (Scene::Flame(_), Some(v)) => bail!("--view {v:?} is not a flame view: use flame or density"),
-        (Scene::Aurora(_), Some(v)) => {
-            bail!("--view {v:?} is not an aurora view: use plane (the sky view comes with aurora part 2)")
-        }
+        (Scene::Aurora(_), Some(v)) => bail!("--view {v:?} is not an aurora view: use sky or plane"),
     }
     Ok(())
 }
@@ -261,6 +311,7 @@ fn render_loop(
             frame,
             step_ms: t0.elapsed().as_secs_f64() * 1e3,
             render_ms: None,
+            render_detail: None,
             write_ms: None,
             skipped: false,
             detail,
@@ -274,10 +325,11 @@ fn render_loop(
             } else {
                 bar.set_message("rendering");
                 let t1 = Instant::now();
-                let image = runner.render();
+                runner.render();
                 stats.render_ms = Some(t1.elapsed().as_secs_f64() * 1e3);
+                stats.render_detail = runner.render_detail();
                 let t2 = Instant::now();
-                output::write_frame(&path, image, job.format, exposure)?;
+                output::write_frame(&path, runner.last_frame(), &runner.layers(), job.format, exposure)?;
                 stats.write_ms = Some(t2.elapsed().as_secs_f64() * 1e3);
                 tally.written += 1;
             }

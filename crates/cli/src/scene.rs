@@ -121,6 +121,9 @@ impl Scene {
             Scene::Aurora(s) => match s.aurora.validate() {
                 Err(e) => i.extend_prefixed("aurora", e),
                 Ok(()) => {
+                    if let Err(e) = s.render.sky.validate() {
+                        i.extend_prefixed("render.sky", e);
+                    }
                     let a = &s.aurora;
                     if let Err(e) = phenomena_aurora::shape::Animation::build(
                         &a.keyframes,

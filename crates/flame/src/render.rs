@@ -385,6 +385,11 @@ impl FlameRenderer {
         &self.background
     }
 
+    /// The frame of the last [`FlameRenderer::render`] (black before the first).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
     /// Render the simulation's current state. The frame is the renderer's own buffer,
     /// reused from frame to frame (clone it to keep it).
     pub fn render(&mut self, sim: &FlameSim) -> &Frame {

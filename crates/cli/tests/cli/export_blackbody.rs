@@ -98,3 +98,35 @@ fn the_atmosphere_table_has_its_header_and_421_altitudes() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("'xml'") && err.contains("possible values: csv"), "{err}");
 }
+
+#[test]
+fn the_aurora_profile_has_the_issues_header_and_its_green_peak() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "export",
+        "aurora-profile",
+        "--energy-kev",
+        "2",
+        "--spectrum",
+        "maxwellian",
+        "--flux-erg",
+        "1",
+        "--format",
+        "csv",
+        "--out",
+        "p/profile.csv",
+    ];
+    ok(dir.path(), &args);
+    let text = std::fs::read_to_string(dir.path().join("p/profile.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|f| f.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 421);
+    assert_eq!((rows[0][0], rows[420][0]), (80.0, 500.0));
+    let peak = rows.iter().max_by(|a, b| a[3].total_cmp(&b[3])).unwrap()[0];
+    assert!((100.0..=130.0).contains(&peak), "557.7 nm peak at {peak} km");
+    // Out-of-range energy: the flag, the value and the range.
+    let err = fails(dir.path(), &["export", "aurora-profile", "--energy-kev", "0.01", "--out", "x.csv"]);
+    assert!(err.contains("--energy-kev") && err.contains("0.01") && err.contains("1000"), "{err}");
+    assert!(!dir.path().join("x.csv").exists());
+}

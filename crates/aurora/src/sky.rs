@@ -1,0 +1,783 @@
+//! The sky view: the aurora as a camera sees it (§2.4 and the physical extension).
+//!
+//! Geometry: the x-z plane of the simulation lies at the top of the atmosphere, centred
+//! over the origin (world x east, z north, y altitude, all km, flat Earth); each particle
+//! is the foot of a field line that runs down along B (vertical, or tilted by
+//! `field_tilt_deg` towards `field_azimuth_deg`).
+//!
+//! Emission points per particle come from one of two models:
+//! - `paper` (§2.4.1-2.4.2, [`crate::fall`]): the particle falls by eq 2.21-2.22 and each
+//!   collision may emit one line; every emission counts 1 × the attenuation of eq 2.27;
+//! - `physical` (default, [`crate::deposition`]): each line's emission points are drawn
+//!   from that line's volume emission profile by inverse CDF along the field line, each
+//!   carrying an equal share of the line's column brightness over the particle's
+//!   footprint, so the image is in rayleighs.
+//!
+//! Each line has its own image. The thesis splats every emission with a Gaussian of a
+//! per-line σ (eq 2.28); here every emission is deposited (bilinear) and each line's
+//! image is blurred once with that Gaussian, which is the same sum (test
+//! `deposit_then_blur_is_the_sum_of_splats`). The five images become XYZ with the
+//! colour-matching values of the lines (Table 2.1 in `paper` mode, the CIE 2015 observer
+//! otherwise; eq 2.29 with K = 683 lm/W) and then linear sRGB (eq 2.30).
+//!
+//! Determinism: each particle's random stream is keyed by (seed, frame, particle id);
+//! emissions are produced per fixed chunk of particles and deposited per fixed band of
+//! rows, chunk by chunk in order, so the result does not depend on the thread count.
+
+use glam::{DVec3, Vec3};
+use phenomena_core::camera::{Camera, CameraView, Projection};
+use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
+use phenomena_core::image::{Frame, Plane};
+use phenomena_core::rng::{Purpose, Stream};
+use phenomena_core::validate::{Issue, Issues};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::atmosphere::Atmosphere;
+use crate::deposition::{AltitudeSampler, ColumnModel, Precipitation, Yields};
+use crate::emission::{Line, xyz_to_rgb_eq_2_30};
+use crate::fall::{AirTable, PaperEmission, PaperFall, attenuation, fall, jitter_in_ball};
+use crate::sim::AuroraSim;
+
+const EMIT: Purpose = Purpose::named("aurora.sky.emit");
+
+/// Which emission and colour model the sky view uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ColourMode {
+    /// The thesis as printed (§2.4): stepped fall, hard-sphere quenching, Table 2.1.
+    Paper,
+    /// Energy deposition over the NRLMSIS atmosphere, yields and rate-coefficient
+    /// quenching, image in rayleighs.
+    #[default]
+    Physical,
+}
+
+/// A value per emission line (TOML keys `n2p391`, `n2p428`, `o557`, `o630`, `n2_670`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PerLine {
+    /// 391.4 nm.
+    pub n2p391: f32,
+    /// 427.8 nm.
+    pub n2p428: f32,
+    /// 557.7 nm.
+    pub o557: f32,
+    /// 630.0 nm.
+    pub o630: f32,
+    /// 670.5 nm.
+    pub n2_670: f32,
+}
+
+impl PerLine {
+    /// The values in [`Line::ALL`] order.
+    pub fn to_array(self) -> [f32; 5] {
+        [self.n2p391, self.n2p428, self.o557, self.o630, self.n2_670]
+    }
+}
+
+/// Where the camera is. Positions are relative to the point on the ground under the
+/// plane's centre; north is +z.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum SkyCamera {
+    /// An observer on the ground `distance_km` south of the centre, looking north and up
+    /// at `elevation_deg` (perspective; the thesis's view, Table 3.2: 1280 × 720).
+    Ground {
+        /// Distance south of the plane's centre, km.
+        distance_km: f32,
+        /// Elevation of the view direction above the horizon, degrees.
+        elevation_deg: f32,
+        /// Vertical field of view, degrees.
+        fov_y_deg: f32,
+    },
+    /// A spacecraft at `altitude_km`, `distance_km` south of the centre, looking at the
+    /// centre at `look_at_altitude_km`.
+    Orbit {
+        /// Altitude, km.
+        altitude_km: f32,
+        /// Horizontal distance south of the centre, km.
+        distance_km: f32,
+        /// Altitude of the point looked at, km.
+        look_at_altitude_km: f32,
+        /// Vertical field of view, degrees.
+        fov_y_deg: f32,
+    },
+    /// A planetarium dome master: equidistant fisheye on the ground at the centre, zenith
+    /// at the image centre, north up.
+    Dome {
+        /// Field of view across the circle, degrees (180 for a dome).
+        fov_deg: f32,
+    },
+    /// A 360° × 180° equirectangular panorama on the ground at the centre, north in the
+    /// middle.
+    Panorama,
+    /// Any core camera, in km.
+    Custom {
+        /// The camera.
+        camera: Camera,
+    },
+}
+
+impl SkyCamera {
+    /// The core camera this stands for.
+    pub fn camera(&self) -> Camera {
+        // Eye 2 m above the ground so the horizon is not at the eye.
+        const EYE_KM: f32 = 0.002;
+        match *self {
+            SkyCamera::Ground { distance_km, elevation_deg, fov_y_deg } => {
+                let e = elevation_deg.to_radians();
+                let position = Vec3::new(0.0, EYE_KM, -distance_km);
+                Camera {
+                    position,
+                    look_at: position + Vec3::new(0.0, e.sin(), e.cos()) * 100.0,
+                    up: Vec3::Y,
+                    projection: Projection::Perspective { fov_y_deg },
+                }
+            }
+            SkyCamera::Orbit { altitude_km, distance_km, look_at_altitude_km, fov_y_deg } => Camera {
+                position: Vec3::new(0.0, altitude_km, -distance_km),
+                look_at: Vec3::new(0.0, look_at_altitude_km, 0.0),
+                up: Vec3::Y,
+                projection: Projection::Perspective { fov_y_deg },
+            },
+            SkyCamera::Dome { fov_deg } => Camera {
+                position: Vec3::new(0.0, EYE_KM, 0.0),
+                look_at: Vec3::new(0.0, 1.0, 0.0),
+                up: Vec3::Z,
+                projection: Projection::Fisheye { fov_deg },
+            },
+            SkyCamera::Panorama => Camera {
+                position: Vec3::new(0.0, EYE_KM, 0.0),
+                look_at: Vec3::new(0.0, EYE_KM, 1.0),
+                up: Vec3::Y,
+                projection: Projection::Equirectangular,
+            },
+            SkyCamera::Custom { camera } => camera,
+        }
+    }
+}
+
+impl Default for SkyCamera {
+    fn default() -> Self {
+        SkyCamera::Ground { distance_km: 250.0, elevation_deg: 22.0, fov_y_deg: 60.0 }
+    }
+}
+
+/// Settings of the sky view (`[render.sky]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SkySettings {
+    /// Emission and colour model.
+    pub mode: ColourMode,
+    /// The camera.
+    pub camera: SkyCamera,
+    /// Altitude of the simulation plane (where falls start and profiles end), km.
+    pub top_altitude_km: f32,
+    /// Angle of B from the vertical, degrees (0: vertical field lines; the geomagnetic
+    /// field at auroral latitudes is about 12° from vertical).
+    pub field_tilt_deg: f32,
+    /// Direction the field lines lean towards with depth, degrees from north (+z)
+    /// towards east (+x).
+    pub field_azimuth_deg: f32,
+    /// Standard deviation of each line's splat (eq 2.28), pixels at a 1280-pixel-wide
+    /// image (scaled with the width).
+    pub splat_sigma_px: PerLine,
+    /// `physical` mode: emission points per particle, shared among the lines by
+    /// their share of the column's colour.
+    pub points_per_particle: u32,
+    /// `physical` mode: the precipitating electrons.
+    pub precipitation: Precipitation,
+    /// `physical` mode: excitation yields.
+    pub yields: Yields,
+    /// `physical` mode: each line's image decays with the line's effective lifetime over
+    /// frames instead of following the particles at once (630.0 nm lingers ~a minute).
+    pub afterglow: bool,
+    /// `paper` mode: the fall and emission parameters.
+    pub paper: PaperFall,
+    /// `physical` mode: brightness of 557.7 nm light, kilorayleighs, that makes image
+    /// value 1 (the frame is linear sRGB relative to that luminance; the line layers
+    /// stay in rayleighs). Moderate aurora is a few kR of green, seen edge-on along a
+    /// curtain tens of kR.
+    pub white_kilorayleigh: f32,
+    /// `paper` mode: image value of one unattenuated 557.7 nm emission (the other lines
+    /// scale by their colour-matching values, eq 2.29; line layers count emissions).
+    pub paper_emission_brightness: f32,
+}
+
+impl Default for SkySettings {
+    fn default() -> Self {
+        Self {
+            mode: ColourMode::Physical,
+            camera: SkyCamera::default(),
+            top_altitude_km: 400.0,
+            field_tilt_deg: 0.0,
+            field_azimuth_deg: 0.0,
+            splat_sigma_px: PerLine { n2p391: 1.2, n2p428: 1.2, o557: 1.2, o630: 2.5, n2_670: 1.2 },
+            points_per_particle: 32,
+            precipitation: Precipitation::default(),
+            yields: Yields::default(),
+            afterglow: false,
+            white_kilorayleigh: 20.0,
+            paper: PaperFall::default(),
+            paper_emission_brightness: 0.05,
+        }
+    }
+}
+
+impl SkySettings {
+    /// Every problem, with fields relative to `[render.sky]`.
+    pub fn validate(&self) -> Result<(), Vec<Issue>> {
+        let mut i = Issues::default();
+        self.camera.camera().validate(&mut i, "camera");
+        match self.camera {
+            SkyCamera::Ground { distance_km, elevation_deg, .. } => {
+                i.range("camera.distance_km", distance_km, 0.0..=5000.0);
+                i.range("camera.elevation_deg", elevation_deg, -89.0..=89.0);
+            }
+            SkyCamera::Orbit { altitude_km, .. } => {
+                i.range("camera.altitude_km", altitude_km, 0.0..=100_000.0)
+            }
+            _ => {}
+        }
+        i.range("top_altitude_km", self.top_altitude_km, 100.0..=500.0);
+        i.range("field_tilt_deg", self.field_tilt_deg, 0.0..=80.0);
+        i.range("field_azimuth_deg", self.field_azimuth_deg, -360.0..=360.0);
+        for (line, s) in Line::ALL.iter().zip(self.splat_sigma_px.to_array()) {
+            i.range(&format!("splat_sigma_px ({} nm)", line.wavelength_nm()), s, 0.0..=64.0);
+        }
+        i.count("points_per_particle", u64::from(self.points_per_particle), 5..=10_000);
+        self.precipitation.validate(&mut i, "precipitation");
+        self.yields.validate(&mut i, "yields");
+        self.paper.validate(&mut i, "paper");
+        i.range_open_low("white_kilorayleigh", self.white_kilorayleigh, 0.0, 1e6);
+        i.range("paper_emission_brightness", self.paper_emission_brightness, 0.0..=1e9);
+        i.into_result()
+    }
+
+    /// Unit vector along B into the atmosphere, and the horizontal drift per km of descent.
+    fn field(&self) -> (DVec3, DVec3) {
+        let (tilt, az) =
+            (f64::from(self.field_tilt_deg).to_radians(), f64::from(self.field_azimuth_deg).to_radians());
+        let drift = DVec3::new(az.sin(), 0.0, az.cos()) * tilt.tan();
+        ((drift - DVec3::Y).normalize(), drift)
+    }
+}
+
+/// One emission projected to the image.
+#[derive(Clone, Copy, Debug)]
+struct Splat {
+    x: f32,
+    y: f32,
+    weight: f32,
+    line: u8,
+}
+
+/// Rows per deposit band.
+const BAND_ROWS: usize = 8;
+/// Particles per emission chunk.
+const CHUNK: usize = 1024;
+
+/// Renders the sky view of an [`AuroraSim`].
+pub struct SkyRenderer {
+    settings: SkySettings,
+    width: usize,
+    height: usize,
+    view: CameraView,
+    sigma_px: [f32; 5],
+    model: Model,
+    /// The current images of the five lines ([`Line::ALL`] order), after the blur (and
+    /// the afterglow): rayleighs in `physical` mode.
+    lines: [Plane; 5],
+    glow_started: bool,
+    frame: Frame,
+    timings: SkyTimings,
+}
+
+/// Where the last render's time went, ms.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SkyTimings {
+    /// Emission points: falls or profile sampling, projection, bucketing.
+    pub emit_ms: f64,
+    /// Deposit into the line images.
+    pub deposit_ms: f64,
+    /// Per-line Gaussian blur (eq 2.28) and afterglow.
+    pub blur_ms: f64,
+    /// Line images to linear sRGB.
+    pub colour_ms: f64,
+    /// Emission points deposited.
+    pub points: usize,
+}
+
+enum Model {
+    Paper { air: AirTable, emission: PaperEmission },
+    Physical { column: Box<ColumnModel>, sampler: AltitudeSampler, points: [u32; 5], photons: [f64; 5] },
+}
+
+/// Why a sky renderer cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SkyError {
+    /// Settings out of range.
+    #[error("invalid sky settings: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    Settings(Vec<Issue>),
+    /// The image size.
+    #[error("cannot render a {0}×{1} image")]
+    Size(usize, usize),
+}
+
+impl SkyRenderer {
+    /// A renderer for `width × height` images.
+    pub fn new(settings: SkySettings, width: usize, height: usize) -> Result<Self, SkyError> {
+        settings.validate().map_err(SkyError::Settings)?;
+        let view = settings.camera.camera().view(width, height).ok_or(SkyError::Size(width, height))?;
+        let air = Atmosphere::msis21();
+        let model = match settings.mode {
+            ColourMode::Paper => {
+                Model::Paper { air: AirTable::new(air), emission: PaperEmission::new(air, &settings.paper) }
+            }
+            ColourMode::Physical => {
+                let column = ColumnModel::new(air, &settings.precipitation, &settings.yields);
+                let photons = Line::ALL.map(|l| column.column_photons_cm2_s(l));
+                let points = allocate_points(settings.points_per_particle, &photons);
+                let sampler = column.altitude_sampler();
+                Model::Physical { column: Box::new(column), sampler, points, photons }
+            }
+        };
+        let scale = width as f32 / 1280.0;
+        Ok(Self {
+            settings,
+            width,
+            height,
+            view,
+            sigma_px: settings.splat_sigma_px.to_array().map(|s| s * scale),
+            model,
+            lines: std::array::from_fn(|_| Plane::new(width, height)),
+            glow_started: false,
+            frame: Frame::new(width, height),
+            timings: SkyTimings::default(),
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &SkySettings {
+        &self.settings
+    }
+
+    /// The five line images of the last render, in [`Line::ALL`] order (rayleighs in
+    /// `physical` mode).
+    pub fn line_images(&self) -> &[Plane; 5] {
+        &self.lines
+    }
+
+    /// Where the last render's time went.
+    pub fn timings(&self) -> SkyTimings {
+        self.timings
+    }
+
+    /// The frame of the last [`SkyRenderer::render`] (linear sRGB; black before it).
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// The `physical` mode's column model (`None` in `paper` mode).
+    pub fn column_model(&self) -> Option<&ColumnModel> {
+        match &self.model {
+            Model::Physical { column, .. } => Some(column),
+            Model::Paper { .. } => None,
+        }
+    }
+
+    /// Render the sky over `sim`'s current particles; returns linear sRGB.
+    pub fn render(&mut self, sim: &AuroraSim) -> &Frame {
+        let mut fresh = self.emit_and_deposit(sim);
+        let t = std::time::Instant::now();
+        for (plane, sigma) in fresh.iter_mut().zip(self.sigma_px) {
+            plane.gaussian_blur(sigma);
+        }
+        match (&self.model, self.settings.afterglow && self.glow_started) {
+            (Model::Physical { column, .. }, true) => {
+                let dt = f64::from(sim.config().motion.time_step_s);
+                for (k, (old, new)) in self.lines.iter_mut().zip(&fresh).enumerate() {
+                    let tau = column.effective_lifetime_s(Line::ALL[k]);
+                    let keep = if tau > 0.0 { (-dt / tau).exp() as f32 } else { 0.0 };
+                    for (o, n) in old.data_mut().iter_mut().zip(new.data()) {
+                        *o = *o * keep + *n * (1.0 - keep);
+                    }
+                }
+            }
+            _ => self.lines = fresh,
+        }
+        self.glow_started = true;
+        self.timings.blur_ms = ms(t);
+        let t = std::time::Instant::now();
+        self.colour();
+        self.timings.colour_ms = ms(t);
+        &self.frame
+    }
+
+    /// Emissions of all particles, deposited into five unblurred line images.
+    fn emit_and_deposit(&mut self, sim: &AuroraSim) -> [Plane; 5] {
+        let t = std::time::Instant::now();
+        let particles = sim.particles();
+        let chunks: Vec<(Vec<Splat>, Vec<u32>)> = (0..particles.len().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
+                let mut splats = Vec::new();
+                for i in range {
+                    self.emit_particle(sim, i, &mut splats);
+                }
+                bucket_by_band(splats, self.height)
+            })
+            .collect();
+        self.timings.emit_ms = ms(t);
+        self.timings.points = chunks.iter().map(|c| c.0.len()).sum();
+        let t = std::time::Instant::now();
+        let planes = deposit_banded(&chunks, self.width, self.height);
+        self.timings.deposit_ms = ms(t);
+        planes
+    }
+
+    /// Append particle `i`'s emissions.
+    fn emit_particle(&self, sim: &AuroraSim, i: usize, out: &mut Vec<Splat>) {
+        let particles = sim.particles();
+        let grid = sim.grid();
+        let centre = grid.origin_km + grid.extent_km() * 0.5;
+        let p = particles.position_km[i] - centre;
+        let top = f64::from(self.settings.top_altitude_km);
+        let foot = DVec3::new(f64::from(p.x), top, f64::from(p.y));
+        let (down, drift) = self.settings.field();
+        let frame_key = sim.seed() ^ sim.frame().wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        let mut rng = Stream::new(frame_key, EMIT, particles.id[i]);
+        match &self.model {
+            Model::Paper { air, emission } => {
+                let params = &self.settings.paper;
+                let r = params.jitter;
+                fall(
+                    foot,
+                    down,
+                    params,
+                    air,
+                    &mut rng,
+                    |s| jitter_in_ball(s, r),
+                    |q, s| {
+                        let u = s.next_f64();
+                        if let Some(line) = emission.choose(q.y, u)
+                            && let Some(pr) = self.view.project(q.as_vec3())
+                        {
+                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth));
+                            out.push(Splat {
+                                x: pr.x_px,
+                                y: pr.y_px,
+                                weight: c as f32,
+                                line: line.index() as u8,
+                            });
+                        }
+                    },
+                );
+            }
+            Model::Physical { sampler, points, photons, .. } => {
+                // Footprint of one particle at the rest density, km²; a point carrying P
+                // photons/s seen at d km through pixels of px_per_km px per km at that
+                // distance adds P (px_per_km)² 1e-16 R (see the module docs), with
+                // P = column · area · 1e10 / points.
+                let area_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
+                let (top, drift) = (top as f32, drift.as_vec3());
+                let foot = foot.as_vec3();
+                for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
+                    if m == 0 {
+                        continue;
+                    }
+                    let per_point = (column_rate * area_km2 * 1e-6 / f64::from(m)) as f32;
+                    let line = Line::ALL[k];
+                    let inv_m = 1.0 / m as f32;
+                    for j in 0..m {
+                        let u = (j as f32 + rng.next_f32()) * inv_m;
+                        let altitude = sampler.altitude_km(line, u).min(top);
+                        let q = Vec3::new(foot.x, altitude, foot.z) + drift * (top - altitude);
+                        if let Some(pr) = self.view.project(q) {
+                            out.push(Splat {
+                                x: pr.x_px,
+                                y: pr.y_px,
+                                weight: per_point * pr.px_per_m * pr.px_per_m,
+                                line: k as u8,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Line images -> XYZ -> linear sRGB into `self.frame`.
+    fn colour(&mut self) {
+        let paper = self.settings.mode == ColourMode::Paper;
+        // XYZ per unit of each line image: K x̄ȳz̄ (eq 2.29 with K = 683 lm/W) times, in
+        // physical mode, the radiance of 1 R of the line: 1e10/(4π) photons m⁻² s⁻¹ sr⁻¹
+        // times the photon energy hc/λ. Then divided by the luminance that is to be 1:
+        // that of one emission of 557.7 nm (paper) or of `white_kilorayleigh` (physical).
+        let luminance = |line: Line| -> DVec3 {
+            if paper {
+                line.table_2_1_cmf() * 683.0
+            } else {
+                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (line.wavelength_nm() * 1e-9);
+                line.cie2015_cmf() * (683.0 * 1e10 / (4.0 * std::f64::consts::PI) * photon_j)
+            }
+        };
+        let white = if paper {
+            luminance(Line::O557).y / f64::from(self.settings.paper_emission_brightness)
+        } else {
+            luminance(Line::O557).y * 1e3 * f64::from(self.settings.white_kilorayleigh)
+        };
+        // Linear sRGB per unit of each line image (the XYZ -> RGB matrix is linear, so it
+        // is applied to the five weights once instead of to every pixel).
+        let weights: [Vec3; 5] = Line::ALL.map(|line| {
+            let xyz = luminance(line) / white;
+            (if paper { xyz_to_rgb_eq_2_30(xyz) } else { xyz_to_linear_srgb(xyz) }).as_vec3()
+        });
+        let w = self.width;
+        let lines = &self.lines;
+        let [c0, c1, c2] = self.frame.planes_mut();
+        c0.data_mut()
+            .par_chunks_mut(w)
+            .zip(c1.data_mut().par_chunks_mut(w))
+            .zip(c2.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((r, g), b))| {
+                let rows: [&[f32]; 5] = std::array::from_fn(|k| &lines[k].data()[y * w..(y + 1) * w]);
+                for x in 0..w {
+                    let mut rgb = Vec3::ZERO;
+                    for (row, wk) in rows.iter().zip(&weights) {
+                        rgb += *wk * row[x];
+                    }
+                    r[x] = rgb.x;
+                    g[x] = rgb.y;
+                    b[x] = rgb.z;
+                }
+            });
+    }
+}
+
+fn ms(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Share `total` emission points among the lines in proportion to the colour each
+/// contributes (photon rate × photon energy × (x̄ + ȳ + z̄)), at least 2 for any line
+/// that emits at all, so faint lines are sampled but bright ones get the points.
+fn allocate_points(total: u32, photons: &[f64; 5]) -> [u32; 5] {
+    let importance: Vec<f64> = Line::ALL
+        .iter()
+        .zip(photons)
+        .map(|(line, &p)| p / line.wavelength_nm() * line.cie2015_cmf().element_sum())
+        .collect();
+    let sum: f64 = importance.iter().sum();
+    std::array::from_fn(|k| {
+        if !(importance[k] > 0.0) || !(sum > 0.0) {
+            0
+        } else {
+            ((f64::from(total) * importance[k] / sum).round() as u32).max(2)
+        }
+    })
+}
+
+/// ⌊v⌋ for |v| < 2³¹ (an inlined floor: the library call is not, on baseline x86-64).
+#[inline]
+fn floor_i32(v: f32) -> i32 {
+    let i = v as i32;
+    i - i32::from(i as f32 > v)
+}
+
+/// Counting sort of splats by the band of their first row; returns the splats and the
+/// start offset of each band's bucket (bands + 1 entries). Splats entirely outside the
+/// image (or with a non-finite weight) are dropped.
+fn bucket_by_band(splats: Vec<Splat>, height: usize) -> (Vec<Splat>, Vec<u32>) {
+    let bands = height.div_ceil(BAND_ROWS);
+    let band_of = |s: &Splat| -> Option<usize> {
+        let fy = s.y - 0.5;
+        if !(fy >= -1.0 && fy < height as f32 && s.weight.is_finite()) {
+            return None;
+        }
+        Some((floor_i32(fy).max(0) as usize) / BAND_ROWS)
+    };
+    let mut offsets = vec![0u32; bands + 1];
+    let mut keys = Vec::with_capacity(splats.len());
+    for s in &splats {
+        let b = band_of(s);
+        if let Some(b) = b {
+            offsets[b + 1] += 1;
+        }
+        keys.push(b);
+    }
+    for b in 0..bands {
+        offsets[b + 1] += offsets[b];
+    }
+    let mut cursor = offsets.clone();
+    let mut sorted = vec![Splat { x: 0.0, y: 0.0, weight: 0.0, line: 0 }; offsets[bands] as usize];
+    for (s, b) in splats.into_iter().zip(keys) {
+        if let Some(b) = b {
+            sorted[cursor[b] as usize] = s;
+            cursor[b] += 1;
+        }
+    }
+    (sorted, offsets)
+}
+
+/// Deposit every chunk's bucketed splats into five line images. Bands of rows run in
+/// parallel, each taking the chunks in order; a splat's second row may be the next
+/// band's first, which goes to the band's spill row and is added after all bands, in
+/// band order. So every pixel sums the same terms in the same order for any thread
+/// count.
+fn deposit_banded(chunks: &[(Vec<Splat>, Vec<u32>)], w: usize, h: usize) -> [Plane; 5] {
+    let mut planes: [Plane; 5] = std::array::from_fn(|_| Plane::new(w, h));
+    let [p0, p1, p2, p3, p4] = &mut planes;
+    let n = w * BAND_ROWS;
+    let spills: Vec<Vec<f32>> = p0
+        .data_mut()
+        .par_chunks_mut(n)
+        .zip(p1.data_mut().par_chunks_mut(n))
+        .zip(p2.data_mut().par_chunks_mut(n))
+        .zip(p3.data_mut().par_chunks_mut(n))
+        .zip(p4.data_mut().par_chunks_mut(n))
+        .enumerate()
+        .map(|(band, ((((a, b), c), d), e))| {
+            let r_lo = band * BAND_ROWS;
+            let rows = a.len() / w;
+            let mut spill = vec![0.0f32; 5 * w];
+            let mut dst: [&mut [f32]; 5] = [a, b, c, d, e];
+            for (splats, offsets) in chunks {
+                for s in &splats[offsets[band] as usize..offsets[band + 1] as usize] {
+                    deposit(&mut dst, &mut spill, w, r_lo, rows, s);
+                }
+            }
+            spill
+        })
+        .collect();
+    for (band, spill) in spills.iter().enumerate() {
+        let row = (band + 1) * BAND_ROWS;
+        if row >= h {
+            continue;
+        }
+        for (k, plane) in planes.iter_mut().enumerate() {
+            for (d, s) in plane.data_mut()[row * w..(row + 1) * w].iter_mut().zip(&spill[k * w..(k + 1) * w])
+            {
+                *d += s;
+            }
+        }
+    }
+    planes
+}
+
+/// Bilinear deposit of `s` into a band's rows `r_lo..r_lo + rows` of the five line
+/// images (`dst`, row-major, width `w`), the row after the band going to `spill`.
+#[inline]
+fn deposit(dst: &mut [&mut [f32]; 5], spill: &mut [f32], w: usize, r_lo: usize, rows: usize, s: &Splat) {
+    let (fx, fy) = (s.x - 0.5, s.y - 0.5);
+    let (x0, y0) = (floor_i32(fx), floor_i32(fy));
+    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let k = usize::from(s.line);
+    for (dy, wy) in [(0, 1.0 - ty), (1, ty)] {
+        let y = i64::from(y0) + dy - r_lo as i64;
+        let row: &mut [f32] = if (0..rows as i64).contains(&y) {
+            &mut dst[k][y as usize * w..(y as usize + 1) * w]
+        } else if y == rows as i64 {
+            &mut spill[k * w..(k + 1) * w]
+        } else {
+            continue;
+        };
+        for (dx, wx) in [(0, 1.0 - tx), (1, tx)] {
+            let x = i64::from(x0) + dx;
+            if x >= 0 && (x as usize) < w {
+                row[x as usize] += s.weight * wx * wy;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use phenomena_core::image::gaussian_weights;
+
+    #[test]
+    fn deposit_then_blur_is_the_sum_of_splats() {
+        // Eq 2.28 per splat (the discrete, normalised Gaussian of the core's blur) at
+        // pixel-centre positions, against depositing and blurring once: the same sum, up
+        // to f32 rounding. Off-centre positions differ only by the bilinear split.
+        let (w, h, sigma) = (48usize, 40usize, 1.7f32);
+        let mut rng = Stream::new(5, EMIT, 0);
+        let splats: Vec<Splat> = (0..300)
+            .map(|_| Splat {
+                x: 8.5 + rng.below(32) as f32,
+                y: 8.5 + rng.below(24) as f32,
+                weight: rng.uniform(0.1, 2.0),
+                line: 2,
+            })
+            .collect();
+        let [_, _, mut plane, _, _] = deposit_banded(&[bucket_by_band(splats.clone(), h)], w, h);
+        plane.gaussian_blur(sigma);
+        let g = gaussian_weights(sigma);
+        let r = (g.len() / 2) as i64;
+        let mut direct = vec![0.0f64; w * h];
+        for s in &splats {
+            let (cx, cy) = ((s.x - 0.5) as i64, (s.y - 0.5) as i64);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (x, y) = (cx + dx, cy + dy);
+                    if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
+                        direct[y as usize * w + x as usize] += f64::from(s.weight)
+                            * f64::from(g[(dx + r) as usize])
+                            * f64::from(g[(dy + r) as usize]);
+                    }
+                }
+            }
+        }
+        let max = direct.iter().cloned().fold(0.0, f64::max);
+        for (a, b) in plane.data().iter().zip(&direct) {
+            // f32 accumulation of up to ~300 terms of size ≤ max: relative 1e-5 of max.
+            assert!((f64::from(*a) - b).abs() <= 1e-5 * max, "{a} vs {b}");
+        }
+        // And the total is conserved: every splat is more than the 4σ kernel radius (7 px)
+        // from the edges.
+        let total: f64 = splats.iter().map(|s| f64::from(s.weight)).sum();
+        assert!((plane.sum() - total).abs() < 1e-4 * total);
+    }
+
+    #[test]
+    fn banding_keeps_every_splat_that_touches_the_image() {
+        // Splats straddling band borders and image edges: banded deposit equals a plain
+        // deposit over the whole image.
+        let (w, h) = (20usize, 19usize);
+        let mut rng = Stream::new(6, EMIT, 0);
+        let splats: Vec<Splat> = (0..500)
+            .map(|_| Splat {
+                x: rng.uniform(-1.0, 21.0),
+                y: rng.uniform(-1.0, 20.0),
+                weight: 1.0,
+                line: rng.below(5) as u8,
+            })
+            .collect();
+        // Two chunks, as the renderer makes them.
+        let chunks = [bucket_by_band(splats[..200].to_vec(), h), bucket_by_band(splats[200..].to_vec(), h)];
+        let banded = deposit_banded(&chunks, w, h);
+        let mut whole: [Vec<f32>; 5] = std::array::from_fn(|_| vec![0.0f32; w * h]);
+        let mut spill = vec![0.0f32; 5 * w];
+        for s in &splats {
+            let [a, b, c, d, e] = &mut whole;
+            deposit(&mut [a, b, c, d, e], &mut spill, w, 0, h, s);
+        }
+        for k in 0..5 {
+            for (a, b) in banded[k].data().iter().zip(&whole[k]) {
+                assert!((a - b).abs() < 1e-5, "line {k}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn points_go_where_the_colour_is() {
+        let p = allocate_points(40, &[1.0, 0.3, 5.0, 0.5, 0.0]);
+        assert_eq!(p[4], 0, "a dark line gets no points");
+        assert!(p[2] > p[0] && p[2] > p[3], "{p:?}");
+        assert!(p.iter().all(|&n| n == 0 || n >= 2));
+    }
+}
