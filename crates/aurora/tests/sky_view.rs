@@ -1,0 +1,186 @@
+//! The sky view end to end (issue 4's image evidence): colour by height in a rendered
+//! curtain, the afterglow's decay, thread-count independence, and the dome and
+//! panorama cameras.
+
+use phenomena_aurora::emission::Line;
+use phenomena_aurora::{AuroraConfig, AuroraSim, ColourMode, SkyCamera, SkyRenderer, SkySettings};
+use phenomena_core::image::Frame;
+
+/// The default arc with few particles, after a few frames.
+fn sim(particles: u32, frames: u32) -> AuroraSim {
+    let mut config = AuroraConfig::default();
+    config.motion.particles = particles;
+    config.redistribution.enabled = false;
+    let mut sim = AuroraSim::new(config, 7).expect("default aurora");
+    for _ in 0..frames {
+        sim.step().expect("step");
+    }
+    sim
+}
+
+/// Sum of each channel over rows `rows` of `frame`.
+fn rows_rgb(frame: &Frame, rows: std::ops::Range<usize>) -> [f64; 3] {
+    let mut acc = [0.0; 3];
+    for y in rows {
+        for x in 0..frame.width() {
+            let p = frame.pixel(x, y);
+            acc[0] += f64::from(p.x);
+            acc[1] += f64::from(p.y);
+            acc[2] += f64::from(p.z);
+        }
+    }
+    acc
+}
+
+#[test]
+fn a_curtain_is_green_in_the_middle_and_redder_on_top() {
+    // Seen from the side (an orbit camera level with the curtain, so that image rows map
+    // to altitude), physical mode: rows are binned by altitude band through the camera.
+    let settings = SkySettings {
+        camera: SkyCamera::Orbit {
+            altitude_km: 200.0,
+            distance_km: 1500.0,
+            look_at_altitude_km: 200.0,
+            fov_y_deg: 16.0,
+        },
+        ..SkySettings::default()
+    };
+    let s = sim(20_000, 3);
+    let mut sky = SkyRenderer::new(settings, 320, 240).expect("sky");
+    let frame = sky.render(&s).clone();
+    // Image rows of altitudes a..b at the curtain's distance (the centre of the plane is
+    // 1500 km away; 240 px span 2·1500·tan 8° = 421.6 km, so 0.569 px/km).
+    let px_per_km = 240.0 / (2.0 * 1500.0 * 8f64.to_radians().tan());
+    let row = |alt: f64| (120.0 - (alt - 200.0) * px_per_km).round() as usize;
+    let middle = rows_rgb(&frame, row(130.0)..row(100.0));
+    let top = rows_rgb(&frame, row(300.0)..row(200.0));
+    // Middle (100-130 km): green dominates (557.7 nm), as in real aurora.
+    assert!(middle[1] > middle[0] && middle[1] > middle[2], "middle rows {middle:?}");
+    // Top (200-300 km): the share of red is larger than in the middle (630.0 nm).
+    let redness = |c: [f64; 3]| c[0] / (c[0] + c[1] + c[2]);
+    assert!(redness(top) > 1.5 * redness(middle), "top {top:?} vs middle {middle:?}");
+    assert!(top.iter().sum::<f64>() > 0.0);
+    // And the bottom border sits near 100 km: little light below 90 km.
+    let below = rows_rgb(&frame, row(90.0)..row(70.0)).iter().sum::<f64>();
+    assert!(below < 0.05 * middle.iter().sum::<f64>(), "below 90 km: {below}");
+}
+
+#[test]
+fn the_red_line_lingers_after_the_particles_move_on() {
+    // Afterglow: render one curtain, then a second one elsewhere with the same renderer.
+    // At the first curtain's place each line keeps exp(-Δt/τ) of its image: τ = 0 for the
+    // prompt N2 lines (gone at once), ~0.8 s for 557.7 nm, tens of seconds for 630.0 nm.
+    let first = sim(10_000, 2);
+    let mut config = AuroraConfig::default();
+    config.motion.particles = 10_000;
+    for k in &mut config.keyframes {
+        for sheet in &mut k.sheets {
+            for p in sheet.iter_mut() {
+                p[1] -= 150.0; // 150 km south: no overlap with the first curtain.
+            }
+        }
+    }
+    let mut second = AuroraSim::new(config, 7).expect("moved arc");
+    second.step().expect("step");
+    let settings = SkySettings { afterglow: true, ..SkySettings::default() };
+    let mut sky = SkyRenderer::new(settings, 200, 120).expect("sky");
+    sky.render(&first);
+    let before = sky.line_images().clone();
+    sky.render(&second);
+    let after = sky.line_images();
+    let column = sky.column_model().expect("physical");
+    let dt = f64::from(first.config().motion.time_step_s);
+    // Compare where the first curtain was bright and the second adds nothing: pixels
+    // above 10 % of the first image's peak whose new 427.8 nm light is zero.
+    let k428 = Line::N2p428.index();
+    let peak = before[k428].data().iter().cloned().fold(0.0f32, f32::max);
+    let mask: Vec<bool> = before[k428]
+        .data()
+        .iter()
+        .zip(after[k428].data())
+        .map(|(b, a)| *b > 0.1 * peak && *a == 0.0)
+        .collect();
+    assert!(mask.iter().filter(|&&m| m).count() > 50, "the curtains overlap too much to test");
+    for line in [Line::O557, Line::O630] {
+        let k = line.index();
+        let (mut kept, mut had) = (0.0f64, 0.0f64);
+        for ((b, a), m) in before[k].data().iter().zip(after[k].data()).zip(&mask) {
+            if *m {
+                kept += f64::from(*a);
+                had += f64::from(*b);
+            }
+        }
+        let expected = (-dt / column.effective_lifetime_s(line)).exp();
+        // The second curtain's light reaches these pixels only through the blur's
+        // far tail (σ ≤ 2.5 px, the curtains 150 km apart); f32 rounding 1e-6.
+        assert!((kept / had - expected).abs() < 1e-3, "{line:?}: kept {} expected {expected}", kept / had);
+    }
+}
+
+#[test]
+fn sky_renders_are_identical_for_one_and_two_threads() {
+    let s = sim(8_000, 2);
+    for mode in [ColourMode::Physical, ColourMode::Paper] {
+        let settings = SkySettings { mode, ..SkySettings::default() };
+        let render = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            pool.install(|| {
+                let mut sky = SkyRenderer::new(settings, 160, 90).expect("sky");
+                sky.render(&s).to_interleaved()
+            })
+        };
+        let (one, two) = (render(1), render(2));
+        assert!(one.iter().any(|&v| v > 0.0), "{mode:?}: empty image");
+        assert!(one.iter().zip(&two).all(|(a, b)| a.to_bits() == b.to_bits()), "{mode:?}");
+    }
+}
+
+#[test]
+fn the_dome_master_shows_the_sky_inside_its_circle() {
+    let s = sim(8_000, 2);
+    let settings = SkySettings { camera: SkyCamera::Dome { fov_deg: 180.0 }, ..SkySettings::default() };
+    let mut sky = SkyRenderer::new(settings, 128, 128).expect("sky");
+    let frame = sky.render(&s);
+    let (mut inside, mut outside) = (0.0f64, 0.0f64);
+    for y in 0..128 {
+        for x in 0..128 {
+            let p = frame.pixel(x, y);
+            let v = f64::from(p.x + p.y + p.z);
+            let r = ((x as f64 + 0.5 - 64.0).powi(2) + (y as f64 + 0.5 - 64.0).powi(2)).sqrt();
+            // Outside the circle plus the splat's reach (a few px) nothing is drawn.
+            if r > 68.0 {
+                outside += v.abs();
+            } else {
+                inside += v;
+            }
+        }
+    }
+    assert!(inside > 0.0 && outside == 0.0, "inside {inside}, outside {outside}");
+}
+
+#[test]
+fn the_panorama_shows_the_arc_above_the_horizon_from_east_to_west() {
+    // Equirectangular from the ground under the plane's centre, north at the centre
+    // column, east at 3/4 of the width: the default arc runs from 140 km west to 140 km
+    // east of the observer, 0-40 km south of it, 100-400 km up, so all its light is
+    // above the horizon (upper half) and reaches both the eastern and western quarters.
+    let s = sim(8_000, 2);
+    let settings = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
+    let mut sky = SkyRenderer::new(settings, 360, 180).expect("sky");
+    let frame = sky.render(&s);
+    let upper = rows_rgb(frame, 0..90).iter().sum::<f64>();
+    let lower = rows_rgb(frame, 90..180).iter().sum::<f64>();
+    assert!(upper > 0.0 && lower < 1e-3 * upper, "upper {upper}, lower {lower}");
+    let columns = |xs: std::ops::Range<usize>| {
+        let mut v = 0.0f64;
+        for y in 0..90 {
+            for x in xs.clone() {
+                let p = frame.pixel(x, y);
+                v += f64::from(p.x + p.y + p.z);
+            }
+        }
+        v
+    };
+    let (east, west) = (columns(225..315), columns(45..135));
+    assert!(east > 0.1 * upper && west > 0.1 * upper, "east {east}, west {west} of {upper}");
+}
