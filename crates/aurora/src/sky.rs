@@ -160,7 +160,7 @@ impl SkyCamera {
 
 impl Default for SkyCamera {
     fn default() -> Self {
-        SkyCamera::Ground { distance_km: 250.0, elevation_deg: 22.0, fov_y_deg: 60.0 }
+        SkyCamera::Ground { distance_km: 250.0, elevation_deg: 38.0, fov_y_deg: 60.0 }
     }
 }
 
