@@ -193,6 +193,13 @@ pub struct SkySettings {
     /// `physical` mode: each line's image decays with the line's effective lifetime over
     /// frames instead of following the particles at once (630.0 nm lingers ~a minute).
     pub afterglow: bool,
+    /// Draw a night sky of stars behind the aurora (fixed per seed; brightness from
+    /// visual magnitudes, in the same units as the aurora).
+    pub stars: bool,
+    /// Faintest star drawn, visual magnitude (default 5.5; 6.5 is the naked-eye limit).
+    pub star_limiting_magnitude: f32,
+    /// Draw a dark ground with low hills below the horizon (hides what is behind it).
+    pub ground: bool,
     /// `paper` mode: the fall and emission parameters.
     pub paper: PaperFall,
     /// `physical` mode: brightness of 557.7 nm light, kilorayleighs, that makes image
@@ -218,6 +225,9 @@ impl Default for SkySettings {
             precipitation: Precipitation::default(),
             yields: Yields::default(),
             afterglow: false,
+            stars: false,
+            star_limiting_magnitude: 5.5,
+            ground: false,
             white_kilorayleigh: 20.0,
             paper: PaperFall::default(),
             paper_emission_brightness: 0.05,
@@ -251,6 +261,7 @@ impl SkySettings {
         self.yields.validate(&mut i, "yields");
         self.paper.validate(&mut i, "paper");
         i.range_open_low("white_kilorayleigh", self.white_kilorayleigh, 0.0, 1e6);
+        i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=9.0);
         i.range("paper_emission_brightness", self.paper_emission_brightness, 0.0..=1e9);
         i.into_result()
     }
@@ -411,6 +422,12 @@ impl SkyRenderer {
         self.timings.blur_ms = ms(t);
         let t = std::time::Instant::now();
         self.colour();
+        if self.settings.stars {
+            self.draw_stars(sim.seed());
+        }
+        if self.settings.ground {
+            self.draw_ground();
+        }
         self.timings.colour_ms = ms(t);
         &self.frame
     }
@@ -507,6 +524,78 @@ impl SkyRenderer {
                 }
             }
         }
+    }
+
+    /// Luminance, cd/m², that the frame shows as 1.
+    fn white_cd_m2(&self) -> f64 {
+        match self.settings.mode {
+            ColourMode::Paper => {
+                683.0 * Line::O557.table_2_1_cmf().y / f64::from(self.settings.paper_emission_brightness)
+            }
+            ColourMode::Physical => {
+                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (Line::O557.wavelength_nm() * 1e-9);
+                683.0 * Line::O557.cie2015_cmf().y * 1e10 / (4.0 * std::f64::consts::PI)
+                    * photon_j
+                    * 1e3
+                    * f64::from(self.settings.white_kilorayleigh)
+            }
+        }
+    }
+
+    /// Add stars (at infinity) to the frame. Magnitudes follow the sky's cumulative star
+    /// count N(< m) ≈ 10^(0.5 m + 0.7) (about 5000 stars brighter than 6, 16 brighter
+    /// than 1); a star of magnitude m gives 2.54e-6 · 10^(-0.4 m) lux at the eye, spread
+    /// over the pixel it falls in (bilinear), as white light.
+    fn draw_stars(&mut self, seed: u64) {
+        const STARS: Purpose = Purpose::named("aurora.sky.stars");
+        let limit = f64::from(self.settings.star_limiting_magnitude);
+        let count = 10f64.powf(0.5 * limit + 0.7).round() as u64;
+        let white = self.white_cd_m2();
+        let eye = self.settings.camera.camera().position;
+        let mut rng = Stream::new(seed, STARS, 0);
+        let [r, g, b] = self.frame.planes_mut();
+        for _ in 0..count {
+            let dir = rng.on_unit_sphere();
+            // Inverse of N(< m): m = (log10(u N) - 0.7)/0.5 over u in (0, 1].
+            let u = 1.0 - rng.next_f64();
+            let magnitude = ((u * count as f64).log10() - 0.7) / 0.5;
+            let Some(p) = self.view.project(eye + dir * 1e7) else { continue };
+            // Pixel solid angle at this direction: (1/px per radian)², px per radian
+            // being px_per_m times the distance.
+            let px_per_rad = f64::from(p.px_per_m) * 1e7;
+            let lux = 2.54e-6 * 10f64.powf(-0.4 * magnitude);
+            let value = (lux * px_per_rad * px_per_rad / white) as f32;
+            for plane in [&mut *r, &mut *g, &mut *b] {
+                plane.deposit_bilinear(p.x_px, p.y_px, value);
+            }
+        }
+    }
+
+    /// Black out everything below a horizon of low hills (1-3°, a sum of sines of the
+    /// azimuth), seen from the camera.
+    fn draw_ground(&mut self) {
+        let w = self.width;
+        let view = self.view;
+        let [r, g, b] = self.frame.planes_mut();
+        r.data_mut()
+            .par_chunks_mut(w)
+            .zip(g.data_mut().par_chunks_mut(w))
+            .zip(b.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((r, g), b))| {
+                for x in 0..w {
+                    let (_, d) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    let azimuth = d.x.atan2(d.z);
+                    let hills = (1.5
+                        + 0.8 * (3.0 * azimuth).sin()
+                        + 0.5 * (7.0 * azimuth + 1.0).sin()
+                        + 0.3 * (13.0 * azimuth + 2.0).sin())
+                    .to_radians();
+                    if d.y.asin() < hills {
+                        (r[x], g[x], b[x]) = (0.0, 0.0, 0.0);
+                    }
+                }
+            });
     }
 
     /// Line images -> XYZ -> linear sRGB into `self.frame`.

@@ -184,3 +184,33 @@ fn the_panorama_shows_the_arc_above_the_horizon_from_east_to_west() {
     let (east, west) = (columns(225..315), columns(45..135));
     assert!(east > 0.1 * upper && west > 0.1 * upper, "east {east}, west {west} of {upper}");
 }
+
+#[test]
+fn the_ground_hides_what_is_below_the_horizon_and_stars_shine_above_it() {
+    // Panorama: rows below the horizon are below the hills' lowest point (-0.1°: the
+    // hills are 1.5° ± 1.6°), so with the ground on they are black; stars add light only
+    // above the hills.
+    let s = sim(4_000, 1);
+    let base = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
+    let render = |settings: SkySettings| {
+        let mut sky = SkyRenderer::new(settings, 360, 180).expect("sky");
+        sky.render(&s).clone()
+    };
+    let plain = render(base);
+    let starry = render(SkySettings { stars: true, ground: true, ..base });
+    // Elevation of row y's centre: 90° - (y + 0.5)·1°. Rows 91.. are below -0.5°.
+    let lower = rows_rgb(&starry, 91..180);
+    assert_eq!(lower, [0.0; 3], "ground rows");
+    let mut added = 0usize;
+    for y in 0..85 {
+        for x in 0..360 {
+            let (a, b) = (plain.pixel(x, y), starry.pixel(x, y));
+            if b.x > a.x + 1e-6 {
+                added += 1;
+            }
+        }
+    }
+    // About 10^(0.5·5.5 + 0.7) = 2818 stars, half of them above the horizon, each over
+    // up to 4 pixels (bilinear): at least several hundred lit pixels.
+    assert!(added > 500, "{added} pixels gained starlight");
+}
