@@ -345,6 +345,8 @@ pub(crate) mod builtin {
     pub(crate) const FLAME_WIND_RIGHT: &str = include_str!("../../../scenes/flame-wind-right.toml");
     /// Showcase.
     pub(crate) const FLAME_CAMPFIRE: &str = include_str!("../../../scenes/flame-campfire.toml");
+    /// Thesis scene 2: an S-shaped sheet that splits (Figs 3.5, 3.10).
+    pub(crate) const AURORA_SCENE2: &str = include_str!("../../../scenes/aurora-scene2.toml");
 }
 
 #[cfg(test)]

@@ -25,5 +25,6 @@ fn demo_renders_every_system() {
     for still in ["flame-paper", "flame-wind-left", "flame-wind-right"] {
         assert_eq!(png_size(&d.join(still).join("frame_00120.png")), (640, 360));
     }
+    assert_eq!(png_size(&d.join("aurora-scene2/frame_00230.png")), (640, 360));
     assert_eq!(png_size(&d.join("blackbody-1000K-10000K.png")), (901, 1));
 }
