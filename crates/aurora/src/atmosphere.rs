@@ -34,10 +34,12 @@ pub struct Sample {
 
 /// Atomic mass unit (dalton), kg (CODATA 2018).
 pub const DALTON_KG: f64 = 1.660_539_066_60e-27;
-/// Molar masses of O, N2 and O2, g/mol (IUPAC standard atomic weights).
-const MASS_O: f64 = 15.999;
-const MASS_N2: f64 = 28.014;
-const MASS_O2: f64 = 31.998;
+/// Molar mass of O, g/mol (IUPAC standard atomic weights, as for N2 and O2).
+pub const MASS_O: f64 = 15.999;
+/// Molar mass of N2, g/mol.
+pub const MASS_N2: f64 = 28.014;
+/// Molar mass of O2, g/mol.
+pub const MASS_O2: f64 = 31.998;
 
 impl Sample {
     /// Mass density of O, N2 and O2 together, kg/m³ (the minor species, Ar at about

@@ -224,7 +224,7 @@ mod tests {
         // 1.8e-10 m), mean speed of N2 at the local temperature, τ(¹S) = 0.905 s.
         let s = Atmosphere::msis21().at(110.0);
         let n = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
-        let v = mean_speed_m_s(s.temperature_k, 28.014 * crate::atmosphere::DALTON_KG);
+        let v = mean_speed_m_s(s.temperature_k, crate::atmosphere::MASS_N2 * crate::atmosphere::DALTON_KG);
         assert!((400.0..450.0).contains(&v), "mean N2 speed at {} K: {v}", s.temperature_k);
         let p = paper_quenching_probability(n, 1.8e-10, v, Line::O557.lifetime_s());
         assert!(p > 0.999, "P_v = {p}");

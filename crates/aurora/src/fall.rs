@@ -26,7 +26,7 @@ use phenomena_core::rng::Stream;
 use phenomena_core::validate::Issues;
 use serde::{Deserialize, Serialize};
 
-use crate::atmosphere::{Atmosphere, DALTON_KG};
+use crate::atmosphere::{Atmosphere, DALTON_KG, MASS_N2, MASS_O};
 use crate::emission::{Line, mean_speed_m_s, paper_quenching_probability};
 
 /// Parameters of the `paper` fall and emission (`[render.sky.paper]`).
@@ -226,9 +226,9 @@ pub struct PaperEmission {
     cumulative: Vec<[f64; 5]>,
 }
 
-/// Atomic mass of O and molecular mass of N2, daltons (the emitters' masses in eq 2.26).
-const MASS_O_DA: f64 = 15.999;
-const MASS_N2_DA: f64 = 28.014;
+/// The emitters' masses in eq 2.26, daltons (numerically their molar masses in g/mol).
+const MASS_O_DA: f64 = MASS_O;
+const MASS_N2_DA: f64 = MASS_N2;
 
 impl PaperEmission {
     /// Tabulate the chances over `air` with `params`' shares and radius.
