@@ -288,6 +288,21 @@ impl CameraView {
         }
     }
 
+    /// Whether straight lines stay straight (perspective or orthographic).
+    pub fn is_planar(&self) -> bool {
+        matches!(self.kind, Kind::Perspective | Kind::Orthographic)
+    }
+
+    /// Whether this is a perspective view.
+    pub fn is_perspective(&self) -> bool {
+        self.kind == Kind::Perspective
+    }
+
+    /// Image size (width, height), pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width as usize, self.height as usize)
+    }
+
     /// Unit view direction.
     pub fn forward(&self) -> Vec3 {
         self.forward

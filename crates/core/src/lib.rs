@@ -8,7 +8,8 @@
 //! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
 //! - [`noise`]: Perlin / simplex noise over space and time.
 //! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
-//! - [`camera`]: look-at cameras with perspective and orthographic projection.
+//! - [`camera`]: look-at cameras: perspective, orthographic, fisheye, equirectangular.
+//! - [`raster`]: triangle z-buffer rasteriser for depth and shadow maps, with ids.
 //! - [`validate`]: configuration problems that name the field, the value and the valid range.
 //! - [`serde_vec`]: strict `[x, y, z]` parsing for configuration files.
 //!
@@ -34,6 +35,7 @@ pub mod image;
 pub mod kernel;
 pub mod noise;
 pub mod pairs;
+pub mod raster;
 pub mod rng;
 pub mod serde_vec;
 pub mod tonemap;
