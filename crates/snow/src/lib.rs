@@ -1,0 +1,24 @@
+//! Snow cover, after Tokoi and Moriki, "Real-time modeling of snow-covered shape" (2006,
+//! `shared/papers/snow-cover-realtime-tokoi-moriki-2006.txt`).
+//!
+//! [`mesh`] holds scene triangles and the built-in procedural shapes; [`groups`] makes
+//! the polygon groups of §2.1 automatically; [`SnowSim`] builds one top-down snow map per
+//! group (§2.1), computes the snow probability from depth maps of jittered snowfall
+//! directions (§2.2), accumulates snow (§2.3, eq 1) and moves it to stable positions,
+//! letting it fall onto lower maps (§2.4).
+//!
+//! Lengths are metres, y is up, snowfall rates cm/h of snow depth.
+//!
+//! ```
+//! use phenomena_snow::{SnowParams, SnowSim, mesh::table_scene};
+//! let params = SnowParams { map_resolution: 32, directions: 8, shadow_resolution: 64, ..SnowParams::default() };
+//! let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
+//! let stats = sim.step();
+//! assert!(stats.volume_m3 > 0.0 && stats.stable);
+//! ```
+
+pub mod groups;
+pub mod mesh;
+mod sim;
+
+pub use sim::{Footprint, SnowError, SnowMap, SnowParams, SnowSim, SnowStats, snowfall_directions};

@@ -1,0 +1,206 @@
+//! Scene geometry: triangles with an object id, and procedural shapes for the built-in
+//! scenes (the table of Fig 7 and primitives like Fig 8).
+//!
+//! Triangles are counter-clockwise seen from outside (right-handed outward normals),
+//! lengths in metres, y up.
+
+use glam::Vec3;
+
+/// A triangle soup with an object id per triangle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertices of each triangle, counter-clockwise seen from outside.
+    pub triangles: Vec<[Vec3; 3]>,
+    /// Object of each triangle (index into the scene's objects).
+    pub object: Vec<u32>,
+}
+
+/// What cleaning a mesh removed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Cleaned {
+    /// Triangles with a non-finite vertex.
+    pub non_finite: usize,
+    /// Triangles of (near) zero area.
+    pub degenerate: usize,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Append `other` as object `object`.
+    pub fn push_object(&mut self, triangles: &[[Vec3; 3]], object: u32) {
+        self.triangles.extend_from_slice(triangles);
+        self.object.extend(std::iter::repeat_n(object, triangles.len()));
+    }
+
+    /// Unit normal of triangle `t` (zero for a degenerate one).
+    pub fn normal(&self, t: usize) -> Vec3 {
+        let [a, b, c] = self.triangles[t];
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// Remove triangles with non-finite vertices or an area below `min_area_m2`;
+    /// returns the counts removed.
+    pub fn clean(&mut self, min_area_m2: f32) -> Cleaned {
+        let mut out = Cleaned::default();
+        let mut keep = Vec::with_capacity(self.len());
+        for tri in &self.triangles {
+            let ok = if !tri.iter().all(|p| p.is_finite()) {
+                out.non_finite += 1;
+                false
+            } else if 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length() < min_area_m2 {
+                out.degenerate += 1;
+                false
+            } else {
+                true
+            };
+            keep.push(ok);
+        }
+        let mut k = 0;
+        self.triangles.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+        let mut k = 0;
+        self.object.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+        out
+    }
+
+    /// Axis-aligned bounds (min, max) of all vertices; `None` when empty.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut it = self.triangles.iter().flatten();
+        let first = *it.next()?;
+        Some(it.fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))))
+    }
+}
+
+/// Two triangles of the quad a, b, c, d (counter-clockwise seen from the front).
+pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [[Vec3; 3]; 2] {
+    [[a, b, c], [a, c, d]]
+}
+
+/// The twelve triangles of the box from `lo` to `hi`, outward facing.
+pub fn cuboid(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
+    let p = |x: bool, y: bool, z: bool| {
+        Vec3::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
+    };
+    let faces = [
+        // +y (top), seen from above: counter-clockwise in x-z with z towards the viewer...
+        quad(p(false, true, false), p(false, true, true), p(true, true, true), p(true, true, false)),
+        quad(p(false, false, false), p(true, false, false), p(true, false, true), p(false, false, true)),
+        quad(p(true, false, false), p(true, true, false), p(true, true, true), p(true, false, true)),
+        quad(p(false, false, false), p(false, false, true), p(false, true, true), p(false, true, false)),
+        quad(p(false, false, true), p(true, false, true), p(true, true, true), p(false, true, true)),
+        quad(p(false, false, false), p(false, true, false), p(true, true, false), p(true, false, false)),
+    ];
+    faces.iter().flatten().copied().collect()
+}
+
+/// A UV sphere of `radius` around `centre` with `segments` around and `segments / 2`
+/// rings, outward facing.
+pub fn sphere(centre: Vec3, radius: f32, segments: usize) -> Vec<[Vec3; 3]> {
+    let (n, m) = (segments.max(3), (segments / 2).max(2));
+    let at = |i: usize, j: usize| {
+        let (theta, phi) =
+            (j as f32 / m as f32 * std::f32::consts::PI, i as f32 / n as f32 * std::f32::consts::TAU);
+        centre + Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * radius
+    };
+    let mut out = Vec::new();
+    for j in 0..m {
+        for i in 0..n {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            if j != 0 {
+                out.push([a, b, c]);
+            }
+            if j != m - 1 {
+                out.push([a, c, d]);
+            }
+        }
+    }
+    out
+}
+
+/// A cone with its base centred at `base` (radius `radius`, pointing up `height`),
+/// closed at the base, outward facing.
+pub fn cone(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3; 3]> {
+    let n = segments.max(3);
+    let apex = base + Vec3::Y * height;
+    let rim = |i: usize| {
+        let phi = i as f32 / n as f32 * std::f32::consts::TAU;
+        base + Vec3::new(phi.cos(), 0.0, phi.sin()) * radius
+    };
+    let mut out = Vec::new();
+    for i in 0..n {
+        let (a, b) = (rim(i), rim(i + 1));
+        out.push([a, apex, b]);
+        out.push([a, b, base]);
+    }
+    out
+}
+
+/// The table scene of the paper's Fig 7: a ground square of `ground_m` and a table (top
+/// 0.05 m thick at `height_m`, four legs) in its middle. Objects: 0 ground, 1 table.
+pub fn table_scene(ground_m: f32, top_m: f32, height_m: f32) -> Mesh {
+    let mut mesh = Mesh::default();
+    let g = 0.5 * ground_m;
+    mesh.push_object(
+        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
+        0,
+    );
+    let t = 0.5 * top_m;
+    let mut table = cuboid(Vec3::new(-t, height_m - 0.05, -t), Vec3::new(t, height_m, t));
+    let leg = 0.04;
+    for (sx, sz) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        let c = Vec3::new(sx * (t - 2.0 * leg), 0.0, sz * (t - 2.0 * leg));
+        table.extend(cuboid(c - Vec3::new(leg, 0.0, leg), c + Vec3::new(leg, height_m - 0.05, leg)));
+    }
+    mesh.push_object(&table, 1);
+    mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Closed and outward facing: the divergence theorem gives the volume, positive.
+    fn volume(tris: &[[Vec3; 3]]) -> f32 {
+        tris.iter().map(|[a, b, c]| a.dot(b.cross(*c)) / 6.0).sum()
+    }
+
+    #[test]
+    fn primitives_are_closed_and_face_outwards() {
+        let b = cuboid(Vec3::new(-1.0, 0.0, -2.0), Vec3::new(1.0, 3.0, 2.0));
+        assert!((volume(&b) - 24.0).abs() < 1e-4, "{}", volume(&b));
+        let s = sphere(Vec3::new(0.5, 1.0, 0.0), 2.0, 48);
+        let exact = 4.0 / 3.0 * std::f32::consts::PI * 8.0;
+        assert!(volume(&s) > 0.95 * exact && volume(&s) < exact, "{}", volume(&s));
+        let c = cone(Vec3::ZERO, 1.0, 3.0, 64);
+        assert!((volume(&c) - std::f32::consts::PI).abs() < 0.01, "{}", volume(&c));
+        // The box's top faces point up.
+        let mut m = Mesh::default();
+        m.push_object(&b, 0);
+        assert!(m.normal(0).y > 0.99 && m.normal(1).y > 0.99);
+    }
+
+    #[test]
+    fn cleaning_counts_what_it_drops() {
+        let mut m = table_scene(4.0, 1.0, 0.7);
+        let n = m.len();
+        m.push_object(&[[Vec3::ZERO, Vec3::ZERO, Vec3::X]], 2);
+        m.push_object(&[[Vec3::NAN, Vec3::Y, Vec3::X]], 2);
+        let c = m.clean(1e-10);
+        assert_eq!(c, Cleaned { non_finite: 1, degenerate: 1 });
+        assert_eq!((m.len(), m.object.len()), (n, n));
+    }
+}

@@ -1,0 +1,157 @@
+//! Issue 5's evidence on the table scene of the paper's Fig 7: the probability under the
+//! table, its edges with and without spread, the angle of repose, conservation, snow
+//! falling off the table onto the ground, and thread-count independence.
+
+use phenomena_snow::mesh::table_scene;
+use phenomena_snow::{SnowParams, SnowSim};
+
+/// A 4 m ground with a 1.2 m table 0.7 m high in the middle.
+fn sim(spread_deg: f32, directions: u32, repose_deg: f32) -> SnowSim {
+    let params = SnowParams {
+        map_resolution: 80,
+        directions,
+        spread_deg,
+        shadow_resolution: 256,
+        repose_deg,
+        ..SnowParams::default()
+    };
+    SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).expect("table scene")
+}
+
+/// The map holding the ground (the one with the most snow-possible texels).
+fn ground_map(s: &SnowSim) -> usize {
+    let area = |m: &phenomena_snow::SnowMap| (0..m.ground_m.len()).filter(|&k| m.possible(k)).count();
+    (0..s.maps().len()).max_by_key(|&i| area(&s.maps()[i])).expect("maps")
+}
+
+/// Probability along the row through the table's centre, on the ground map, from x = -2
+/// to 2 (texel centres).
+fn ground_row(s: &SnowSim) -> Vec<(f32, f32)> {
+    let fp = s.footprint();
+    let g = &s.maps()[ground_map(s)];
+    let j = fp.n / 2;
+    (0..fp.n)
+        .filter(|&i| g.possible(j * fp.n + i))
+        .map(|i| (fp.centre(i, j).x, g.probability[j * fp.n + i]))
+        .collect()
+}
+
+#[test]
+fn the_ground_under_the_table_gets_little_snow() {
+    let s = sim(10.0, 64, 45.0);
+    let row = ground_row(&s);
+    let at = |x: f32| row.iter().min_by(|a, b| (a.0 - x).abs().total_cmp(&(b.0 - x).abs())).unwrap().1;
+    // Open ground, 1.5 m from the centre (0.9 m outside the table's edge at 0.6 m; at a
+    // 10° spread a 0.7 m high edge shades at most 0.7·tan(3σ) = 0.39 m): fully exposed.
+    assert!(at(-1.7) > 0.99 && at(1.7) > 0.99, "open ground: {} {}", at(-1.7), at(1.7));
+    // Under the middle of the table: hidden from every direction within 3σ (the table
+    // edge is 0.6 m away at 0.65 m below the top: 42° off vertical, over 4σ).
+    assert!(at(0.0) < 0.01, "under the table: {}", at(0.0));
+    // The table top is exposed.
+    let fp = s.footprint();
+    let c = (fp.n / 2) * fp.n + fp.n / 2;
+    let g = ground_map(&s);
+    let top =
+        s.maps().iter().enumerate().find(|(i, m)| *i != g && m.possible(c)).expect("the table top's map").1;
+    assert!(top.possible(c) && top.probability[c] > 0.99);
+}
+
+#[test]
+fn spread_softens_the_shadow_edge_and_zero_spread_makes_it_sharp() {
+    // Across the table's edge at x = 0.6 m, on the ground (0.7 m below the top's edge).
+    let transition =
+        |s: &SnowSim| ground_row(s).iter().filter(|(x, p)| *x > 0.0 && *p > 0.02 && *p < 0.98).count();
+    let sharp = sim(0.0, 16, 45.0);
+    let soft = sim(10.0, 64, 45.0);
+    // Zero spread, straight down: the shadow is the table top's outline; texels go from
+    // 0 to 1 within one texel (only a texel cut by the edge may be in between).
+    assert!(transition(&sharp) <= 1, "zero spread: {} texels in transition", transition(&sharp));
+    // With a 10° spread the penumbra is 2·0.7·tan(10°) ≈ 0.25 m wide on each side of
+    // the edge at 1σ: several 5 cm texels.
+    assert!(transition(&soft) >= 4, "10° spread: {} texels in transition", transition(&soft));
+    // And P rises monotonically (up to sampling noise of 64 directions) from under the
+    // table outwards.
+    let row: Vec<f32> = ground_row(&soft).iter().filter(|(x, _)| *x > 0.0).map(|r| r.1).collect();
+    for w in row.windows(2) {
+        assert!(w[1] >= w[0] - 2.0 / 64.0, "{row:?}");
+    }
+}
+
+#[test]
+fn snow_rests_at_the_angle_of_repose_and_none_is_lost() {
+    let mut s = sim(10.0, 16, 30.0);
+    let add_per_step = |s: &SnowSim| {
+        let fp = s.footprint();
+        let t2 = f64::from(fp.texel_m).powi(2);
+        let m = f64::from(s.params().rate_cm_per_h) * 0.01 * f64::from(s.params().time_step_h);
+        s.maps().iter().map(|map| map.probability.iter().map(|&p| f64::from(p)).sum::<f64>()).sum::<f64>()
+            * t2
+            * m
+    };
+    let mut added = 0.0;
+    // Heavy snow: 10 cm/h for 6 h in 0.1 h steps, 60 cm in all: more than the table's
+    // 0.6 m half-width times tan(30°) = 35 cm, so the pile reaches the repose.
+    let mut params = s.params().clone();
+    params.rate_cm_per_h = 10.0;
+    s = SnowSim::new(s.mesh().clone(), params, 3).unwrap();
+    for _ in 0..60 {
+        added += add_per_step(&s);
+        let stats = s.step();
+        assert!(stats.stable, "stabilisation did not finish in {} passes", stats.passes);
+        // No snow-covered texel is steeper than the repose towards any neighbour.
+        let excess = s.max_slope_excess();
+        assert!(excess <= 1e-4, "slope exceeds tan(30°) by {excess}");
+        // On the maps plus off the scene: all that fell (f32 depths: 1e-5 relative).
+        let total = stats.volume_m3 + stats.fallen_off_m3;
+        assert!((total - added).abs() <= 1e-5 * added, "volume {total} vs added {added}");
+    }
+}
+
+#[test]
+fn snow_sliding_off_the_table_lands_on_the_ground_beside_it() {
+    // Straight down (no snow under the table), a low angle of repose and a lot of snow:
+    // the table top sheds snow over its edges onto the ground map next to it, so the
+    // ground just outside the edge holds more than the open ground far away.
+    let params = SnowParams {
+        map_resolution: 80,
+        directions: 4,
+        spread_deg: 0.0,
+        repose_deg: 20.0,
+        rate_cm_per_h: 100.0,
+        ..SnowParams::default()
+    };
+    let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).unwrap();
+    for _ in 0..10 {
+        s.step();
+    }
+    let fp = s.footprint();
+    let g = &s.maps()[ground_map(&s)];
+    let j = fp.n / 2;
+    let at = |x: f32| {
+        let i = ((x - fp.origin.x) / fp.texel_m) as usize;
+        g.snow_m[j * fp.n + i]
+    };
+    // The table's edge is at x = 0.6 m: just outside it versus 1.7 m out.
+    let (beside, far) = (at(0.65), at(1.7));
+    assert!(beside > far * 1.2, "beside the table {beside} m, open ground {far} m");
+    assert!(s.fallen_off_m3() >= 0.0);
+}
+
+#[test]
+fn any_thread_count_gives_the_same_snow() {
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+            let mut s = sim(10.0, 16, 35.0);
+            for _ in 0..5 {
+                s.step();
+            }
+            // Bits, not values: the ground is NaN where a map holds no snow.
+            s.maps()
+                .iter()
+                .flat_map(|m| m.ground_m.iter().chain(&m.snow_m).chain(&m.probability).map(|v| v.to_bits()))
+                .collect::<Vec<u32>>()
+        })
+    };
+    let one = run(1);
+    assert!(one == run(2), "1 vs 2 threads");
+}
