@@ -149,6 +149,41 @@ pub fn cone(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3;
     out
 }
 
+/// A closed cylinder standing on `base` (radius, height), outward facing.
+pub fn cylinder(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3; 3]> {
+    let n = segments.max(3);
+    let top = base + Vec3::Y * height;
+    let rim = |c: Vec3, i: usize| {
+        let phi = i as f32 / n as f32 * std::f32::consts::TAU;
+        c + Vec3::new(phi.cos(), 0.0, phi.sin()) * radius
+    };
+    let mut out = Vec::new();
+    for i in 0..n {
+        let (a, b, c, d) = (rim(base, i), rim(base, i + 1), rim(top, i + 1), rim(top, i));
+        out.extend(quad(a, d, c, b));
+        out.push([top, c, d]);
+        out.push([base, a, b]);
+    }
+    out
+}
+
+/// Primitives on a ground plane like the paper's Fig 8 (GLUT shapes): objects 0 ground
+/// (6 m square), 1 cube, 2 sphere, 3 cone, 4 cylinder. With one group per object this
+/// gives the paper's five snow maps.
+pub fn primitives_scene() -> Mesh {
+    let mut mesh = Mesh::default();
+    let g = 3.0;
+    mesh.push_object(
+        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
+        0,
+    );
+    mesh.push_object(&cuboid(Vec3::new(-1.9, 0.0, -1.9), Vec3::new(-0.9, 1.0, -0.9)), 1);
+    mesh.push_object(&sphere(Vec3::new(1.3, 0.7, -1.3), 0.7, 32), 2);
+    mesh.push_object(&cone(Vec3::new(-1.3, 0.0, 1.3), 0.7, 1.4, 32), 3);
+    mesh.push_object(&cylinder(Vec3::new(1.3, 0.0, 1.3), 0.5, 0.9, 32), 4);
+    mesh
+}
+
 /// The table scene of the paper's Fig 7: a ground square of `ground_m` and a table (top
 /// 0.05 m thick at `height_m`, four legs) in its middle. Objects: 0 ground, 1 table.
 pub fn table_scene(ground_m: f32, top_m: f32, height_m: f32) -> Mesh {
@@ -187,6 +222,9 @@ mod tests {
         assert!(volume(&s) > 0.95 * exact && volume(&s) < exact, "{}", volume(&s));
         let c = cone(Vec3::ZERO, 1.0, 3.0, 64);
         assert!((volume(&c) - std::f32::consts::PI).abs() < 0.01, "{}", volume(&c));
+        let y = cylinder(Vec3::new(0.2, 0.0, 0.1), 1.0, 2.0, 64);
+        let exact = std::f32::consts::PI * 2.0;
+        assert!(volume(&y) > 0.99 * exact && volume(&y) < exact, "{}", volume(&y));
         // The box's top faces point up.
         let mut m = Mesh::default();
         m.push_object(&b, 0);
