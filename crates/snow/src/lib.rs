@@ -17,6 +17,7 @@
 //! assert!(stats.volume_m3 > 0.0 && stats.stable);
 //! ```
 
+pub mod export;
 pub mod groups;
 pub mod mesh;
 mod sim;

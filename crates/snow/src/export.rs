@@ -1,0 +1,331 @@
+//! The snow as a triangle mesh (§2.5) and its files: glTF 2.0 binary (GLB), OBJ and PLY.
+//!
+//! Each snow map gives a closed solid per connected patch of snow: a top surface through
+//! the texel corners (height = mean of the surrounding snow texels' ground + snow), a
+//! bottom on the ground beneath (mean ground), and vertical sides where a snow texel
+//! meets one without snow. Every edge is shared by exactly two faces (tested), so the
+//! mesh is watertight. Top vertices are shared and carry smooth normals from the surface
+//! gradient; bottom and side faces have their own vertices with flat normals.
+//!
+//! The library builds bytes; writing files is the caller's (the CLI's) job.
+
+use glam::Vec3;
+
+use crate::sim::SnowSim;
+
+/// Snow thinner than this is no snow for the mesh, m.
+pub const MIN_DEPTH_M: f32 = 1e-4;
+
+/// An indexed triangle mesh with per-vertex normals.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions, m.
+    pub positions: Vec<Vec3>,
+    /// Unit normal per vertex.
+    pub normals: Vec<Vec3>,
+    /// Three vertex indices per triangle, counter-clockwise seen from outside.
+    pub indices: Vec<u32>,
+}
+
+impl TriMesh {
+    /// Number of triangles.
+    pub fn triangles(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    fn vertex(&mut self, p: Vec3, n: Vec3) -> u32 {
+        self.positions.push(p);
+        self.normals.push(n);
+        (self.positions.len() - 1) as u32
+    }
+
+    fn quad(&mut self, v: [u32; 4]) {
+        self.indices.extend_from_slice(&[v[0], v[1], v[2], v[0], v[2], v[3]]);
+    }
+}
+
+/// The snow of every map of `sim` as one mesh.
+pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
+    let fp = sim.footprint();
+    let n = fp.n;
+    let t = fp.texel_m;
+    let mut mesh = TriMesh::default();
+    for map in sim.maps() {
+        let snowy = |i: i64, j: i64| {
+            i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n && {
+                let k = j as usize * n + i as usize;
+                map.possible(k) && map.snow_m[k] > MIN_DEPTH_M
+            }
+        };
+        // Corner (ci, cj) of the (n+1)² lattice: mean top and ground of its snowy texels.
+        let corner = |ci: usize, cj: usize| -> Option<(f32, f32)> {
+            let (mut top, mut ground, mut c) = (0.0f32, 0.0f32, 0);
+            for (di, dj) in [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)] {
+                let (i, j) = (ci as i64 + di, cj as i64 + dj);
+                if snowy(i, j) {
+                    let k = j as usize * n + i as usize;
+                    top += map.surface(k);
+                    ground += map.ground_m[k];
+                    c += 1;
+                }
+            }
+            (c > 0).then(|| (top / c as f32, ground / c as f32))
+        };
+        let xz = |ci: usize, cj: usize| fp.origin + glam::Vec2::new(ci as f32, cj as f32) * t;
+        // Shared top vertices with normals from central differences of the corner heights.
+        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
+        let height = |ci: usize, cj: usize| corner(ci, cj).map(|c| c.0);
+        for cj in 0..=n {
+            for ci in 0..=n {
+                let Some((h, _)) = corner(ci, cj) else { continue };
+                let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
+                let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
+                let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
+                let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
+                let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
+                let p = xz(ci, cj);
+                top_index[cj * (n + 1) + ci] = mesh.vertex(Vec3::new(p.x, h, p.y), normal);
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                if !snowy(i as i64, j as i64) {
+                    continue;
+                }
+                let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
+                // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
+                // (x+1,z+1) → (x+1,z), as for the ground quads.
+                mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
+                let bottom: Vec<Vec3> = corners
+                    .iter()
+                    .map(|&(ci, cj)| {
+                        let p = xz(ci, cj);
+                        Vec3::new(p.x, corner(ci, cj).map_or(0.0, |c| c.1), p.y)
+                    })
+                    .collect();
+                let b: Vec<u32> = bottom.iter().map(|&p| mesh.vertex(p, Vec3::NEG_Y)).collect();
+                mesh.quad([b[0], b[3], b[2], b[1]]);
+                // Sides where the neighbour has no snow: (corner a, corner b, outward).
+                let sides = [
+                    ((i, j), (i + 1, j), (0i64, -1i64), Vec3::NEG_Z),
+                    ((i + 1, j), (i + 1, j + 1), (1, 0), Vec3::X),
+                    ((i + 1, j + 1), (i, j + 1), (0, 1), Vec3::Z),
+                    ((i, j + 1), (i, j), (-1, 0), Vec3::NEG_X),
+                ];
+                for (a, bb, (di, dj), normal) in sides {
+                    if snowy(i as i64 + di, j as i64 + dj) {
+                        continue;
+                    }
+                    let (ca, cb) =
+                        (corner(a.0, a.1).unwrap_or_default(), corner(bb.0, bb.1).unwrap_or_default());
+                    let (pa, pb) = (xz(a.0, a.1), xz(bb.0, bb.1));
+                    // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside.
+                    let v = [
+                        mesh.vertex(Vec3::new(pa.x, ca.1, pa.y), normal),
+                        mesh.vertex(Vec3::new(pa.x, ca.0, pa.y), normal),
+                        mesh.vertex(Vec3::new(pb.x, cb.0, pb.y), normal),
+                        mesh.vertex(Vec3::new(pb.x, cb.1, pb.y), normal),
+                    ];
+                    mesh.quad(v);
+                }
+            }
+        }
+    }
+    mesh
+}
+
+/// Wavefront OBJ text (`v`, `vn`, `f v//vn`).
+pub fn to_obj(mesh: &TriMesh) -> String {
+    let mut out = String::from("# snow from phenomena (metres, y up)\no snow\n");
+    for p in &mesh.positions {
+        out.push_str(&format!("v {} {} {}\n", p.x, p.y, p.z));
+    }
+    for n in &mesh.normals {
+        out.push_str(&format!("vn {} {} {}\n", n.x, n.y, n.z));
+    }
+    for t in mesh.indices.chunks_exact(3) {
+        let (a, b, c) = (t[0] + 1, t[1] + 1, t[2] + 1);
+        out.push_str(&format!("f {a}//{a} {b}//{b} {c}//{c}\n"));
+    }
+    out
+}
+
+/// Binary little-endian PLY with positions, normals and triangle faces.
+pub fn to_ply(mesh: &TriMesh) -> Vec<u8> {
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment snow from phenomena (metres, y up)\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        mesh.positions.len(),
+        mesh.triangles()
+    );
+    let mut out = header.into_bytes();
+    for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+        for v in [p.x, p.y, p.z, n.x, n.y, n.z] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for t in mesh.indices.chunks_exact(3) {
+        out.push(3);
+        for &i in t {
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// glTF 2.0 binary (GLB): one mesh with POSITION, NORMAL and u32 indices, a white
+/// rough material, in one buffer.
+pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
+    let mut bin = Vec::new();
+    for p in &mesh.positions {
+        for v in p.to_array() {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let normals_offset = bin.len();
+    for n in &mesh.normals {
+        for v in n.to_array() {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let indices_offset = bin.len();
+    for i in &mesh.indices {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let (lo, hi) = if mesh.positions.is_empty() { (Vec3::ZERO, Vec3::ZERO) } else { (lo, hi) };
+    let nv = mesh.positions.len();
+    let json = format!(
+        concat!(
+            r#"{{"asset":{{"version":"2.0","generator":"phenomena"}},"scene":0,"scenes":[{{"nodes":[0]}}],"#,
+            r#""nodes":[{{"mesh":0,"name":"snow"}}],"#,
+            r#""materials":[{{"name":"snow","pbrMetallicRoughness":{{"baseColorFactor":[0.95,0.96,1.0,1.0],"metallicFactor":0.0,"roughnessFactor":0.9}}}}],"#,
+            r#""meshes":[{{"name":"snow","primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1}},"indices":2,"material":0}}]}}],"#,
+            r#""buffers":[{{"byteLength":{len}}}],"#,
+            r#""bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{pl},"target":34962}},{{"buffer":0,"byteOffset":{no},"byteLength":{pl},"target":34962}},{{"buffer":0,"byteOffset":{io},"byteLength":{il},"target":34963}}],"#,
+            r#""accessors":[{{"bufferView":0,"componentType":5126,"count":{nv},"type":"VEC3","min":[{x0},{y0},{z0}],"max":[{x1},{y1},{z1}]}},"#,
+            r#"{{"bufferView":1,"componentType":5126,"count":{nv},"type":"VEC3"}},"#,
+            r#"{{"bufferView":2,"componentType":5125,"count":{ni},"type":"SCALAR"}}]}}"#
+        ),
+        len = bin.len(),
+        pl = nv * 12,
+        no = normals_offset,
+        io = indices_offset,
+        il = mesh.indices.len() * 4,
+        nv = nv,
+        ni = mesh.indices.len(),
+        x0 = lo.x,
+        y0 = lo.y,
+        z0 = lo.z,
+        x1 = hi.x,
+        y1 = hi.y,
+        z1 = hi.z,
+    );
+    let mut json = json.into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::table_scene;
+    use crate::sim::SnowParams;
+    use std::collections::HashMap;
+
+    fn snowy_sim() -> SnowSim {
+        let params = SnowParams {
+            map_resolution: 40,
+            directions: 8,
+            shadow_resolution: 128,
+            rate_cm_per_h: 10.0,
+            ..SnowParams::default()
+        };
+        let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 2).unwrap();
+        for _ in 0..10 {
+            sim.step();
+        }
+        sim
+    }
+
+    #[test]
+    fn the_snow_mesh_is_closed_and_holds_the_snow_volume() {
+        let sim = snowy_sim();
+        let mesh = snow_mesh(&sim);
+        assert!(mesh.triangles() > 1000);
+        // Weld by position and count each undirected edge: every edge twice, in opposite
+        // directions (closed and consistently oriented).
+        let key = |p: Vec3| (p.x.to_bits(), p.y.to_bits(), p.z.to_bits());
+        let mut id = HashMap::new();
+        let welded: Vec<usize> = mesh
+            .positions
+            .iter()
+            .map(|&p| {
+                let n = id.len();
+                *id.entry(key(p)).or_insert(n)
+            })
+            .collect();
+        let mut edges: HashMap<(usize, usize), i32> = HashMap::new();
+        for t in mesh.indices.chunks_exact(3) {
+            for k in 0..3 {
+                let (a, b) = (welded[t[k] as usize], welded[t[(k + 1) % 3] as usize]);
+                *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+            }
+        }
+        assert!(edges.values().all(|&v| v == 0), "an open or flipped edge");
+        // Its volume (divergence theorem) is the snow on the maps, up to the corner
+        // averaging of heights (exact for planar patches; within 5 % here).
+        let volume: f64 = mesh
+            .indices
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        let snow = sim.volume_m3();
+        assert!((volume / snow - 1.0).abs() < 0.05, "mesh {volume} vs snow {snow}");
+        assert!(mesh.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
+    }
+
+    #[test]
+    fn files_have_their_formats_structure() {
+        let mesh = snow_mesh(&snowy_sim());
+        let obj = to_obj(&mesh);
+        assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), mesh.positions.len());
+        assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), mesh.triangles());
+        let ply = to_ply(&mesh);
+        let header_end = ply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        assert_eq!(ply.len() - header_end, mesh.positions.len() * 24 + mesh.triangles() * 13);
+        let glb = to_glb(&mesh);
+        assert_eq!(&glb[0..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        assert_eq!(&glb[16..20], b"JSON");
+        assert_eq!(json_len % 4, 0);
+        let bin_len = u32::from_le_bytes(glb[20 + json_len..24 + json_len].try_into().unwrap()) as usize;
+        assert_eq!(&glb[24 + json_len..28 + json_len], b"BIN\0");
+        assert_eq!(28 + json_len + bin_len, glb.len());
+        let json = std::str::from_utf8(&glb[20..20 + json_len]).unwrap();
+        assert!(json.contains(&format!("\"count\":{}", mesh.positions.len())));
+        assert!(json.contains(&format!("\"byteLength\":{bin_len}")));
+    }
+}
