@@ -137,6 +137,62 @@ pub(crate) fn aurora_profile(
     ))
 }
 
+/// Mesh file formats for the snow.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MeshFile {
+    Glb,
+    Obj,
+    Ply,
+}
+
+/// Simulate a snow scene for `time_h` hours (default: its frames' worth) and write the
+/// snow mesh.
+pub(crate) fn snow_mesh(
+    scene_path: &Path,
+    format: MeshFile,
+    time_h: Option<f64>,
+    out: &Path,
+) -> Result<String> {
+    use phenomena_snow::export::{snow_mesh, to_glb, to_obj, to_ply};
+    let scene = crate::scene::load(scene_path)?;
+    let Scene::Snow(s) = &scene else {
+        bail!(
+            "{} holds a {} scene; snow meshes come from snow scenes",
+            scene_path.display(),
+            scene.phenomenon()
+        );
+    };
+    let dt = f64::from(s.snow.time_step_h);
+    let time = time_h.unwrap_or(f64::from(s.scene.frames) * dt);
+    if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
+        bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
+    }
+    let mut mesh = s.geometry.builtin.mesh();
+    mesh.clean(1e-12);
+    let mut sim = phenomena_snow::SnowSim::new(mesh, s.snow.clone(), s.scene.seed)?;
+    let steps = (time / dt).round() as u64;
+    for _ in 0..steps {
+        sim.step();
+    }
+    let tris = snow_mesh(&sim);
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        output::ensure_dir(parent)?;
+    }
+    let bytes = match format {
+        MeshFile::Glb => to_glb(&tris),
+        MeshFile::Obj => to_obj(&tris).into_bytes(),
+        MeshFile::Ply => to_ply(&tris),
+    };
+    output::write_bytes_atomic(out, &bytes)?;
+    Ok(format!(
+        "wrote {} snow triangles ({:.3} m³ of snow after {:.2} h, {steps} steps) to {}",
+        tris.triangles(),
+        sim.volume_m3(),
+        steps as f64 * dt,
+        out.display()
+    ))
+}
+
 /// What `export` writes of an aurora.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum AuroraData {

@@ -111,6 +111,17 @@ enum DataFormat {
     Csv,
 }
 
+/// Mesh file formats.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum MeshFormat {
+    /// glTF 2.0 binary.
+    Glb,
+    /// Wavefront OBJ.
+    Obj,
+    /// Stanford PLY, binary little-endian.
+    Ply,
+}
+
 /// Spectrum of precipitating electrons.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum SpectrumArg {
@@ -174,6 +185,21 @@ enum ExportWhat {
         #[arg(long)]
         out: PathBuf,
     },
+    /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
+    /// after simulating it to `--time-h` hours (default: all the scene's frames).
+    SnowMesh {
+        /// The snow scene file.
+        scene: PathBuf,
+        /// glb (glTF 2.0 binary), obj or ply (binary).
+        #[arg(long, value_enum, default_value_t = MeshFormat::Glb)]
+        format: MeshFormat,
+        /// Simulated time, hours.
+        #[arg(long)]
+        time_h: Option<f64>,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// The blackbody colour table (paper Fig 1): CIE 1931 xy and normalised linear sRGB.
     Blackbody {
         /// Lowest temperature, K.
@@ -226,6 +252,14 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                 SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
             };
             export::aurora_profile(energy_kev, spectrum, flux_erg, &out)
+        }
+        Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
+            let format = match format {
+                MeshFormat::Glb => export::MeshFile::Glb,
+                MeshFormat::Obj => export::MeshFile::Obj,
+                MeshFormat::Ply => export::MeshFile::Ply,
+            };
+            export::snow_mesh(&scene, format, time_h, &out)
         }
         Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
             export::aurora(&scene, frame, &out, export::AuroraData::Particles)

@@ -63,6 +63,10 @@ pub(crate) enum ViewArg {
     Plane,
     /// The aurora in the sky, through the scene's camera (thesis §2.4).
     Sky,
+    /// The snow scene through its camera.
+    Scene,
+    /// The snow probability P_a from above (snow paper §2.2).
+    Probability,
 }
 
 /// A phenomenon's simulation and renderer, stepped together.
@@ -76,6 +80,11 @@ pub(crate) enum Runner {
         settings: Box<AuroraRenderSettings>,
         frame: Frame,
         sky: Option<Box<SkyRenderer>>,
+    },
+    Snow {
+        sim: Box<phenomena_snow::SnowSim>,
+        settings: Box<phenomena_snow::SnowRenderSettings>,
+        frame: Frame,
     },
 }
 
@@ -131,6 +140,13 @@ impl Runner {
                 };
                 Ok(Runner::Aurora { sim: Box::new(sim), settings: Box::new(s.render), frame, sky })
             }
+            Scene::Snow(s) => {
+                let mut mesh = s.geometry.builtin.mesh();
+                mesh.clean(1e-12);
+                let sim = phenomena_snow::SnowSim::new(mesh, s.snow.clone(), s.scene.seed)?;
+                let frame = Frame::new(s.scene.width as usize, s.scene.height as usize);
+                Ok(Runner::Snow { sim: Box::new(sim), settings: Box::new(s.render), frame })
+            }
         }
     }
 
@@ -139,6 +155,7 @@ impl Runner {
         Ok(match self {
             Runner::Flame { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Aurora { sim, .. } => serde_json::to_value(sim.step()?)?,
+            Runner::Snow { sim, .. } => serde_json::to_value(sim.step())?,
         })
     }
 
@@ -149,6 +166,10 @@ impl Runner {
             Runner::Aurora { sim, sky: Some(sky), .. } => sky.render(sim),
             Runner::Aurora { sim, settings, frame, sky: None } => {
                 *frame = render_plane(sim, frame.width(), frame.height(), &settings.plane);
+                frame
+            }
+            Runner::Snow { sim, settings, frame } => {
+                *frame = phenomena_snow::render(sim, settings, frame.width(), frame.height());
                 frame
             }
         }
@@ -168,6 +189,7 @@ impl Runner {
             Runner::Flame { renderer, .. } => renderer.frame(),
             Runner::Aurora { sky: Some(sky), .. } => sky.frame(),
             Runner::Aurora { frame, .. } => frame,
+            Runner::Snow { frame, .. } => frame,
         }
     }
 
@@ -206,8 +228,11 @@ pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) -> Result<()> 
         (Scene::Flame(f), Some(ViewArg::Density)) => f.render.view = View::Density,
         (Scene::Aurora(a), Some(ViewArg::Plane)) => a.render.view = AuroraView::Plane,
         (Scene::Aurora(a), Some(ViewArg::Sky)) => a.render.view = AuroraView::Sky,
+        (Scene::Snow(s), Some(ViewArg::Scene)) => s.render.view = phenomena_snow::SnowView::Scene,
+        (Scene::Snow(s), Some(ViewArg::Probability)) => s.render.view = phenomena_snow::SnowView::Probability,
         (Scene::Flame(_), Some(v)) => bail!("--view {v:?} is not a flame view: use flame or density"),
         (Scene::Aurora(_), Some(v)) => bail!("--view {v:?} is not an aurora view: use sky or plane"),
+        (Scene::Snow(_), Some(v)) => bail!("--view {v:?} is not a snow view: use scene or probability"),
     }
     Ok(())
 }

@@ -72,11 +72,34 @@ pub(crate) struct AuroraScene {
     pub(crate) render: AuroraRenderSettings,
 }
 
+/// Where a snow scene's geometry comes from (`[geometry]`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub(crate) struct SnowGeometry {
+    /// A built-in scene.
+    pub(crate) builtin: phenomena_snow::mesh::Builtin,
+}
+
+/// A snow scene file: each frame is one time step of the snowfall.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SnowScene {
+    #[serde(default)]
+    pub(crate) scene: SceneSettings,
+    #[serde(default)]
+    pub(crate) geometry: SnowGeometry,
+    #[serde(default)]
+    pub(crate) snow: phenomena_snow::SnowParams,
+    #[serde(default)]
+    pub(crate) render: phenomena_snow::SnowRenderSettings,
+}
+
 /// Any scene, by phenomenon.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) enum Scene {
     Flame(Box<FlameScene>),
     Aurora(Box<AuroraScene>),
+    Snow(Box<SnowScene>),
 }
 
 impl Scene {
@@ -84,6 +107,7 @@ impl Scene {
         match self {
             Scene::Flame(s) => &s.scene,
             Scene::Aurora(s) => &s.scene,
+            Scene::Snow(s) => &s.scene,
         }
     }
 
@@ -91,6 +115,7 @@ impl Scene {
         match self {
             Scene::Flame(s) => &mut s.scene,
             Scene::Aurora(s) => &mut s.scene,
+            Scene::Snow(s) => &mut s.scene,
         }
     }
 
@@ -98,6 +123,7 @@ impl Scene {
         match self {
             Scene::Flame(_) => "flame",
             Scene::Aurora(_) => "aurora",
+            Scene::Snow(_) => "snow",
         }
     }
 
@@ -136,13 +162,21 @@ impl Scene {
                     }
                 }
             },
+            Scene::Snow(s) => {
+                if let Err(e) = s.snow.validate() {
+                    i.extend_prefixed("snow", e);
+                }
+                if let Err(e) = s.render.validate() {
+                    i.extend_prefixed("render", e);
+                }
+            }
         }
         i.into_result().err().unwrap_or_default()
     }
 }
 
 /// The phenomena a scene file may hold, by table name.
-pub(crate) const PHENOMENA: [&str; 2] = ["flame", "aurora"];
+pub(crate) const PHENOMENA: [&str; 3] = ["flame", "aurora", "snow"];
 
 /// A problem at a place in a file.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -199,6 +233,7 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
     let scene = match present.as_slice() {
         ["flame"] => deserialize_all::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
         ["aurora"] => deserialize_all::<AuroraScene>(text).map(|s| Scene::Aurora(Box::new(s))),
+        ["snow"] => deserialize_all::<SnowScene>(text).map(|s| Scene::Snow(Box::new(s))),
         [] => {
             return Err(SceneErrors(vec![at(
                 0,

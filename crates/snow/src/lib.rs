@@ -20,6 +20,8 @@
 pub mod export;
 pub mod groups;
 pub mod mesh;
+pub mod render;
 mod sim;
 
+pub use render::{SnowRenderSettings, SnowView, render};
 pub use sim::{Footprint, SnowError, SnowMap, SnowParams, SnowSim, SnowStats, snowfall_directions};

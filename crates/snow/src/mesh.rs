@@ -149,6 +149,27 @@ pub fn cone(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3;
     out
 }
 
+/// The built-in scenes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Builtin {
+    /// The paper's Fig 7: a table on a ground square.
+    #[default]
+    Table,
+    /// The paper's Fig 8: primitives on a ground plane.
+    Primitives,
+}
+
+impl Builtin {
+    /// The scene's mesh.
+    pub fn mesh(self) -> Mesh {
+        match self {
+            Builtin::Table => table_scene(4.0, 1.2, 0.7),
+            Builtin::Primitives => primitives_scene(),
+        }
+    }
+}
+
 /// A closed cylinder standing on `base` (radius, height), outward facing.
 pub fn cylinder(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3; 3]> {
     let n = segments.max(3);

@@ -9,6 +9,7 @@ mod new_and_demo;
 mod render_frames;
 mod resume;
 mod shipped_scenes;
+mod snow;
 
 use std::path::Path;
 use std::process::Output;

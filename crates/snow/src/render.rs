@@ -1,0 +1,200 @@
+//! Pictures of a snow scene: the scene and its snow through a camera, lit by the sun and
+//! the sky, with optional fog as in the paper's figures; or the snow probability P_a of
+//! the topmost map seen from above.
+
+use glam::Vec3;
+use phenomena_core::camera::Camera;
+use phenomena_core::camera::Projection;
+use phenomena_core::image::Frame;
+use phenomena_core::raster::{Cull, NO_ID, rasterize};
+use phenomena_core::validate::{Issue, Issues};
+use serde::{Deserialize, Serialize};
+
+use crate::export::snow_mesh;
+use crate::sim::SnowSim;
+
+/// What the frames show.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SnowView {
+    /// The scene and the snow through the camera.
+    #[default]
+    Scene,
+    /// P_a of each snow map from above, the maps side by side (dark blue: never
+    /// reached, white: always; black: not part of the map).
+    Probability,
+}
+
+/// Render settings of a snow scene (`[render]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SnowRenderSettings {
+    /// What to draw.
+    pub view: SnowView,
+    /// The camera, metres.
+    pub camera: Camera,
+    /// Direction towards the sun (need not be unit length).
+    #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
+    pub sun_direction: Vec3,
+    /// Fog density per metre (0: no fog); the paper's figures use fog.
+    pub fog_per_m: f32,
+}
+
+impl Default for SnowRenderSettings {
+    fn default() -> Self {
+        Self {
+            view: SnowView::Scene,
+            camera: Camera {
+                position: Vec3::new(3.5, 2.5, 4.5),
+                look_at: Vec3::new(0.0, 0.4, 0.0),
+                up: Vec3::Y,
+                projection: Projection::Perspective { fov_y_deg: 45.0 },
+            },
+            sun_direction: Vec3::new(-0.4, 1.0, 0.3),
+            fog_per_m: 0.0,
+        }
+    }
+}
+
+impl SnowRenderSettings {
+    /// Every problem, with fields relative to `[render]`.
+    pub fn validate(&self) -> Result<(), Vec<Issue>> {
+        let mut i = Issues::default();
+        self.camera.validate(&mut i, "camera");
+        if !self.camera.is_planar() {
+            i.push(
+                "camera.projection",
+                format!("{:?}", self.camera.projection),
+                "perspective or orthographic",
+            );
+        }
+        i.vector("sun_direction", &self.sun_direction.to_array(), 1e6);
+        if self.sun_direction.length() < 1e-6 {
+            i.push("sun_direction", format!("{:?}", self.sun_direction.to_array()), "a non-zero direction");
+        }
+        i.range("fog_per_m", self.fog_per_m, 0.0..=100.0);
+        i.into_result()
+    }
+}
+
+/// Linear-light colours of the picture.
+const SKY: Vec3 = Vec3::new(0.62, 0.70, 0.82);
+const SNOW_ALBEDO: f32 = 0.9;
+const SUN: f32 = 1.1;
+const AMBIENT: f32 = 0.35;
+
+/// Albedo of scene object `o` (greys and a brown, cycling).
+fn object_albedo(o: u32) -> Vec3 {
+    const PALETTE: [Vec3; 4] = [
+        Vec3::new(0.30, 0.28, 0.25),
+        Vec3::new(0.35, 0.22, 0.12),
+        Vec3::new(0.45, 0.45, 0.47),
+        Vec3::new(0.25, 0.32, 0.22),
+    ];
+    PALETTE[o as usize % PALETTE.len()]
+}
+
+/// Draw `sim` at `width × height` (linear RGB). The camera was checked by
+/// [`SnowRenderSettings::validate`]; a degenerate one gives a black frame.
+pub fn render(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
+    match settings.view {
+        SnowView::Scene => render_scene(sim, settings, width, height),
+        SnowView::Probability => render_probability(sim, width, height),
+    }
+}
+
+fn render_scene(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
+    let mut frame = Frame::new(width, height);
+    let Some(view) = settings.camera.view(width, height) else { return frame };
+    let scene = &sim.mesh().triangles;
+    let snow = snow_mesh(sim);
+    let mut tris = scene.clone();
+    tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
+    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else { return frame };
+    let sun = settings.sun_direction.normalize_or_zero();
+    let eye = settings.camera.position;
+    for y in 0..height {
+        for x in 0..width {
+            let id = buf.id_at(x, y);
+            let colour = if id == NO_ID {
+                SKY
+            } else {
+                let [a, b, c] = tris[id as usize];
+                let mut n = (b - a).cross(c - a).normalize_or_zero();
+                if n.dot(eye - a) < 0.0 {
+                    n = -n; // light the side facing the camera
+                }
+                let albedo = if (id as usize) < scene.len() {
+                    object_albedo(sim.mesh().object[id as usize])
+                } else {
+                    Vec3::splat(SNOW_ALBEDO)
+                };
+                let lit = albedo * (SUN * n.dot(sun).max(0.0) + AMBIENT);
+                let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
+                lit * fog + SKY * (1.0 - fog)
+            };
+            frame.set_pixel(x, y, colour);
+        }
+    }
+    frame
+}
+
+fn render_probability(sim: &SnowSim, width: usize, height: usize) -> Frame {
+    // One panel per map, side by side, each showing that map's P_a from above.
+    let mut frame = Frame::new(width, height);
+    let fp = sim.footprint();
+    let n = fp.n;
+    let maps = sim.maps().len().max(1);
+    let panel = (width / maps).min(height);
+    if panel == 0 {
+        return frame;
+    }
+    let x0 = (width - panel * maps) / 2;
+    let y0 = (height - panel) / 2;
+    for (m, map) in sim.maps().iter().enumerate() {
+        for py in 0..panel {
+            for px in 0..panel {
+                let (u, v) = ((px as f32 + 0.5) / panel as f32, (py as f32 + 0.5) / panel as f32);
+                let k = ((v * n as f32) as usize).min(n - 1) * n + ((u * n as f32) as usize).min(n - 1);
+                if map.possible(k) {
+                    // Dark blue (never reached) to white (always).
+                    let c = Vec3::new(0.02, 0.03, 0.12).lerp(Vec3::ONE, map.probability[k]);
+                    frame.set_pixel(x0 + m * panel + px, y0 + py, c);
+                }
+            }
+        }
+    }
+    frame
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::table_scene;
+    use crate::sim::SnowParams;
+
+    #[test]
+    fn snow_whitens_the_picture_and_the_probability_map_shows_the_table() {
+        let params =
+            SnowParams { map_resolution: 40, directions: 8, rate_cm_per_h: 20.0, ..SnowParams::default() };
+        let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
+        let settings = SnowRenderSettings::default();
+        let mean = |f: &Frame| f.to_interleaved().iter().map(|&v| f64::from(v)).sum::<f64>();
+        let bare = render(&sim, &settings, 96, 64);
+        for _ in 0..10 {
+            sim.step();
+        }
+        let snowy = render(&sim, &settings, 96, 64);
+        assert!(mean(&snowy) > 1.2 * mean(&bare), "{} vs {}", mean(&snowy), mean(&bare));
+        let maps = sim.maps().len();
+        let p = render(&sim, &SnowRenderSettings { view: SnowView::Probability, ..settings }, 64 * maps, 64);
+        // The ground's panel: dark under the table's centre, white in the open; the table
+        // top's panel: white at the centre.
+        let ground =
+            (0..maps).max_by_key(|&m| sim.maps()[m].ground_m.iter().filter(|g| !g.is_nan()).count()).unwrap();
+        let top = (0..maps).find(|&m| m != ground && !sim.maps()[m].ground_m[20 * 40 + 20].is_nan()).unwrap();
+        assert!(p.pixel(ground * 64 + 32, 32).x < 0.1, "under the table");
+        assert!(p.pixel(ground * 64 + 4, 32).x > 0.95, "open ground");
+        assert!(p.pixel(top * 64 + 32, 32).x > 0.95, "table top");
+    }
+}
