@@ -20,6 +20,7 @@
 pub mod export;
 pub mod groups;
 pub mod mesh;
+pub mod reference;
 pub mod render;
 mod sim;
 

@@ -284,11 +284,21 @@ impl SnowSim {
     /// not behind that depth (within a bias of two depth-map pixels); P_a is the share
     /// of exposed directions.
     pub fn update_probability(&mut self) -> Result<(), SnowError> {
-        let exposed = probability(&self.mesh, &self.maps, &self.footprint, &self.directions, &self.params)?;
+        let (exposed, _) =
+            probability(&self.mesh, &self.maps, &self.footprint, &self.directions, &self.params, false)?;
         for (map, p) in self.maps.iter_mut().zip(exposed) {
             map.probability = p;
         }
         Ok(())
+    }
+
+    /// For every texel, in how many directions its depth-map sample lies next to a
+    /// silhouette: over the sample's depth-map pixel and its 4 neighbours the depth spans
+    /// more than 10 pixel widths (an occluder's outline, or a surface seen edge-on). In
+    /// those directions the shadow-map test depends on where inside a pixel the outline
+    /// runs, which a ray cast resolves exactly.
+    pub fn silhouette_directions(&self) -> Result<Vec<Vec<u16>>, SnowError> {
+        Ok(probability(&self.mesh, &self.maps, &self.footprint, &self.directions, &self.params, true)?.1)
     }
 
     /// Advance one time step: accumulate (eq 1), then stabilise and let snow fall.
@@ -504,14 +514,18 @@ pub fn snowfall_directions(params: &SnowParams, seed: u64) -> Vec<Vec3> {
         .collect()
 }
 
-/// The exposed share of `directions` for every texel of every map.
+/// The exposed share of `directions` for every texel of every map, and (when
+/// `silhouettes`) which texels sample next to a silhouette in some direction.
+type Exposure = (Vec<Vec<f32>>, Vec<Vec<u16>>);
+
 fn probability(
     mesh: &Mesh,
     maps: &[SnowMap],
     fp: &Footprint,
     directions: &[Vec3],
     params: &SnowParams,
-) -> Result<Vec<Vec<f32>>, SnowError> {
+    silhouettes: bool,
+) -> Result<Exposure, SnowError> {
     let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
     let centre = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length() + 1.0;
@@ -520,6 +534,7 @@ fn probability(
     let bias = 2.0 * px_m;
     let n = fp.n;
     let mut counts: Vec<Vec<u32>> = maps.iter().map(|_| vec![0u32; n * n]).collect();
+    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
     for d in directions {
         // Looking down the snowfall direction from above the scene.
         let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
@@ -532,28 +547,54 @@ fn probability(
         .view(res, res)
         .expect("a valid direction camera");
         let (buf, _) = rasterize(&view, &mesh.triangles, None, Cull::None)?;
-        for (map, count) in maps.iter().zip(counts.iter_mut()) {
+        for ((map, count), edge) in maps.iter().zip(counts.iter_mut()).zip(edge.iter_mut()) {
+            let sample = |i: usize, j: usize| -> Option<(f32, f32, f32)> {
+                let k = j * n + i;
+                let xz = fp.centre(i, j);
+                let q = view.project(Vec3::new(xz.x, map.surface(k), xz.y))?;
+                Some((q.x_px.floor(), q.y_px.floor(), q.depth))
+            };
             count.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
                 for (i, c) in row.iter_mut().enumerate() {
-                    let k = j * n + i;
-                    if !map.possible(k) {
+                    if !map.possible(j * n + i) {
                         continue;
                     }
-                    let xz = fp.centre(i, j);
-                    let p = Vec3::new(xz.x, map.surface(k), xz.y);
-                    let Some(q) = view.project(p) else { continue };
-                    let (x, y) = (q.x_px.floor(), q.y_px.floor());
+                    let Some((x, y, depth)) = sample(i, j) else { continue };
                     if x < 0.0 || y < 0.0 || x >= res as f32 || y >= res as f32 {
                         *c += 1; // outside the scene's depth map: nothing in the way
                         continue;
                     }
-                    if q.depth <= buf.depth_at(x as usize, y as usize) + bias {
+                    if depth <= buf.depth_at(x as usize, y as usize) + bias {
                         *c += 1;
                     }
                 }
             });
+            if silhouettes {
+                edge.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
+                    for (i, e) in row.iter_mut().enumerate() {
+                        if !map.possible(j * n + i) {
+                            continue;
+                        }
+                        let Some((x, y, _)) = sample(i, j) else { continue };
+                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
+                            {
+                                let (px, py) = (x as i64 + dx, y as i64 + dy);
+                                if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
+                                    let d = buf.depth_at(px as usize, py as usize);
+                                    // Empty pixels (no surface) count as very far.
+                                    let d = if d.is_finite() { d } else { 1e9 };
+                                    lo = lo.min(d);
+                                    hi = hi.max(d);
+                                }
+                            }
+                        }
+                        *e += u16::from(hi - lo > 10.0 * px_m);
+                    }
+                });
+            }
         }
     }
     let k = directions.len().max(1) as f32;
-    Ok(counts.into_iter().map(|c| c.into_iter().map(|v| v as f32 / k).collect()).collect())
+    Ok((counts.into_iter().map(|c| c.into_iter().map(|v| v as f32 / k).collect()).collect(), edge))
 }
