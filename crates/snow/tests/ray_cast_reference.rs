@@ -49,10 +49,11 @@ fn check(name: &str, sim: &SnowSim) {
     d.sort_by(f32::total_cmp);
     let mean = d.iter().map(|&v| f64::from(v)).sum::<f64>() / d.len() as f64;
     let p99 = d[(d.len() as f64 * 0.99) as usize];
-    eprintln!(
-        "{name}: {} texels compared, {skipped} on silhouettes, mean |dP| {mean:.5}, p99 {p99:.4}",
-        d.len()
-    );
+    // The rules must leave most of the maps in the comparison (measured: table 84 % of
+    // 10,016 texels, mean 0.0010, p99 0.031; primitives 81 % of 17,408, mean 0.0062,
+    // p99 0.063).
+    let kept = d.len() as f64 / (d.len() + skipped) as f64;
+    assert!(kept >= 0.75, "{name}: only {kept} of the texels compared");
     assert!(mean <= 0.01, "{name}: mean |ΔP| {mean}");
     assert!(p99 <= 0.10, "{name}: 99th percentile |ΔP| {p99}");
 }
