@@ -18,12 +18,13 @@ struct Item {
     size: (u32, u32),
 }
 
-const ITEMS: [Item; 5] = [
+const ITEMS: [Item; 6] = [
     Item { name: "flame-campfire", text: builtin::FLAME_CAMPFIRE, frames: 30..150, size: (960, 540) },
     Item { name: "flame-paper", text: builtin::FLAME_PAPER, frames: 120..121, size: (640, 360) },
     Item { name: "flame-wind-left", text: builtin::FLAME_WIND_LEFT, frames: 120..121, size: (640, 360) },
     Item { name: "flame-wind-right", text: builtin::FLAME_WIND_RIGHT, frames: 120..121, size: (640, 360) },
     Item { name: "aurora-scene2", text: builtin::AURORA_SCENE2, frames: 230..231, size: (640, 360) },
+    Item { name: "snow-table", text: builtin::SNOW_TABLE, frames: 59..60, size: (640, 480) },
 ];
 
 /// Render the showcase into `out`; returns a summary of what was written.

@@ -382,6 +382,8 @@ pub(crate) mod builtin {
     pub(crate) const FLAME_CAMPFIRE: &str = include_str!("../../../scenes/flame-campfire.toml");
     /// Thesis scene 2: an S-shaped sheet that splits (Figs 3.5, 3.10).
     pub(crate) const AURORA_SCENE2: &str = include_str!("../../../scenes/aurora-scene2.toml");
+    /// The snow paper's Fig 7: snow on and under a table.
+    pub(crate) const SNOW_TABLE: &str = include_str!("../../../scenes/snow-table.toml");
 }
 
 #[cfg(test)]
