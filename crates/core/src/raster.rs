@@ -167,9 +167,15 @@ pub fn rasterize(
     let perspective = view.is_perspective();
     let mut stats = RasterStats::default();
     let mut setups = Vec::with_capacity(triangles.len());
-    for (t, tri) in triangles.iter().enumerate() {
-        let id = ids.map_or(t as u32, |ids| ids[t]);
-        match setup(view, tri, id, perspective, cull, w, h) {
+    // Set up in parallel (in order), then tally in order.
+    let results: Vec<Result<Option<Setup>, Skip>> = triangles
+        .par_iter()
+        .enumerate()
+        .with_min_len(1024)
+        .map(|(t, tri)| setup(view, tri, ids.map_or(t as u32, |ids| ids[t]), perspective, cull, w, h))
+        .collect();
+    for result in results {
+        match result {
             Ok(Some(s)) => {
                 stats.drawn += 1;
                 setups.push(s);
@@ -239,7 +245,7 @@ fn setup(
         if !(x.abs() < MAX_PX && y.abs() < MAX_PX) {
             return Err(Skip::Clipped);
         }
-        v[k] = ((x * SUBPIXEL).round() as i64, (y * SUBPIXEL).round() as i64);
+        v[k] = (round_half_even(x * SUBPIXEL), round_half_even(y * SUBPIXEL));
         let d = f64::from(p.depth);
         z[k] = if perspective { 1.0 / d } else { d };
     }
@@ -270,6 +276,14 @@ fn setup(
         return Ok(None);
     }
     Ok(Some(Setup { v, z, area2, rows: (r0 as usize, r1 as usize), cols: (c0 as usize, c1 as usize), id }))
+}
+
+/// Round to the nearest integer, ties to even, for |v| < 2⁵¹: adding and subtracting
+/// 1.5·2⁵² leaves v rounded by the IEEE addition itself (no library call).
+#[inline]
+fn round_half_even(v: f64) -> i64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    ((v + MAGIC) - MAGIC) as i64
 }
 
 /// Call `f(x, y, depth-or-inverse)` for every pixel centre of `s` in `rows`, by the

@@ -3,7 +3,8 @@
 //! setting (five 128×128 maps, one per primitive).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
-use phenomena_snow::mesh::{primitives_scene, table_scene};
+use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene};
+use phenomena_snow::reference::naive_vertex_probability;
 use phenomena_snow::{SnowParams, SnowSim};
 use std::hint::black_box;
 
@@ -14,6 +15,31 @@ fn probability(c: &mut Criterion) {
     c.bench_function("snow_probability_table_64dirs_256", |b| {
         b.iter(|| sim.update_probability().expect("raster"))
     });
+}
+
+/// Issue 5's target: a ~13,000-triangle scene, 64 directions, 256×256 (maps and depth
+/// maps) in ≤ 100 ms (stretch 40 ms).
+fn village(c: &mut Criterion) {
+    let mesh = village_scene();
+    let params =
+        SnowParams { map_resolution: 256, directions: 64, shadow_resolution: 256, ..SnowParams::default() };
+    let mut sim = SnowSim::new(mesh.clone(), params, 1).expect("village");
+    let mut group = c.benchmark_group("snow_village");
+    group.sample_size(10);
+    group.bench_function(format!("probability_{}_triangles_64dirs_256", mesh.len()), |b| {
+        b.iter(|| sim.update_probability().expect("raster"))
+    });
+    // The paper's comparison (Table 1): per-vertex rays against every triangle, here with
+    // 8 directions, against the shadow-map method with the same 8 directions.
+    let params8 =
+        SnowParams { map_resolution: 256, directions: 8, shadow_resolution: 256, ..SnowParams::default() };
+    let mut sim8 = SnowSim::new(mesh.clone(), params8, 1).expect("village");
+    let dirs: Vec<_> = sim8.directions().to_vec();
+    group.bench_function("probability_8dirs_256", |b| b.iter(|| sim8.update_probability().expect("raster")));
+    group.bench_function("naive_vertex_ray_casting_8dirs", |b| {
+        b.iter(|| black_box(naive_vertex_probability(&mesh, &dirs)))
+    });
+    group.finish();
 }
 
 fn step(c: &mut Criterion) {
@@ -35,5 +61,5 @@ fn step(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, probability, step);
+criterion_group!(benches, probability, village, step);
 criterion_main!(benches);

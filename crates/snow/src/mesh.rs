@@ -158,6 +158,8 @@ pub enum Builtin {
     Table,
     /// The paper's Fig 8: primitives on a ground plane.
     Primitives,
+    /// Like the paper's Fig 9: a village of about 12,000+ triangles.
+    Village,
 }
 
 impl Builtin {
@@ -166,6 +168,7 @@ impl Builtin {
         match self {
             Builtin::Table => table_scene(4.0, 1.2, 0.7),
             Builtin::Primitives => primitives_scene(),
+            Builtin::Village => village_scene(),
         }
     }
 }
@@ -202,6 +205,76 @@ pub fn primitives_scene() -> Mesh {
     mesh.push_object(&sphere(Vec3::new(1.3, 0.7, -1.3), 0.7, 32), 2);
     mesh.push_object(&cone(Vec3::new(-1.3, 0.0, 1.3), 0.7, 1.4, 32), 3);
     mesh.push_object(&cylinder(Vec3::new(1.3, 0.0, 1.3), 0.5, 0.9, 32), 4);
+    mesh
+}
+
+/// A house: a box with a gable roof on it (ridge along x) overhanging by `eave` metres.
+/// Both are closed solids.
+pub fn house(centre: Vec3, size: Vec3, roof_height: f32, eave: f32) -> Vec<[Vec3; 3]> {
+    let (hx, hz) = (0.5 * size.x, 0.5 * size.z);
+    let mut out = cuboid(centre - Vec3::new(hx, 0.0, hz), centre + Vec3::new(hx, size.y, hz));
+    let y = centre.y + size.y;
+    let (ex, ez) = (hx + eave, hz + eave);
+    let c = centre;
+    let ridge0 = Vec3::new(c.x - ex, y + roof_height, c.z);
+    let ridge1 = Vec3::new(c.x + ex, y + roof_height, c.z);
+    let (a0, a1) = (Vec3::new(c.x - ex, y, c.z - ez), Vec3::new(c.x + ex, y, c.z - ez));
+    let (b0, b1) = (Vec3::new(c.x - ex, y, c.z + ez), Vec3::new(c.x + ex, y, c.z + ez));
+    // Two roof slopes (upward facing), the flat underside and the two gables.
+    out.extend(quad(a0, ridge0, ridge1, a1));
+    out.extend(quad(b1, ridge1, ridge0, b0));
+    out.extend(quad(a0, a1, b1, b0));
+    out.push([a0, b0, ridge0]);
+    out.push([a1, ridge1, b1]);
+    out
+}
+
+/// The larger scene of the paper's Fig 9 (about 12,000+ triangles): a ground square of
+/// 40 m with houses, benches and trees placed on a jittered grid (fixed layout).
+/// Objects: 0 ground, then one per item.
+pub fn village_scene() -> Mesh {
+    let mut mesh = Mesh::default();
+    let g = 20.0;
+    mesh.push_object(
+        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
+        0,
+    );
+    // A fixed pseudo-random layout (an LCG: the same scene on every machine).
+    let mut s = 0x5eed_u64;
+    let mut r = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 33) as f32 / (1u64 << 31) as f32
+    };
+    let mut object = 1;
+    for gz in 0..7 {
+        for gx in 0..7 {
+            let c = Vec3::new(-16.5 + 5.5 * gx as f32 + r() - 0.5, 0.0, -16.5 + 5.5 * gz as f32 + r() - 0.5);
+            let tris = match (gx + 2 * gz) % 4 {
+                0 | 2 => house(c, Vec3::new(3.0 + r(), 2.2 + r(), 2.5 + r()), 1.0 + 0.5 * r(), 0.3),
+                1 => {
+                    // A tree: trunk and three stacked cones.
+                    let mut t = cylinder(c, 0.15, 1.0, 16);
+                    for (k, (rad, h)) in [(1.4f32, 1.6f32), (1.1, 1.4), (0.8, 1.2)].into_iter().enumerate() {
+                        t.extend(cone(c + Vec3::Y * (0.8 + 0.9 * k as f32), rad, h, 64));
+                    }
+                    t
+                }
+                _ => {
+                    // A bench and a snowman.
+                    let mut t = cuboid(c + Vec3::new(-0.9, 0.4, -0.25), c + Vec3::new(0.9, 0.48, 0.25));
+                    for sx in [-0.8f32, 0.75] {
+                        t.extend(cuboid(c + Vec3::new(sx, 0.0, -0.2), c + Vec3::new(sx + 0.05, 0.4, 0.2)));
+                    }
+                    let m = c + Vec3::new(0.0, 0.0, 1.2);
+                    t.extend(sphere(m + Vec3::Y * 0.4, 0.4, 20));
+                    t.extend(sphere(m + Vec3::Y * 1.0, 0.28, 20));
+                    t
+                }
+            };
+            mesh.push_object(&tris, object);
+            object += 1;
+        }
+    }
     mesh
 }
 
@@ -250,6 +323,15 @@ mod tests {
         let mut m = Mesh::default();
         m.push_object(&b, 0);
         assert!(m.normal(0).y > 0.99 && m.normal(1).y > 0.99);
+    }
+
+    #[test]
+    fn houses_are_closed_and_the_village_is_large() {
+        let h = house(Vec3::new(1.0, 0.0, 2.0), Vec3::new(3.0, 2.0, 2.0), 1.0, 0.0);
+        // Without eaves: box 3×2×2 plus a prism 3 × (2 × 1 / 2).
+        assert!((volume(&h) - 15.0).abs() < 1e-3, "{}", volume(&h));
+        let v = village_scene();
+        assert!((12_000..16_000).contains(&v.len()), "{} triangles", v.len());
     }
 
     #[test]
