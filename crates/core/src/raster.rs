@@ -268,9 +268,11 @@ fn setup(
     let max_x = v.iter().map(|p| p.0).max().unwrap_or(0);
     let min_y = v.iter().map(|p| p.1).min().unwrap_or(0);
     let max_y = v.iter().map(|p| p.1).max().unwrap_or(0);
-    // Pixel centres (i + 0.5) inside [min, max]: i from ceil(min - 0.5) to floor(max - 0.5).
-    let first = |lo: i64| (lo as f64 / SUBPIXEL - 0.5).ceil().max(0.0) as i64;
-    let last = |hi: i64, n: usize| ((hi as f64 / SUBPIXEL - 0.5).floor() as i64).min(n as i64 - 1);
+    // Pixel centres (i + 0.5) inside [min, max]: i from ceil(min - 0.5) to floor(max - 0.5),
+    // in exact integer arithmetic on the snapped coordinates.
+    let (sub, half) = (SUBPIXEL as i64, SUBPIXEL as i64 / 2);
+    let first = |lo: i64| (-(-(lo - half)).div_euclid(sub)).max(0);
+    let last = |hi: i64, n: usize| (hi - half).div_euclid(sub).min(n as i64 - 1);
     let (c0, c1, r0, r1) = (first(min_x), last(max_x, w), first(min_y), last(max_y, h));
     if c0 > c1 || r0 > r1 {
         return Ok(None);

@@ -533,8 +533,20 @@ fn probability(
     let px_m = 2.0 * radius / res as f32;
     let bias = 2.0 * px_m;
     let n = fp.n;
-    let mut counts: Vec<Vec<u32>> = maps.iter().map(|_| vec![0u32; n * n]).collect();
-    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
+    // Every snow-possible texel of every map as one list: (map, texel, surface point).
+    let points: Vec<(u32, u32, Vec3)> = maps
+        .iter()
+        .enumerate()
+        .flat_map(|(m, map)| {
+            (0..n * n).filter(|&k| map.possible(k)).map(move |k| {
+                let xz = fp.centre(k % n, k / n);
+                (m as u32, k as u32, Vec3::new(xz.x, map.surface(k), xz.y))
+            })
+        })
+        .collect();
+    const CHUNK: usize = 4096;
+    let mut exposed = vec![0u32; points.len()];
+    let mut near_outline = vec![0u16; if silhouettes { points.len() } else { 0 }];
     for d in directions {
         // Looking down the snowfall direction from above the scene.
         let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
@@ -547,52 +559,45 @@ fn probability(
         .view(res, res)
         .expect("a valid direction camera");
         let (buf, _) = rasterize(&view, &mesh.triangles, None, Cull::None)?;
-        for ((map, count), edge) in maps.iter().zip(counts.iter_mut()).zip(edge.iter_mut()) {
-            let sample = |i: usize, j: usize| -> Option<(f32, f32, f32)> {
-                let k = j * n + i;
-                let xz = fp.centre(i, j);
-                let q = view.project(Vec3::new(xz.x, map.surface(k), xz.y))?;
-                Some((q.x_px.floor(), q.y_px.floor(), q.depth))
-            };
-            count.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
-                for (i, c) in row.iter_mut().enumerate() {
-                    if !map.possible(j * n + i) {
-                        continue;
+        let limit = res as f32;
+        exposed.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(counts, pts)| {
+            for (c, &(_, _, p)) in counts.iter_mut().zip(pts) {
+                let Some(q) = view.project(p) else { continue };
+                // Outside the scene's depth map nothing is in the way. (For coordinates
+                // in [0, res) the conversion to an integer is the floor.)
+                let inside = q.x_px >= 0.0 && q.y_px >= 0.0 && q.x_px < limit && q.y_px < limit;
+                if !inside || q.depth <= buf.depth_at(q.x_px as usize, q.y_px as usize) + bias {
+                    *c += 1;
+                }
+            }
+        });
+        if silhouettes {
+            near_outline.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(marks, pts)| {
+                for (e, &(_, _, p)) in marks.iter_mut().zip(pts) {
+                    let Some(q) = view.project(p) else { continue };
+                    let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+                    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                    for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
+                        let (px, py) = (x + dx, y + dy);
+                        if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
+                            let d = buf.depth_at(px as usize, py as usize);
+                            // Empty pixels (no surface) count as very far.
+                            let d = if d.is_finite() { d } else { 1e9 };
+                            lo = lo.min(d);
+                            hi = hi.max(d);
+                        }
                     }
-                    let Some((x, y, depth)) = sample(i, j) else { continue };
-                    if x < 0.0 || y < 0.0 || x >= res as f32 || y >= res as f32 {
-                        *c += 1; // outside the scene's depth map: nothing in the way
-                        continue;
-                    }
-                    if depth <= buf.depth_at(x as usize, y as usize) + bias {
-                        *c += 1;
-                    }
+                    *e += u16::from(hi - lo > 10.0 * px_m);
                 }
             });
-            if silhouettes {
-                edge.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
-                    for (i, e) in row.iter_mut().enumerate() {
-                        if !map.possible(j * n + i) {
-                            continue;
-                        }
-                        let Some((x, y, _)) = sample(i, j) else { continue };
-                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
-                            {
-                                let (px, py) = (x as i64 + dx, y as i64 + dy);
-                                if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
-                                    let d = buf.depth_at(px as usize, py as usize);
-                                    // Empty pixels (no surface) count as very far.
-                                    let d = if d.is_finite() { d } else { 1e9 };
-                                    lo = lo.min(d);
-                                    hi = hi.max(d);
-                                }
-                            }
-                        }
-                        *e += u16::from(hi - lo > 10.0 * px_m);
-                    }
-                });
-            }
+        }
+    }
+    let mut counts: Vec<Vec<u32>> = maps.iter().map(|_| vec![0u32; n * n]).collect();
+    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
+    for (i, &(m, k, _)) in points.iter().enumerate() {
+        counts[m as usize][k as usize] = exposed[i];
+        if silhouettes {
+            edge[m as usize][k as usize] = near_outline[i];
         }
     }
     let k = directions.len().max(1) as f32;
