@@ -167,8 +167,7 @@ pub(crate) fn snow_mesh(
     if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
         bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
     }
-    let mut mesh = s.geometry.builtin.mesh();
-    mesh.clean(1e-12);
+    let mesh = crate::render::snow_mesh(s, scene_path.parent().unwrap_or(Path::new(".")))?;
     let mut sim = phenomena_snow::SnowSim::new(mesh, s.snow.clone(), s.scene.seed)?;
     let steps = (time / dt).round() as u64;
     for _ in 0..steps {

@@ -141,8 +141,7 @@ impl Runner {
                 Ok(Runner::Aurora { sim: Box::new(sim), settings: Box::new(s.render), frame, sky })
             }
             Scene::Snow(s) => {
-                let mut mesh = s.geometry.builtin.mesh();
-                mesh.clean(1e-12);
+                let mesh = snow_mesh(s, scene_dir)?;
                 let sim = phenomena_snow::SnowSim::new(mesh, s.snow.clone(), s.scene.seed)?;
                 let frame = Frame::new(s.scene.width as usize, s.scene.height as usize);
                 Ok(Runner::Snow { sim: Box::new(sim), settings: Box::new(s.render), frame })
@@ -207,6 +206,41 @@ impl Runner {
             _ => Vec::new(),
         }
     }
+}
+
+/// The triangles of a snow scene: its built-in scene, or its mesh file read and parsed
+/// (degenerate triangles dropped with a warning on standard error).
+pub(crate) fn snow_mesh(s: &crate::scene::SnowScene, scene_dir: &Path) -> Result<phenomena_snow::mesh::Mesh> {
+    use phenomena_snow::load;
+    let Some(file) = &s.geometry.mesh else {
+        let mut mesh = s.geometry.builtin.mesh();
+        mesh.clean(1e-12);
+        return Ok(mesh);
+    };
+    let path = scene_dir.join(file);
+    let bytes = std::fs::read(&path).with_context(|| format!("cannot read the mesh {}", path.display()))?;
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    let scale = s.geometry.scale;
+    let loaded = match ext.as_str() {
+        "obj" => load::obj(&bytes, scale),
+        "gltf" | "glb" => {
+            let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+            load::gltf(&bytes, |uri| std::fs::read(dir.join(uri)).ok(), scale)
+        }
+        "dxf" => load::dxf(&bytes, scale),
+        other => bail!("{}: unknown mesh format `.{other}`: use .obj, .gltf, .glb or .dxf", path.display()),
+    }
+    .with_context(|| format!("cannot use the mesh {}", path.display()))?;
+    let c = loaded.cleaned;
+    if c.degenerate + c.non_finite > 0 {
+        eprintln!(
+            "warning: {}: skipped {} degenerate triangle(s) and {} with non-finite vertices",
+            path.display(),
+            c.degenerate,
+            c.non_finite
+        );
+    }
+    Ok(loaded.mesh)
 }
 
 /// Apply command-line overrides to a scene; a view the phenomenon cannot draw is an

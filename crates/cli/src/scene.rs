@@ -72,12 +72,23 @@ pub(crate) struct AuroraScene {
     pub(crate) render: AuroraRenderSettings,
 }
 
-/// Where a snow scene's geometry comes from (`[geometry]`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+/// Where a snow scene's geometry comes from (`[geometry]`): a built-in scene or a mesh
+/// file (OBJ, glTF/GLB or DXF by extension, relative to the scene file).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub(crate) struct SnowGeometry {
-    /// A built-in scene.
+    /// A built-in scene (used when `mesh` is not given).
     pub(crate) builtin: phenomena_snow::mesh::Builtin,
+    /// A mesh file instead.
+    pub(crate) mesh: Option<PathBuf>,
+    /// Scale from the file's units to metres.
+    pub(crate) scale: f32,
+}
+
+impl Default for SnowGeometry {
+    fn default() -> Self {
+        Self { builtin: phenomena_snow::mesh::Builtin::Table, mesh: None, scale: 1.0 }
+    }
 }
 
 /// A snow scene file: each frame is one time step of the snowfall.
@@ -163,6 +174,11 @@ impl Scene {
                 }
             },
             Scene::Snow(s) => {
+                let mut g = Issues::default();
+                g.range_open_low("scale", s.geometry.scale, 0.0, 1e6);
+                if let Err(e) = g.into_result() {
+                    i.extend_prefixed("geometry", e);
+                }
                 if let Err(e) = s.snow.validate() {
                     i.extend_prefixed("snow", e);
                 }

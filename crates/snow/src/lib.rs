@@ -19,6 +19,7 @@
 
 pub mod export;
 pub mod groups;
+pub mod load;
 pub mod mesh;
 pub mod reference;
 pub mod render;

@@ -65,3 +65,42 @@ fn bad_snow_settings_are_located() {
     assert!(err.contains("bad2.toml:4:14: snow.repose_deg = 95"), "{err}");
     assert!(err.contains("bad2.toml:5:14: snow.directions = 0"), "{err}");
 }
+
+/// A 4 m floor and a 1 m platform 0.5 m up, as OBJ (y up), plus one degenerate face.
+const PLATFORM_OBJ: &str = "o floor\nv -2 0 -2\nv -2 0 2\nv 2 0 2\nv 2 0 -2\nf 1 2 3\nf 1 3 4\no platform\nv -0.5 0.5 -0.5\nv -0.5 0.5 0.5\nv 0.5 0.5 0.5\nv 0.5 0.5 -0.5\nf 5 6 7\nf 5 7 8\nf 5 5 6\n";
+
+#[test]
+fn mesh_files_are_read_and_bad_ones_named() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "platform.obj", PLATFORM_OBJ);
+    let scene = write(
+        dir.path(),
+        "s.toml",
+        "[scene]\nframes = 2\nwidth = 64\nheight = 48\n[geometry]\nmesh = \"platform.obj\"\n[snow]\nmap_resolution = 32\ndirections = 8\nshadow_resolution = 64\n",
+    );
+    let out = crate::run(dir.path(), &["render", &scene, "--out", "o"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("skipped 1 degenerate triangle(s)"), "{stderr}");
+    assert_eq!(std::fs::read_dir(dir.path().join("o")).unwrap().count(), 2);
+    ok(dir.path(), &["export", "snow-mesh", &scene, "--format", "obj", "--out", "m.obj"]);
+
+    let missing =
+        write(dir.path(), "m.toml", "[scene]\nframes = 1\n[geometry]\nmesh = \"nope.obj\"\n[snow]\n");
+    let err = fails(dir.path(), &["render", &missing, "--out", "o2"]);
+    assert!(err.contains("cannot read the mesh") && err.contains("nope.obj"), "{err}");
+    write(dir.path(), "bad.glb", "glTF garbage");
+    let corrupt =
+        write(dir.path(), "c.toml", "[scene]\nframes = 1\n[geometry]\nmesh = \"bad.glb\"\n[snow]\n");
+    let err = fails(dir.path(), &["render", &corrupt, "--out", "o3"]);
+    assert!(err.contains("bad.glb") && err.contains("not a valid glTF file"), "{err}");
+    write(dir.path(), "x.stl", "solid");
+    let unknown = write(dir.path(), "u.toml", "[scene]\nframes = 1\n[geometry]\nmesh = \"x.stl\"\n[snow]\n");
+    let err = fails(dir.path(), &["render", &unknown, "--out", "o4"]);
+    assert!(err.contains("unknown mesh format `.stl`"), "{err}");
+    write(dir.path(), "empty.obj", "# nothing here\n");
+    let empty =
+        write(dir.path(), "e.toml", "[scene]\nframes = 1\n[geometry]\nmesh = \"empty.obj\"\n[snow]\n");
+    let err = fails(dir.path(), &["render", &empty, "--out", "o5"]);
+    assert!(err.contains("empty.obj") && err.contains("no usable triangle"), "{err}");
+}
