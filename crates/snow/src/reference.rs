@@ -148,7 +148,7 @@ pub const RAY_START_M: f32 = 1e-3;
 /// The snow probability of every texel of every map by ray casting with the sim's own
 /// directions (see the module docs).
 pub fn ray_cast_probability(sim: &SnowSim) -> Vec<Vec<f32>> {
-    let bvh = Bvh::new(&sim.mesh().triangles);
+    let bvh = Bvh::new(&sim.occluders().triangles);
     let fp = sim.footprint();
     let n = fp.n;
     let dirs = sim.directions();

@@ -43,6 +43,9 @@ pub struct SnowParams {
     pub max_passes: u32,
     /// Group per object instead of the automatic grouping (one entry per object).
     pub object_groups: Option<Vec<u32>>,
+    /// Recompute the probability every this many steps, with the snow lying so far as an
+    /// occluder (0: once at the start, as the paper holds P_a constant while animating).
+    pub probability_every_steps: u32,
 }
 
 impl Default for SnowParams {
@@ -59,6 +62,7 @@ impl Default for SnowParams {
             repose_deg: 45.0,
             max_passes: 4096,
             object_groups: None,
+            probability_every_steps: 0,
         }
     }
 }
@@ -192,6 +196,7 @@ pub struct SnowSim {
     directions: Vec<Vec3>,
     fallen_off_m3: f64,
     time_h: f64,
+    steps: u64,
     top_y: f32,
 }
 
@@ -243,6 +248,7 @@ impl SnowSim {
             directions,
             fallen_off_m3: 0.0,
             time_h: 0.0,
+            steps: 0,
             top_y,
         };
         sim.update_probability()?;
@@ -274,18 +280,25 @@ impl SnowSim {
         &self.maps
     }
 
+    /// The snow maps, to change (e.g. to start from lying snow); call
+    /// [`SnowSim::update_probability`] afterwards if the change should shade.
+    pub fn maps_mut(&mut self) -> &mut [SnowMap] {
+        &mut self.maps
+    }
+
     /// The snowfall directions (unit vectors pointing the way the snow moves, down).
     pub fn directions(&self) -> &[Vec3] {
         &self.directions
     }
 
     /// Recompute the snow probability of every texel (§2.2.3): for each direction a depth
-    /// map of the whole scene seen along it; a texel is exposed when its surface point is
-    /// not behind that depth (within a bias of two depth-map pixels); P_a is the share
-    /// of exposed directions.
+    /// map of the whole scene and of the snow lying on it, seen along the direction; a
+    /// texel is exposed when its surface point (ground + snow) is not behind that depth
+    /// (within a bias of two depth-map pixels); P_a is the share of exposed directions.
     pub fn update_probability(&mut self) -> Result<(), SnowError> {
+        let occluders = self.occluders();
         let (exposed, _) =
-            probability(&self.mesh, &self.maps, &self.footprint, &self.directions, &self.params, false)?;
+            probability(&occluders, &self.maps, &self.footprint, &self.directions, &self.params, false)?;
         for (map, p) in self.maps.iter_mut().zip(exposed) {
             map.probability = p;
         }
@@ -298,7 +311,18 @@ impl SnowSim {
     /// those directions the shadow-map test depends on where inside a pixel the outline
     /// runs, which a ray cast resolves exactly.
     pub fn silhouette_directions(&self) -> Result<Vec<Vec<u16>>, SnowError> {
-        Ok(probability(&self.mesh, &self.maps, &self.footprint, &self.directions, &self.params, true)?.1)
+        Ok(probability(&self.occluders(), &self.maps, &self.footprint, &self.directions, &self.params, true)?
+            .1)
+    }
+
+    /// The scene's triangles plus those of the snow on it (so snow can occlude).
+    pub fn occluders(&self) -> Mesh {
+        let snow = crate::export::snow_mesh(self);
+        let mut all = self.mesh.clone();
+        let tris: Vec<[Vec3; 3]> =
+            snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])).collect();
+        all.push_object(&tris, u32::MAX);
+        all
     }
 
     /// Advance one time step: accumulate (eq 1), then stabilise and let snow fall.
@@ -311,6 +335,12 @@ impl SnowSim {
         }
         self.time_h += dt;
         let (passes, stable) = self.stabilise();
+        self.steps += 1;
+        let every = u64::from(self.params.probability_every_steps);
+        if every > 0 && self.steps.is_multiple_of(every) {
+            // The rasteriser refuses only non-planar views, which these never are.
+            let _ = self.update_probability();
+        }
         SnowStats {
             volume_m3: self.volume_m3(),
             fallen_off_m3: self.fallen_off_m3,

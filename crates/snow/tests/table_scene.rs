@@ -155,3 +155,34 @@ fn any_thread_count_gives_the_same_snow() {
     let one = run(1);
     assert!(one == run(2), "1 vs 2 threads");
 }
+
+#[test]
+fn lying_snow_shades_like_any_occluder() {
+    // Snow moving towards +x at 30° from the vertical, no spread. Ground texels at
+    // x in (1.0, 1.29) m are just out of the bare table's shadow (the ray up from x
+    // passes the top's edge x = 0.6 at height (x - 0.6)/tan 30° > 0.7 m), but inside the
+    // shadow of 0.5 m of snow lying on the top (that height is below 1.2 m).
+    let params = SnowParams {
+        map_resolution: 100,
+        directions: 4,
+        spread_deg: 0.0,
+        main_tilt_deg: [30.0, 0.0],
+        ..SnowParams::default()
+    };
+    let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).unwrap();
+    let fp = s.footprint();
+    let g = ground_map(&s);
+    let j = fp.n / 2;
+    let band: Vec<usize> =
+        (0..fp.n).filter(|&i| (1.05..1.25).contains(&fp.centre(i, j).x)).map(|i| j * fp.n + i).collect();
+    assert!(band.len() >= 3);
+    assert!(band.iter().all(|&k| s.maps()[g].probability[k] == 1.0), "lit before");
+    let top = (0..s.maps().len()).find(|&m| m != g && s.maps()[m].possible(j * fp.n + fp.n / 2)).unwrap();
+    for k in 0..fp.n * fp.n {
+        if s.maps()[top].possible(k) {
+            s.maps_mut()[top].snow_m[k] = 0.5;
+        }
+    }
+    s.update_probability().unwrap();
+    assert!(band.iter().all(|&k| s.maps()[g].probability[k] == 0.0), "shaded by the snow on the table");
+}
