@@ -59,6 +59,17 @@ fn step(c: &mut Criterion) {
     c.bench_function("snow_step_5_maps_128", |b| {
         b.iter_batched_ref(|| sim.clone(), |s| black_box(s.step()), BatchSize::LargeInput)
     });
+    // Issue 5's step: accumulation + stabilisation + remesh (the snow solids).
+    c.bench_function("snow_step_and_remesh_5_maps_128", |b| {
+        b.iter_batched_ref(
+            || sim.clone(),
+            |s| {
+                black_box(s.step());
+                black_box(phenomena_snow::export::snow_mesh(s))
+            },
+            BatchSize::LargeInput,
+        )
+    });
 }
 
 criterion_group!(benches, probability, village, step);
