@@ -295,6 +295,8 @@ pub struct SkyRenderer {
     width: usize,
     height: usize,
     view: CameraView,
+    /// The camera position, km.
+    eye: Vec3,
     sigma_px: [f32; 5],
     model: Model,
     /// The current images of the five lines ([`Line::ALL`] order), after the blur (and
@@ -360,6 +362,7 @@ impl SkyRenderer {
             width,
             height,
             view,
+            eye: settings.camera.camera().position,
             sigma_px: settings.splat_sigma_px.to_array().map(|s| s * scale),
             model,
             lines: std::array::from_fn(|_| Plane::new(width, height)),
@@ -494,10 +497,11 @@ impl SkyRenderer {
                 );
             }
             Model::Physical { sampler, points, photons, .. } => {
-                // Footprint of one particle at the rest density, km²; a point carrying P
-                // photons/s seen at d km through pixels of px_per_km px per km at that
-                // distance adds P (px_per_km)² 1e-16 R (see the module docs), with
-                // P = column · area · 1e10 / points.
+                // Footprint of one particle at the rest density, km². A point carrying P
+                // photons/s seen from d cm through a pixel of solid angle Ω adds a
+                // radiance P/(4π d² Ω), i.e. P/(d² Ω 1e6) R. With P = column · area ·
+                // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
+                // column · area / (points · 1e6) / (d_km² Ω).
                 let area_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
                 let (top, drift) = (top as f32, drift.as_vec3());
                 let foot = foot.as_vec3();
@@ -513,10 +517,11 @@ impl SkyRenderer {
                         let altitude = sampler.altitude_km(line, u).min(top);
                         let q = Vec3::new(foot.x, altitude, foot.z) + drift * (top - altitude);
                         if let Some(pr) = self.view.project(q) {
+                            let d2 = (q - self.eye).length_squared();
                             out.push(Splat {
                                 x: pr.x_px,
                                 y: pr.y_px,
-                                weight: per_point * pr.px_per_m * pr.px_per_m,
+                                weight: per_point / (d2 * self.view.pixel_solid_angle(q)),
                                 line: k as u8,
                             });
                         }
@@ -560,11 +565,9 @@ impl SkyRenderer {
             let u = 1.0 - rng.next_f64();
             let magnitude = ((u * count as f64).log10() - 0.7) / 0.5;
             let Some(p) = self.view.project(eye + dir * 1e7) else { continue };
-            // Pixel solid angle at this direction: (1/px per radian)², px per radian
-            // being px_per_m times the distance.
-            let px_per_rad = f64::from(p.px_per_m) * 1e7;
+            // Luminance = illuminance / the pixel's solid angle.
             let lux = 2.54e-6 * 10f64.powf(-0.4 * magnitude);
-            let value = (lux * px_per_rad * px_per_rad / white) as f32;
+            let value = (lux / f64::from(self.view.pixel_solid_angle(eye + dir * 1e7)) / white) as f32;
             for plane in [&mut *r, &mut *g, &mut *b] {
                 plane.deposit_bilinear(p.x_px, p.y_px, value);
             }

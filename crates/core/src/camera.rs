@@ -288,6 +288,33 @@ impl CameraView {
         }
     }
 
+    /// Solid angle of the pixel that world point `p` projects into, steradians (for a
+    /// parallel projection: the pixel's area in square metres). Perspective: cos³θ/f²
+    /// with θ the angle from the view axis and f the focal length in pixels; fisheye
+    /// (equidistant): sin θ/(θ s²) with s pixels per radian; equirectangular:
+    /// cos(elevation)/(s_x s_y). Summed over every pixel this gives the field of view's
+    /// solid angle (tested).
+    pub fn pixel_solid_angle(&self, p: Vec3) -> f32 {
+        let d = p - self.eye;
+        let distance = d.length();
+        match self.kind {
+            Kind::Orthographic => 1.0 / (self.scale * self.scale),
+            Kind::Perspective => {
+                let c = (d.dot(self.forward) / distance).max(1e-6);
+                c * c * c / (self.scale * self.scale)
+            }
+            Kind::Fisheye { .. } => {
+                let theta = (d.dot(self.forward) / distance).clamp(-1.0, 1.0).acos();
+                let ratio = if theta > 1e-4 { theta.sin() / theta } else { 1.0 };
+                ratio / (self.scale * self.scale)
+            }
+            Kind::Equirectangular { scale_y } => {
+                let cos_elevation = (1.0 - (d.dot(self.up) / distance).powi(2)).max(0.0).sqrt();
+                cos_elevation / (self.scale * scale_y)
+            }
+        }
+    }
+
     /// Whether straight lines stay straight (perspective or orthographic).
     pub fn is_planar(&self) -> bool {
         matches!(self.kind, Kind::Perspective | Kind::Orthographic)
@@ -376,6 +403,34 @@ mod tests {
         assert!(v.project(Vec3::Y * 2.0).unwrap().y_px.abs() < 1e-3);
         let behind = v.project(Vec3::new(-1e-3, 0.0, -1.0)).unwrap();
         assert!((behind.x_px - 360.0).abs() < 0.1 || behind.x_px.abs() < 0.1, "{behind:?}");
+    }
+
+    #[test]
+    fn pixel_solid_angles_add_up_to_the_field_of_view() {
+        // Sum over pixel centres of the solid angle of the direction through each.
+        let total = |projection: Projection, w: usize, h: usize| {
+            let v = Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, projection }
+                .view(w, h)
+                .unwrap();
+            let mut sum = 0.0f64;
+            for y in 0..h {
+                for x in 0..w {
+                    let (o, d) = v.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    if v.project(o + d).is_some() {
+                        sum += f64::from(v.pixel_solid_angle(o + d * 3.0));
+                    }
+                }
+            }
+            sum
+        };
+        // Equirectangular: the whole sphere, 4π; a 180° dome master: the hemisphere, 2π
+        // (its circle's pixel boundary costs about a pixel ring, 0.5 %); a perspective
+        // 90° × 90° view: 4 asin(sin²45°) = 2π/3. Tolerances: the midpoint rule's error.
+        let pi = std::f64::consts::PI;
+        assert!((total(Projection::Equirectangular, 400, 200) / (4.0 * pi) - 1.0).abs() < 1e-3);
+        assert!((total(Projection::Fisheye { fov_deg: 180.0 }, 300, 300) / (2.0 * pi) - 1.0).abs() < 0.01);
+        let persp = total(Projection::Perspective { fov_y_deg: 90.0 }, 200, 200);
+        assert!((persp / (2.0 * pi / 3.0) - 1.0).abs() < 1e-3, "{persp}");
     }
 
     #[test]
