@@ -505,6 +505,7 @@ impl SkyRenderer {
                 let area_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
                 let (top, drift) = (top as f32, drift.as_vec3());
                 let foot = foot.as_vec3();
+                let perspective = self.view.is_perspective();
                 for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
                     if m == 0 {
                         continue;
@@ -517,11 +518,18 @@ impl SkyRenderer {
                         let altitude = sampler.altitude_km(line, u).min(top);
                         let q = Vec3::new(foot.x, altitude, foot.z) + drift * (top - altitude);
                         if let Some(pr) = self.view.project(q) {
+                            // 1/(d² Ω): for a perspective camera Ω = cos³θ/f², so
+                            // 1/(d² Ω) = (f/depth)² · d/depth (one square root).
                             let d2 = (q - self.eye).length_squared();
+                            let inverse = if perspective {
+                                pr.px_per_m * pr.px_per_m * d2.sqrt() / pr.depth
+                            } else {
+                                1.0 / (d2 * self.view.pixel_solid_angle(q))
+                            };
                             out.push(Splat {
                                 x: pr.x_px,
                                 y: pr.y_px,
-                                weight: per_point / (d2 * self.view.pixel_solid_angle(q)),
+                                weight: per_point * inverse,
                                 line: k as u8,
                             });
                         }
@@ -862,6 +870,26 @@ mod tests {
             for (a, b) in banded[k].data().iter().zip(&whole[k]) {
                 assert!((a - b).abs() < 1e-5, "line {k}: {a} vs {b}");
             }
+        }
+    }
+
+    #[test]
+    fn the_perspective_shortcut_is_the_solid_angle_formula() {
+        let view = Camera {
+            position: Vec3::new(0.0, 0.002, -250.0),
+            look_at: Vec3::new(0.0, 60.0, 0.0),
+            up: Vec3::Y,
+            projection: Projection::Perspective { fov_y_deg: 60.0 },
+        }
+        .view(1280, 720)
+        .unwrap();
+        for q in [Vec3::new(0.0, 110.0, 0.0), Vec3::new(-180.0, 250.0, 90.0), Vec3::new(150.0, 95.0, -120.0)]
+        {
+            let pr = view.project(q).unwrap();
+            let d2 = (q - Vec3::new(0.0, 0.002, -250.0)).length_squared();
+            let shortcut = pr.px_per_m * pr.px_per_m * d2.sqrt() / pr.depth;
+            let general = 1.0 / (d2 * view.pixel_solid_angle(q));
+            assert!((shortcut / general - 1.0).abs() < 1e-5, "{q}: {shortcut} vs {general}");
         }
     }
 
