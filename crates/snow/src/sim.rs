@@ -315,14 +315,19 @@ impl SnowSim {
             .1)
     }
 
-    /// The scene's triangles plus those of the snow on it (so snow can occlude).
-    pub fn occluders(&self) -> Mesh {
+    /// The scene's triangles plus those of the snow on it (so snow can occlude); the
+    /// scene itself, borrowed, while no snow lies anywhere.
+    pub fn occluders(&self) -> std::borrow::Cow<'_, Mesh> {
+        let min = crate::export::MIN_DEPTH_M;
+        if !self.maps.iter().any(|m| m.snow_m.iter().any(|&s| s > min)) {
+            return std::borrow::Cow::Borrowed(&self.mesh);
+        }
         let snow = crate::export::snow_mesh(self);
         let mut all = self.mesh.clone();
         let tris: Vec<[Vec3; 3]> =
             snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])).collect();
         all.push_object(&tris, u32::MAX);
-        all
+        std::borrow::Cow::Owned(all)
     }
 
     /// Advance one time step: accumulate (eq 1), then stabilise and let snow fall.
