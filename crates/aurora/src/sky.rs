@@ -541,16 +541,22 @@ impl SkyRenderer {
 
     /// Luminance, cd/m², that the frame shows as 1.
     fn white_cd_m2(&self) -> f64 {
+        let green = self.line_luminance(Line::O557).y;
         match self.settings.mode {
-            ColourMode::Paper => {
-                683.0 * Line::O557.table_2_1_cmf().y / f64::from(self.settings.paper_emission_brightness)
-            }
+            ColourMode::Paper => green / f64::from(self.settings.paper_emission_brightness),
+            ColourMode::Physical => green * 1e3 * f64::from(self.settings.white_kilorayleigh),
+        }
+    }
+
+    /// XYZ per unit of a line image: K x̄ȳz̄ (eq 2.29 with K = 683 lm/W) times, in
+    /// physical mode, the radiance of 1 R of the line: 1e10/(4π) photons m⁻² s⁻¹ sr⁻¹
+    /// times the photon energy hc/λ.
+    fn line_luminance(&self, line: Line) -> DVec3 {
+        match self.settings.mode {
+            ColourMode::Paper => line.table_2_1_cmf() * 683.0,
             ColourMode::Physical => {
-                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (Line::O557.wavelength_nm() * 1e-9);
-                683.0 * Line::O557.cie2015_cmf().y * 1e10 / (4.0 * std::f64::consts::PI)
-                    * photon_j
-                    * 1e3
-                    * f64::from(self.settings.white_kilorayleigh)
+                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (line.wavelength_nm() * 1e-9);
+                line.cie2015_cmf() * (683.0 * 1e10 / (4.0 * std::f64::consts::PI) * photon_j)
             }
         }
     }
@@ -612,27 +618,13 @@ impl SkyRenderer {
     /// Line images -> XYZ -> linear sRGB into `self.frame`.
     fn colour(&mut self) {
         let paper = self.settings.mode == ColourMode::Paper;
-        // XYZ per unit of each line image: K x̄ȳz̄ (eq 2.29 with K = 683 lm/W) times, in
-        // physical mode, the radiance of 1 R of the line: 1e10/(4π) photons m⁻² s⁻¹ sr⁻¹
-        // times the photon energy hc/λ. Then divided by the luminance that is to be 1:
-        // that of one emission of 557.7 nm (paper) or of `white_kilorayleigh` (physical).
-        let luminance = |line: Line| -> DVec3 {
-            if paper {
-                line.table_2_1_cmf() * 683.0
-            } else {
-                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (line.wavelength_nm() * 1e-9);
-                line.cie2015_cmf() * (683.0 * 1e10 / (4.0 * std::f64::consts::PI) * photon_j)
-            }
-        };
-        let white = if paper {
-            luminance(Line::O557).y / f64::from(self.settings.paper_emission_brightness)
-        } else {
-            luminance(Line::O557).y * 1e3 * f64::from(self.settings.white_kilorayleigh)
-        };
+        // XYZ per unit of each line image, divided by the luminance that is to be 1: that
+        // of one emission of 557.7 nm (paper) or of `white_kilorayleigh` (physical).
+        let white = self.white_cd_m2();
         // Linear sRGB per unit of each line image (the XYZ -> RGB matrix is linear, so it
         // is applied to the five weights once instead of to every pixel).
         let weights: [Vec3; 5] = Line::ALL.map(|line| {
-            let xyz = luminance(line) / white;
+            let xyz = self.line_luminance(line) / white;
             (if paper { xyz_to_rgb_eq_2_30(xyz) } else { xyz_to_linear_srgb(xyz) }).as_vec3()
         });
         let w = self.width;

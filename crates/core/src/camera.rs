@@ -157,6 +157,19 @@ impl Camera {
         }
     }
 
+    /// [`Camera::validate`] plus a problem if the projection is not planar, for renderers
+    /// that need straight lines to stay straight (splats, rasterisation).
+    pub fn validate_planar(&self, issues: &mut Issues, prefix: &str) {
+        self.validate(issues, prefix);
+        if !self.is_planar() {
+            issues.push(
+                format!("{prefix}.projection"),
+                format!("{:?}", self.projection),
+                "perspective or orthographic",
+            );
+        }
+    }
+
     /// Whether the projection maps straight lines to straight lines (perspective and
     /// orthographic), which image-space effects such as screen-space stepping assume.
     pub fn is_planar(&self) -> bool {

@@ -191,15 +191,8 @@ impl RenderSettings {
     /// Every problem with these settings (fields relative to `[flame.render]`).
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
-        self.camera.validate(&mut i, "camera");
-        if !self.camera.is_planar() {
-            // Splat footprints and the shimmer's screen-space offsets assume straight lines.
-            i.push(
-                "camera.projection",
-                format!("{:?}", self.camera.projection),
-                "perspective or orthographic",
-            );
-        }
+        // Splat footprints and the shimmer's screen-space offsets assume straight lines.
+        self.camera.validate_planar(&mut i, "camera");
         i.range("intensity", self.intensity, 0.0..=1e9);
         i.range_open_low("splat_radius_scale", self.splat_radius_scale, 0.0, 100.0);
         i.range("reference_temperature_k", self.reference_temperature_k, 500.0..=40_000.0);

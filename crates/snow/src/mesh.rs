@@ -85,6 +85,12 @@ impl Mesh {
     }
 }
 
+/// The ground square from -`half` to `half` in x and z at height 0, facing up.
+pub fn ground_square(half: f32) -> [[Vec3; 3]; 2] {
+    let g = half;
+    quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g))
+}
+
 /// Two triangles of the quad a, b, c, d (counter-clockwise seen from the front).
 pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [[Vec3; 3]; 2] {
     [[a, b, c], [a, c, d]]
@@ -197,10 +203,7 @@ pub fn cylinder(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[V
 pub fn primitives_scene() -> Mesh {
     let mut mesh = Mesh::default();
     let g = 3.0;
-    mesh.push_object(
-        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
-        0,
-    );
+    mesh.push_object(&ground_square(g), 0);
     mesh.push_object(&cuboid(Vec3::new(-1.9, 0.0, -1.9), Vec3::new(-0.9, 1.0, -0.9)), 1);
     mesh.push_object(&sphere(Vec3::new(1.3, 0.7, -1.3), 0.7, 32), 2);
     mesh.push_object(&cone(Vec3::new(-1.3, 0.0, 1.3), 0.7, 1.4, 32), 3);
@@ -235,10 +238,7 @@ pub fn house(centre: Vec3, size: Vec3, roof_height: f32, eave: f32) -> Vec<[Vec3
 pub fn village_scene() -> Mesh {
     let mut mesh = Mesh::default();
     let g = 20.0;
-    mesh.push_object(
-        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
-        0,
-    );
+    mesh.push_object(&ground_square(g), 0);
     // A fixed pseudo-random layout (an LCG: the same scene on every machine).
     let mut s = 0x5eed_u64;
     let mut r = move || {
@@ -283,10 +283,7 @@ pub fn village_scene() -> Mesh {
 pub fn table_scene(ground_m: f32, top_m: f32, height_m: f32) -> Mesh {
     let mut mesh = Mesh::default();
     let g = 0.5 * ground_m;
-    mesh.push_object(
-        &quad(Vec3::new(-g, 0.0, -g), Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g)),
-        0,
-    );
+    mesh.push_object(&ground_square(g), 0);
     let t = 0.5 * top_m;
     let mut table = cuboid(Vec3::new(-t, height_m - 0.05, -t), Vec3::new(t, height_m, t));
     let leg = 0.04;

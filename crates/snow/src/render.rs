@@ -60,14 +60,7 @@ impl SnowRenderSettings {
     /// Every problem, with fields relative to `[render]`.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
-        self.camera.validate(&mut i, "camera");
-        if !self.camera.is_planar() {
-            i.push(
-                "camera.projection",
-                format!("{:?}", self.camera.projection),
-                "perspective or orthographic",
-            );
-        }
+        self.camera.validate_planar(&mut i, "camera");
         i.vector("sun_direction", &self.sun_direction.to_array(), 1e6);
         if self.sun_direction.length() < 1e-6 {
             i.push("sun_direction", format!("{:?}", self.sun_direction.to_array()), "a non-zero direction");
