@@ -18,13 +18,25 @@ struct Item {
     size: (u32, u32),
 }
 
-const ITEMS: [Item; 6] = [
+const ITEMS: [Item; 8] = [
     Item { name: "flame-campfire", text: builtin::FLAME_CAMPFIRE, frames: 30..150, size: (960, 540) },
     Item { name: "flame-paper", text: builtin::FLAME_PAPER, frames: 120..121, size: (640, 360) },
     Item { name: "flame-wind-left", text: builtin::FLAME_WIND_LEFT, frames: 120..121, size: (640, 360) },
     Item { name: "flame-wind-right", text: builtin::FLAME_WIND_RIGHT, frames: 120..121, size: (640, 360) },
     Item { name: "aurora-scene2", text: builtin::AURORA_SCENE2, frames: 230..231, size: (640, 360) },
     Item { name: "snow-table", text: builtin::SNOW_TABLE, frames: 59..60, size: (640, 480) },
+    Item {
+        name: "sparkle-diamond-dust",
+        text: builtin::SPARKLE_DIAMOND_DUST,
+        frames: 0..30,
+        size: (960, 540),
+    },
+    Item {
+        name: "sparkle-leaf-glitter",
+        text: builtin::SPARKLE_LEAF_GLITTER,
+        frames: 60..61,
+        size: (960, 540),
+    },
 ];
 
 /// Render the showcase into `out`; returns a summary of what was written.

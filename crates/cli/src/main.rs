@@ -17,7 +17,7 @@ use crate::export::TableFormat;
 use crate::output::ImageFormat;
 use crate::render::{RenderJob, ViewArg};
 
-/// Simulate and render natural phenomena (flame; aurora, snow and sparkle to come).
+/// Simulate and render natural phenomena: flame, aurora, snow cover and sparkle.
 #[derive(Parser, Debug)]
 #[command(name = "phenomena", version, about, long_about = None)]
 struct Cli {

@@ -86,6 +86,10 @@ pub(crate) enum Runner {
         settings: Box<phenomena_snow::SnowRenderSettings>,
         frame: Frame,
     },
+    Sparkle {
+        sim: Box<phenomena_sparkle::SparkleSim>,
+        renderer: Box<phenomena_sparkle::SparkleRenderer>,
+    },
 }
 
 /// Per-frame statistics, one JSON object per line of `--stats`: the frame's timings
@@ -146,6 +150,32 @@ impl Runner {
                 let frame = Frame::new(s.scene.width as usize, s.scene.height as usize);
                 Ok(Runner::Snow { sim: Box::new(sim), settings: Box::new(s.render), frame })
             }
+            Scene::Sparkle(s) => {
+                let (w, h) = (s.scene.width as usize, s.scene.height as usize);
+                let background = match &s.render.background {
+                    phenomena_sparkle::Background::Image { path } => {
+                        let p = scene_dir.join(path);
+                        let (bw, bh, rgb) = output::read_rgb8(&p)?;
+                        Some(
+                            frame_from_srgb8(bw, bh, &rgb)
+                                .context("background image has an unexpected size")?,
+                        )
+                    }
+                    _ => None,
+                };
+                let sim = phenomena_sparkle::SparkleSim::new(s.sparkle, s.scene.seed)?;
+                if sim.cone_is_empty() {
+                    let p = &s.sparkle.phong;
+                    eprintln!(
+                        "warning: no facet can be seen: threshold_i_e {} is not below k_s I_l = {}; the frames show the background only",
+                        p.threshold_i_e,
+                        p.specular_k_s * p.light_intensity
+                    );
+                }
+                let renderer =
+                    phenomena_sparkle::SparkleRenderer::new(s.render.clone(), w, h, background.as_ref())?;
+                Ok(Runner::Sparkle { sim: Box::new(sim), renderer: Box::new(renderer) })
+            }
         }
     }
 
@@ -155,6 +185,7 @@ impl Runner {
             Runner::Flame { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Aurora { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Snow { sim, .. } => serde_json::to_value(sim.step())?,
+            Runner::Sparkle { sim, .. } => serde_json::to_value(sim.step())?,
         })
     }
 
@@ -171,6 +202,7 @@ impl Runner {
                 *frame = phenomena_snow::render(sim, settings, frame.width(), frame.height());
                 frame
             }
+            Runner::Sparkle { sim, renderer } => renderer.render(sim),
         }
     }
 
@@ -189,6 +221,7 @@ impl Runner {
             Runner::Aurora { sky: Some(sky), .. } => sky.frame(),
             Runner::Aurora { frame, .. } => frame,
             Runner::Snow { frame, .. } => frame,
+            Runner::Sparkle { renderer, .. } => renderer.frame(),
         }
     }
 
@@ -267,6 +300,9 @@ pub(crate) fn apply_overrides(scene: &mut Scene, job: &RenderJob) -> Result<()> 
         (Scene::Flame(_), Some(v)) => bail!("--view {v:?} is not a flame view: use flame or density"),
         (Scene::Aurora(_), Some(v)) => bail!("--view {v:?} is not an aurora view: use sky or plane"),
         (Scene::Snow(_), Some(v)) => bail!("--view {v:?} is not a snow view: use scene or probability"),
+        (Scene::Sparkle(_), Some(v)) => {
+            bail!("--view {v:?} is not a sparkle view: sparkle scenes have one view")
+        }
     }
     Ok(())
 }

@@ -105,12 +105,25 @@ pub(crate) struct SnowScene {
     pub(crate) render: phenomena_snow::SnowRenderSettings,
 }
 
+/// A sparkle scene file (diamond dust or leaf glitter).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SparkleScene {
+    #[serde(default)]
+    pub(crate) scene: SceneSettings,
+    #[serde(default)]
+    pub(crate) sparkle: phenomena_sparkle::SparkleConfig,
+    #[serde(default)]
+    pub(crate) render: phenomena_sparkle::RenderSettings,
+}
+
 /// Any scene, by phenomenon.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) enum Scene {
     Flame(Box<FlameScene>),
     Aurora(Box<AuroraScene>),
     Snow(Box<SnowScene>),
+    Sparkle(Box<SparkleScene>),
 }
 
 impl Scene {
@@ -119,6 +132,7 @@ impl Scene {
             Scene::Flame(s) => &s.scene,
             Scene::Aurora(s) => &s.scene,
             Scene::Snow(s) => &s.scene,
+            Scene::Sparkle(s) => &s.scene,
         }
     }
 
@@ -127,6 +141,7 @@ impl Scene {
             Scene::Flame(s) => &mut s.scene,
             Scene::Aurora(s) => &mut s.scene,
             Scene::Snow(s) => &mut s.scene,
+            Scene::Sparkle(s) => &mut s.scene,
         }
     }
 
@@ -135,6 +150,7 @@ impl Scene {
             Scene::Flame(_) => "flame",
             Scene::Aurora(_) => "aurora",
             Scene::Snow(_) => "snow",
+            Scene::Sparkle(_) => "sparkle",
         }
     }
 
@@ -186,13 +202,21 @@ impl Scene {
                     i.extend_prefixed("render", e);
                 }
             }
+            Scene::Sparkle(s) => {
+                if let Err(e) = s.sparkle.validate() {
+                    i.extend_prefixed("sparkle", e);
+                }
+                if let Err(e) = s.render.validate() {
+                    i.extend_prefixed("render", e);
+                }
+            }
         }
         i.into_result().err().unwrap_or_default()
     }
 }
 
 /// The phenomena a scene file may hold, by table name.
-pub(crate) const PHENOMENA: [&str; 3] = ["flame", "aurora", "snow"];
+pub(crate) const PHENOMENA: [&str; 4] = ["flame", "aurora", "snow", "sparkle"];
 
 /// A problem at a place in a file.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -250,6 +274,7 @@ pub(crate) fn parse(text: &str, file: &Path) -> Result<Scene, SceneErrors> {
         ["flame"] => deserialize_all::<FlameScene>(text).map(|s| Scene::Flame(Box::new(s))),
         ["aurora"] => deserialize_all::<AuroraScene>(text).map(|s| Scene::Aurora(Box::new(s))),
         ["snow"] => deserialize_all::<SnowScene>(text).map(|s| Scene::Snow(Box::new(s))),
+        ["sparkle"] => deserialize_all::<SparkleScene>(text).map(|s| Scene::Sparkle(Box::new(s))),
         [] => {
             return Err(SceneErrors(vec![at(
                 0,
@@ -400,6 +425,8 @@ pub(crate) mod builtin {
     pub(crate) const AURORA_SCENE2: &str = include_str!("../../../scenes/aurora-scene2.toml");
     /// The snow paper's Fig 7: snow on and under a table.
     pub(crate) const SNOW_TABLE: &str = include_str!("../../../scenes/snow-table.toml");
+    pub(crate) const SPARKLE_DIAMOND_DUST: &str = include_str!("../../../scenes/sparkle-diamond-dust.toml");
+    pub(crate) const SPARKLE_LEAF_GLITTER: &str = include_str!("../../../scenes/sparkle-leaf-glitter.toml");
 }
 
 #[cfg(test)]

@@ -105,6 +105,23 @@ impl Stream {
         (r * a.cos(), r * a.sin())
     }
 
+    /// The number of successes in `n` independent trials of probability `p`
+    /// (exact: `rand_distr`'s BTPE / inversion sampler, O(1) expected time for any `n`).
+    /// `p` outside [0, 1] or NaN counts as 0 (never succeeds) or 1 (always).
+    pub fn binomial(&mut self, n: u64, p: f64) -> u64 {
+        use rand_distr::Distribution;
+        if !(p > 0.0) || n == 0 {
+            return 0;
+        }
+        if p >= 1.0 {
+            return n;
+        }
+        match rand_distr::Binomial::new(n, p) {
+            Ok(d) => d.sample(&mut self.rng),
+            Err(_) => 0,
+        }
+    }
+
     /// A direction uniformly distributed on the unit sphere.
     pub fn on_unit_sphere(&mut self) -> glam::Vec3 {
         let z = 2.0 * self.next_f32() - 1.0;
@@ -144,6 +161,25 @@ mod tests {
         assert_eq!(s.next_u64(), 0xa2af_d774_4f4a_4d22);
         assert_eq!(Purpose::named(""), Purpose(0xcbf2_9ce4_8422_2325));
         assert_eq!(Purpose::named("a"), Purpose(0xaf63_dc4c_8601_ec8c));
+    }
+
+    #[test]
+    fn binomial_moments_match_theory() {
+        // Sample mean and variance against n p and n p (1 - p); tolerances are 5 standard
+        // errors of each estimator (variance of a sample variance ~ 2 sigma^4 / m).
+        let mut s = Stream::new(3, P, 0);
+        for (n, p) in [(1_000_000_000u64, 3e-4), (1_000_000, 0.05), (40, 0.5), (10, 1e-3)] {
+            let m = 20_000;
+            let xs: Vec<f64> = (0..m).map(|_| s.binomial(n, p) as f64).collect();
+            let mean = xs.iter().sum::<f64>() / m as f64;
+            let var = xs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (m - 1) as f64;
+            let (mu, sigma2) = (n as f64 * p, n as f64 * p * (1.0 - p));
+            assert!((mean - mu).abs() < 5.0 * (sigma2 / m as f64).sqrt(), "n {n} p {p}: mean {mean}");
+            assert!((var / sigma2 - 1.0).abs() < 5.0 * (2.0 / m as f64).sqrt(), "n {n} p {p}: var {var}");
+        }
+        assert_eq!(s.binomial(0, 0.5), 0);
+        assert_eq!(s.binomial(7, 1.0), 7);
+        assert_eq!(s.binomial(7, f64::NAN), 0);
     }
 
     #[test]

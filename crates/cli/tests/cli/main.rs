@@ -10,6 +10,7 @@ mod render_frames;
 mod resume;
 mod shipped_scenes;
 mod snow;
+mod sparkle;
 
 use std::path::Path;
 use std::process::Output;

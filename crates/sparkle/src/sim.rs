@@ -1,0 +1,897 @@
+//! `SparkleSim`: the visible facets of §2, frame after frame, by the stochastic model or
+//! by brute force.
+//!
+//! **The full system** (what brute force simulates and the stochastic model reproduces):
+//! N facets, positions uniform over the space and normals drawn from the population's
+//! lobe. Diamond dust (§3.1) moves each frame by one displacement shared by all crystals
+//! (fall, wind and a smooth gust), plus each crystal's own random displacement uniform in
+//! a small ball, in a periodic box; each normal takes a random rotation of at most δ about
+//! a random axis (a Metropolis step against the lobe, so the lobe is kept: for uniform
+//! normals every rotation is accepted). Leaves (§3.2) do not move; the sun does.
+//!
+//! **The stochastic model** holds only the facets seen now. Frame 0 draws them directly
+//! (module `model`: a binomial count, positions uniform, normals in the cone around each
+//! position's own H). A step moves each held facet with the same dynamics and deletes
+//! those no longer seen (§2's "delete"), then adds the newcomers (§2's "stochastically
+//! generate"): facets unseen at t and seen at t+1. Those are drawn exactly by sampling
+//! the *destination* first: under the stationary distribution the position at t+1 is
+//! uniform and independent of the facet's own displacement j, so x_t = x_{t+1} - D - j;
+//! and a facet seen at t+1 had, at t, its normal within θ + δ of H_{t+1}(x_{t+1}). So the
+//! candidates are virtual facets with x_{t+1} uniform and N_t in that cap (a binomial
+//! count, thinned for lobes), moved one step, and kept when unseen at t and seen at t+1.
+//! Each newcomer's state has exactly the full system's distribution, so glint lifetimes
+//! (followed with the same dynamics) match too. The one approximation: the newcomers'
+//! count is drawn independently of how many are held, as for a Poisson population of mean
+//! N; for exactly N facets the count's variance differs by a relative O(p) (p the visible
+//! fraction, 3·10⁻⁴ in the benchmark scene).
+
+use glam::Vec3;
+use phenomena_core::camera::Projection;
+use phenomena_core::rng::{Purpose, Stream};
+use rayon::prelude::*;
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
+use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
+use phenomena_core::validate::Issue;
+
+const TRACK: Purpose = Purpose::named("sparkle.track");
+const BIRTH: Purpose = Purpose::named("sparkle.birth");
+const BRUTE: Purpose = Purpose::named("sparkle.brute");
+const GUST: Purpose = Purpose::named("sparkle.gust");
+
+/// Facets per parallel chunk of held or brute-force particles (fixed: results do not
+/// depend on the thread count).
+const CHUNK: usize = 4096;
+/// Virtual facets per birth chunk (at most `MAX_BIRTH_CHUNKS` chunks).
+const BIRTH_CHUNK: u64 = 1 << 16;
+const MAX_BIRTH_CHUNKS: u64 = 256;
+
+/// Why a simulation cannot be built.
+#[derive(Debug, Error)]
+pub enum SparkleError {
+    /// The configuration has problems (each names the field, value and valid range).
+    #[error("invalid sparkle configuration:\n{}", .0.iter().map(|i| format!("  {i}")).collect::<Vec<_>>().join("\n"))]
+    Invalid(Vec<Issue>),
+}
+
+/// The facets seen in the current frame, structure of arrays.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Glints {
+    /// Positions, metres.
+    pub position_m: Vec<Vec3>,
+    /// Unit normals.
+    pub normal: Vec<Vec3>,
+    /// Glint brightness k_s I_l (N·H)^n.
+    pub intensity: Vec<f32>,
+    /// Frame in which each became visible (0: visible when the simulation started).
+    pub birth_frame: Vec<u32>,
+}
+
+impl Glints {
+    /// Number of glints.
+    pub fn len(&self) -> usize {
+        self.position_m.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.position_m.is_empty()
+    }
+
+    fn push(&mut self, x: Vec3, n: Vec3, intensity: f32, birth: u32) {
+        self.position_m.push(x);
+        self.normal.push(n);
+        self.intensity.push(intensity);
+        self.birth_frame.push(birth);
+    }
+
+    fn append(&mut self, other: &mut Glints) {
+        self.position_m.append(&mut other.position_m);
+        self.normal.append(&mut other.normal);
+        self.intensity.append(&mut other.intensity);
+        self.birth_frame.append(&mut other.birth_frame);
+    }
+
+    fn bytes(&self) -> u64 {
+        (self.position_m.capacity() * 12
+            + self.normal.capacity() * 12
+            + self.intensity.capacity() * 4
+            + self.birth_frame.capacity() * 4) as u64
+    }
+}
+
+/// What one frame did (`--stats`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct StepStats {
+    /// Frame now shown (0 after `new`). Not serialised: the CLI's stats carry their own.
+    #[serde(skip)]
+    pub frame: u32,
+    /// Virtual particles N (all facets of the full system).
+    pub virtual_count: u64,
+    /// Facets seen now (held by the stochastic model).
+    pub generated: u64,
+    /// Facets that became visible in this frame.
+    pub births: u64,
+    /// Facets that stopped being visible in this frame.
+    pub deaths: u64,
+    /// Candidate facets drawn and tested for birth (stochastic model).
+    pub candidates: u64,
+    /// Bytes of particle memory held.
+    pub bytes_held: u64,
+}
+
+/// k_s I_l c^n for c in [cos θ, 1], tabulated over t = (1 - c)/(1 - cos θ) and read by
+/// linear interpolation: c^n = exp(-k t) nearly, k = ln(k_s I_l / I_e), so the relative
+/// error is below k² h²/8 = 4·10⁻⁶ for k = 6 and 1024 intervals h (powf would cost a
+/// fifth of a frame).
+#[derive(Clone, Debug)]
+struct IntensityLut {
+    one_minus_cos: f32,
+    table: Vec<f32>,
+}
+
+impl IntensityLut {
+    const INTERVALS: usize = 1024;
+
+    fn new(phong: &crate::config::Phong, cos_theta: Option<f64>) -> Self {
+        let c0 = cos_theta.unwrap_or(1.0);
+        let omc = 1.0 - c0;
+        let peak = f64::from(phong.specular_k_s) * f64::from(phong.light_intensity);
+        let table = (0..=Self::INTERVALS)
+            .map(|i| {
+                let c = 1.0 - omc * i as f64 / Self::INTERVALS as f64;
+                (peak * c.max(0.0).powf(f64::from(phong.exponent_n))) as f32
+            })
+            .collect();
+        Self { one_minus_cos: omc as f32, table }
+    }
+
+    #[inline]
+    fn get(&self, c: f32) -> f32 {
+        if !(self.one_minus_cos > 0.0) {
+            return self.table[0];
+        }
+        let t = ((1.0 - c) / self.one_minus_cos).clamp(0.0, 1.0) * Self::INTERVALS as f32;
+        let i = (t as usize).min(Self::INTERVALS - 1);
+        let f = t - i as f32;
+        self.table[i] + (self.table[i + 1] - self.table[i]) * f
+    }
+}
+
+/// Everything that decides whether a facet is seen at one frame.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    geo: Geometry,
+    cos_theta: f32,
+    two_sided: bool,
+    dome: bool,
+}
+
+impl Seen {
+    /// |N·H| or N·H when the facet at x is seen, else `None`. On the dome a leaf must
+    /// also face the eye and the sun (the crown hides its far side).
+    #[inline]
+    fn test(&self, x: Vec3, n: Vec3, space: &Space) -> Option<f32> {
+        let h = self.geo.half_vector(x)?;
+        let c = n.dot(h);
+        let c = if self.two_sided { c.abs() } else { c };
+        if !(c >= self.cos_theta) {
+            return None;
+        }
+        if self.dome {
+            let a = space.radial_axis(x);
+            if a.dot(self.geo.eye_dir(x)) <= 0.0 || a.dot(self.geo.light_dir(x)) <= 0.0 {
+                return None;
+            }
+        }
+        Some(c)
+    }
+}
+
+/// One frame's motion of the diamond dust.
+#[derive(Clone, Copy, Debug)]
+struct Motion {
+    /// Displacement shared by all crystals, metres.
+    shared_m: Vec3,
+    /// Half-side of each crystal's own random displacement, metres.
+    jitter_m: f32,
+    /// Largest rotation, radians.
+    rotation_rad: f32,
+    /// sin of `rotation_rad`.
+    sin_rotation: f32,
+    lobe: Lobe,
+}
+
+impl Motion {
+    /// The crystal's own displacement: uniform in a cube of half-side `jitter_m` (any
+    /// distribution works for the model as long as both methods use it).
+    #[inline]
+    fn jitter(&self, rng: &mut Stream) -> Vec3 {
+        if self.jitter_m == 0.0 {
+            return Vec3::ZERO;
+        }
+        (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE) * self.jitter_m
+    }
+
+    /// A random rotation of at most δ: N' = N cos ψ + t sin ψ with the tangent step
+    /// t sin ψ uniform over the tangent disc of radius sin δ (so N' is spread evenly
+    /// around N, ψ ≤ δ). The proposal's density depends only on the angle between N and
+    /// N', so it is symmetric, and the Metropolis rule against the plate lobe around +y
+    /// keeps that lobe (for uniform normals every rotation is accepted). No trigonometry.
+    #[inline]
+    fn rotate(&self, n: Vec3, rng: &mut Stream) -> Vec3 {
+        if self.rotation_rad == 0.0 {
+            return n;
+        }
+        let (a, b) = loop {
+            let (a, b) = (2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 1.0);
+            if a * a + b * b <= 1.0 {
+                break (a * self.sin_rotation, b * self.sin_rotation);
+            }
+        };
+        let (e1, e2) = n.any_orthonormal_pair();
+        let c = (1.0 - (a * a + b * b)).max(0.0).sqrt();
+        let proposal = (n * c + e1 * a + e2 * b).normalize();
+        if self.lobe.is_uniform() {
+            return proposal;
+        }
+        let ratio = (self.lobe.kappa * f64::from(proposal.y - n.y)).exp();
+        if rng.next_f64() < ratio { proposal } else { n }
+    }
+}
+
+/// Every facet of the full system (brute force).
+#[derive(Clone, Debug, Default)]
+struct Everything {
+    position_m: Vec<Vec3>,
+    normal: Vec<Vec3>,
+    /// Frame since which the facet is seen, `u32::MAX` when it is not.
+    since: Vec<u32>,
+}
+
+/// The glints of §2, frame by frame.
+#[derive(Clone, Debug)]
+pub struct SparkleSim {
+    config: SparkleConfig,
+    seed: u64,
+    frame: u32,
+    virtual_count: u64,
+    space: Space,
+    lobe: Lobe,
+    cos_theta: Option<f64>,
+    gust_phase: [[f32; 3]; 3],
+    intensity: IntensityLut,
+    glints: Glints,
+    everything: Option<Everything>,
+    lifetimes: Vec<u32>,
+    last: StepStats,
+}
+
+impl SparkleSim {
+    /// Build the simulation and generate frame 0's visible facets.
+    pub fn new(config: SparkleConfig, seed: u64) -> Result<Self, SparkleError> {
+        config.validate().map_err(SparkleError::Invalid)?;
+        let lobe = match config.population {
+            Population::DiamondDust(Dust { normals: Normals::Uniform, .. }) => Lobe::new(0.0),
+            Population::DiamondDust(Dust { normals: Normals::Plates { tilt_deg }, .. }) => {
+                Lobe::from_spread_deg(tilt_deg)
+            }
+            Population::LeafGlitter(l) => Lobe::from_spread_deg(l.spread_deg),
+        };
+        let mut gust_phase = [[0.0; 3]; 3];
+        for (axis, phases) in gust_phase.iter_mut().enumerate() {
+            let mut rng = Stream::new(seed, GUST, axis as u64);
+            for p in phases.iter_mut() {
+                *p = std::f32::consts::TAU * rng.next_f32();
+            }
+        }
+        let mut sim = Self {
+            space: Space::of(&config.population),
+            virtual_count: config.virtual_count(),
+            cos_theta: config.phong.cos_theta(),
+            intensity: IntensityLut::new(&config.phong, config.phong.cos_theta()),
+            config,
+            seed,
+            frame: 0,
+            lobe,
+            gust_phase,
+            glints: Glints::default(),
+            everything: None,
+            lifetimes: Vec::new(),
+            last: StepStats::default(),
+        };
+        sim.start();
+        Ok(sim)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SparkleConfig {
+        &self.config
+    }
+
+    /// Frame now shown (0 after `new`).
+    pub fn frame(&self) -> u32 {
+        self.frame
+    }
+
+    /// Time now, seconds.
+    pub fn time_s(&self) -> f32 {
+        self.frame as f32 * self.config.dt_s()
+    }
+
+    /// The facets seen now.
+    pub fn glints(&self) -> &Glints {
+        &self.glints
+    }
+
+    /// Lifetimes, in frames, of the glints that stopped being visible in the last step
+    /// and had been born after frame 0 (those visible at the start are left out: their
+    /// beginning is unknown).
+    pub fn finished_lifetimes(&self) -> &[u32] {
+        &self.lifetimes
+    }
+
+    /// Counters of the last frame.
+    pub fn stats(&self) -> StepStats {
+        self.last
+    }
+
+    /// Whether no facet can ever be seen (I_e ≥ k_s I_l): the frames show the background.
+    pub fn cone_is_empty(&self) -> bool {
+        self.cos_theta.is_none()
+    }
+
+    /// Advance one frame.
+    pub fn step(&mut self) -> StepStats {
+        let next = self.frame + 1;
+        let (births, deaths, candidates) = match self.cos_theta {
+            None => (0, 0, 0),
+            Some(_) if self.everything.is_some() => self.step_brute(next),
+            Some(_) => self.step_stochastic(next),
+        };
+        self.frame = next;
+        self.last = self.stats_now(births, deaths, candidates);
+        self.last
+    }
+
+    fn stats_now(&self, births: u64, deaths: u64, candidates: u64) -> StepStats {
+        let held = match &self.everything {
+            Some(e) => (e.position_m.capacity() * 24 + e.since.capacity() * 4) as u64 + self.glints.bytes(),
+            None => self.glints.bytes(),
+        };
+        StepStats {
+            frame: self.frame,
+            virtual_count: self.virtual_count,
+            generated: self.glints.len() as u64,
+            births,
+            deaths,
+            candidates,
+            bytes_held: held,
+        }
+    }
+
+    /// The visibility test at `frame`.
+    fn seen_at(&self, frame: u32) -> Seen {
+        let cam = &self.config.camera;
+        let eye = match cam.projection {
+            Projection::Orthographic { .. } => {
+                Eye::Direction((cam.position - cam.look_at).normalize_or(Vec3::Z))
+            }
+            _ => Eye::Point(cam.position),
+        };
+        let t = frame as f32 * self.config.dt_s();
+        Seen {
+            geo: Geometry { eye, light: self.config.light.at(t) },
+            cos_theta: self.cos_theta.unwrap_or(2.0) as f32,
+            two_sided: self.config.phong.two_sided,
+            dome: matches!(self.space, Space::Dome { .. }),
+        }
+    }
+
+    /// The dust's motion from `frame - 1` to `frame`; `None` for static leaves.
+    fn motion_into(&self, frame: u32) -> Option<Motion> {
+        let Population::DiamondDust(d) = self.config.population else { return None };
+        let dt = self.config.dt_s();
+        let t = (frame as f32 - 0.5) * dt;
+        // The gust: three sinusoids per axis (0.13, 0.29, 0.71 Hz, random phases), scaled
+        // to an rms of `gust_m_per_s` horizontally and a third of it vertically.
+        let freqs = [0.13f32, 0.29, 0.71];
+        let mut gust = [0.0f32; 3];
+        for (g, phases) in gust.iter_mut().zip(&self.gust_phase) {
+            *g =
+                freqs.iter().zip(phases).map(|(f, p)| (std::f32::consts::TAU * f * t + p).sin()).sum::<f32>()
+                    / 1.5f32.sqrt();
+        }
+        let gust = Vec3::new(gust[0], gust[1] / 3.0, gust[2]) * d.gust_m_per_s;
+        let velocity = d.wind_m_per_s + gust - Vec3::Y * d.fall_speed_m_per_s;
+        Some(Motion {
+            shared_m: velocity * dt,
+            jitter_m: d.turbulence_m_per_s * dt,
+            rotation_rad: d.rotation_deg_per_frame.to_radians(),
+            sin_rotation: d.rotation_deg_per_frame.to_radians().sin(),
+            lobe: self.lobe,
+        })
+    }
+
+    fn start(&mut self) {
+        if self.cos_theta.is_none() {
+            self.last = self.stats_now(0, 0, 0);
+            return;
+        }
+        let to = self.seen_at(0);
+        if self.config.method == crate::config::Method::BruteForce {
+            let n = self.virtual_count as usize;
+            let chunks = n.div_ceil(CHUNK);
+            let parts: Vec<(Everything, Glints)> = (0..chunks)
+                .into_par_iter()
+                .map(|k| {
+                    let mut rng = Stream::new(self.seed, BRUTE, k as u64);
+                    let len = CHUNK.min(n - k * CHUNK);
+                    let mut e = Everything {
+                        position_m: Vec::with_capacity(len),
+                        normal: Vec::with_capacity(len),
+                        since: Vec::with_capacity(len),
+                    };
+                    let mut g = Glints::default();
+                    for _ in 0..len {
+                        let x = self.space.sample_in_cell(0, 1, &mut rng);
+                        let nrm = self.lobe.sample(self.space.radial_axis(x), &mut rng);
+                        let seen = to.test(x, nrm, &self.space);
+                        if let Some(c) = seen {
+                            g.push(x, nrm, self.intensity.get(c), 0);
+                        }
+                        e.position_m.push(x);
+                        e.normal.push(nrm);
+                        e.since.push(if seen.is_some() { 0 } else { u32::MAX });
+                    }
+                    (e, g)
+                })
+                .collect();
+            let mut all = Everything::default();
+            all.position_m.reserve_exact(n);
+            all.normal.reserve_exact(n);
+            all.since.reserve_exact(n);
+            for (mut e, mut g) in parts {
+                all.position_m.append(&mut e.position_m);
+                all.normal.append(&mut e.normal);
+                all.since.append(&mut e.since);
+                self.glints.append(&mut g);
+            }
+            self.everything = Some(all);
+            self.last = self.stats_now(self.glints.len() as u64, 0, 0);
+        } else {
+            let (mut born, candidates) = self.generate(None, &to, None, 0);
+            let births = born.len() as u64;
+            self.glints.append(&mut born);
+            self.last = self.stats_now(births, 0, candidates);
+        }
+    }
+
+    /// Draw the facets seen at `to` (frame `frame`) that were not seen at `from` (frame
+    /// 0: every facet seen), see the module docs. Returns them and the candidate count.
+    fn generate(&self, from: Option<&Seen>, to: &Seen, motion: Option<&Motion>, frame: u32) -> (Glints, u64) {
+        let delta = motion.map_or(0.0, |m| f64::from(m.rotation_rad));
+        let theta = self.cos_theta.unwrap_or(1.0).acos();
+        let alpha = (theta + delta + CAP_MARGIN_RAD).min(std::f64::consts::PI);
+        let table = CellTable::build(&self.space, &self.lobe, &to.geo, alpha, self.config.phong.two_sided);
+        let n = self.virtual_count;
+        let chunks = n.div_ceil(BIRTH_CHUNK).clamp(1, MAX_BIRTH_CHUNKS);
+        let lut = &self.intensity;
+        let before = match (from, motion, self.space) {
+            (Some(f), Some(m), Space::Box { min, size }) => Some(SeenBefore {
+                reach_m: m.shared_m.length() + 3f32.sqrt() * m.jitter_m,
+                sun_chord: match (f.geo.light, to.geo.light) {
+                    (LightAt::Direction(a), LightAt::Direction(b)) => (a - b).length(),
+                    _ => 0.0,
+                },
+                sin_half_inner: (0.5 * (theta - CAP_MARGIN_RAD).max(0.0)).sin() as f32,
+                min,
+                max: min + size,
+            }),
+            _ => None,
+        };
+        let parts: Vec<(Glints, u64)> = (0..chunks)
+            .into_par_iter()
+            .map(|k| {
+                let len = n / chunks + u64::from(k < n % chunks);
+                let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
+                let count = rng.binomial(len, table.mean_q);
+                let mut out = Glints::default();
+                for _ in 0..count {
+                    let drawn = if table.uniform {
+                        table.draw_uniform(&self.space, &to.geo, before.as_ref(), &mut rng)
+                    } else {
+                        table.draw(&self.space, &self.lobe, &to.geo, &mut rng)
+                    };
+                    let Some((x1, n0)) = drawn else { continue };
+                    let n1 = motion.map_or(n0, |m| m.rotate(n0, &mut rng));
+                    let Some(c) = to.test(x1, n1, &self.space) else { continue };
+                    if let Some(f) = from {
+                        let x0 = motion.map_or(x1, |m| self.space.wrap(x1 - m.shared_m - m.jitter(&mut rng)));
+                        if f.test(x0, n0, &self.space).is_some() {
+                            continue; // seen already: it is one of the held facets
+                        }
+                    }
+                    out.push(x1, n1, lut.get(c), frame);
+                }
+                (out, count)
+            })
+            .collect();
+        let mut all = Glints::default();
+        let mut candidates = 0;
+        for (mut g, c) in parts {
+            all.append(&mut g);
+            candidates += c;
+        }
+        (all, candidates)
+    }
+
+    fn step_stochastic(&mut self, next: u32) -> (u64, u64, u64) {
+        let from = self.seen_at(next - 1);
+        let to = self.seen_at(next);
+        let motion = self.motion_into(next);
+        let lut = &self.intensity;
+        let g = &self.glints;
+        let chunks = g.len().div_ceil(CHUNK);
+        let parts: Vec<(Glints, Vec<u32>, u64)> = (0..chunks)
+            .into_par_iter()
+            .map(|k| {
+                let mut rng = Stream::new(self.seed, TRACK, (u64::from(next) << 32) | k as u64);
+                let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
+                let mut kept = Glints::default();
+                let mut lifetimes = Vec::new();
+                let mut deaths = 0;
+                for i in range {
+                    let (mut x, mut nrm) = (g.position_m[i], g.normal[i]);
+                    if let Some(m) = &motion {
+                        x = self.space.wrap(x + m.shared_m + m.jitter(&mut rng));
+                        nrm = m.rotate(nrm, &mut rng);
+                    }
+                    match to.test(x, nrm, &self.space) {
+                        Some(c) => kept.push(x, nrm, lut.get(c), g.birth_frame[i]),
+                        None => {
+                            deaths += 1;
+                            if g.birth_frame[i] > 0 {
+                                lifetimes.push(next - g.birth_frame[i]);
+                            }
+                        }
+                    }
+                }
+                (kept, lifetimes, deaths)
+            })
+            .collect();
+        let (mut born, candidates) = self.generate(Some(&from), &to, motion.as_ref(), next);
+        let mut glints = Glints::default();
+        let reserve = self.glints.len() + born.len();
+        glints.position_m.reserve(reserve);
+        glints.normal.reserve(reserve);
+        glints.intensity.reserve(reserve);
+        glints.birth_frame.reserve(reserve);
+        self.lifetimes.clear();
+        let mut deaths = 0;
+        for (mut kept, lifetimes, d) in parts {
+            glints.append(&mut kept);
+            self.lifetimes.extend(lifetimes);
+            deaths += d;
+        }
+        let births = born.len() as u64;
+        glints.append(&mut born);
+        self.glints = glints;
+        (births, deaths, candidates)
+    }
+
+    fn step_brute(&mut self, next: u32) -> (u64, u64, u64) {
+        let to = self.seen_at(next);
+        let motion = self.motion_into(next);
+        let lut = &self.intensity;
+        let space = self.space;
+        let seed = self.seed;
+        let Some(all) = self.everything.as_mut() else { return (0, 0, 0) };
+        let parts: Vec<(Glints, Vec<u32>, u64, u64)> = all
+            .position_m
+            .par_chunks_mut(CHUNK)
+            .zip(all.normal.par_chunks_mut(CHUNK))
+            .zip(all.since.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(k, ((xs, ns), since))| {
+                let mut rng = Stream::new(seed, BRUTE, (u64::from(next) << 32) | k as u64);
+                let mut g = Glints::default();
+                let mut lifetimes = Vec::new();
+                let (mut births, mut deaths) = (0, 0);
+                for ((x, nrm), s) in xs.iter_mut().zip(ns.iter_mut()).zip(since.iter_mut()) {
+                    if let Some(m) = &motion {
+                        *x = space.wrap(*x + m.shared_m + m.jitter(&mut rng));
+                        *nrm = m.rotate(*nrm, &mut rng);
+                    }
+                    match to.test(*x, *nrm, &space) {
+                        Some(c) => {
+                            if *s == u32::MAX {
+                                *s = next;
+                                births += 1;
+                            }
+                            g.push(*x, *nrm, lut.get(c), *s);
+                        }
+                        None => {
+                            if *s != u32::MAX {
+                                deaths += 1;
+                                if *s > 0 {
+                                    lifetimes.push(next - *s);
+                                }
+                                *s = u32::MAX;
+                            }
+                        }
+                    }
+                }
+                (g, lifetimes, births, deaths)
+            })
+            .collect();
+        self.glints = Glints::default();
+        self.lifetimes.clear();
+        let (mut births, mut deaths) = (0, 0);
+        for (mut g, l, b, d) in parts {
+            self.glints.append(&mut g);
+            self.lifetimes.extend(l);
+            births += b;
+            deaths += d;
+        }
+        (births, deaths, 0)
+    }
+}
+
+/// For births in the periodic box with uniform normals: candidates whose normal lies so
+/// close to ±H_{t+1}(x_{t+1}) that the facet was certainly seen at t are skipped before
+/// any further work (they would be rejected by the test at t anyway).
+///
+/// The facet moved at most `reach_m` (when no wrap was possible), so with
+/// u = L + V, |u_t(x_t) - u_{t+1}(x_{t+1})| ≤ e = d/(r_eye - d) + d/(r_lamp - d) + |L_t - L_{t+1}|
+/// (V and a lamp's L are 1/r-Lipschitz; the sun's L moves by a chord), and H moves by a
+/// chord ≤ 2e/|u_{t+1}| (|a/|a| - b/|b|| ≤ 2|a - b|/|b|), an angle η ≤ (π/2) chord. A normal
+/// within θ' - η of ±H_{t+1} (θ' = θ minus the cap margin) is within θ' of ±H_t: seen.
+/// In terms of 1 - cos: below 2 sin²((θ' - η)/2) ≥ 2 (sin(θ'/2) - η/2)².
+struct SeenBefore {
+    reach_m: f32,
+    sun_chord: f32,
+    sin_half_inner: f32,
+    min: Vec3,
+    max: Vec3,
+}
+
+impl SeenBefore {
+    /// A value of 1 - cos(angle to ±H_{t+1}) below which the facet was seen at t (0: none).
+    #[inline]
+    fn certain_below(&self, x: Vec3, u_len: f32, r_eye: f32, r_lamp: f32) -> f32 {
+        let d = self.reach_m;
+        if (x - self.min).min_element() < d || (self.max - x).min_element() < d {
+            return 0.0; // it may have wrapped from the other side of the box
+        }
+        let mut e = self.sun_chord;
+        for r in [r_eye, r_lamp] {
+            if r.is_finite() {
+                if !(r > d) {
+                    return 0.0;
+                }
+                e += d / (r - d);
+            }
+        }
+        let lim = self.sin_half_inner - std::f32::consts::FRAC_PI_4 * 2.0 * e / u_len;
+        if lim > 0.0 { 2.0 * lim * lim } else { 0.0 }
+    }
+}
+
+/// Candidate probabilities per cell for one frame (module `model`'s thinning).
+struct CellTable {
+    cells: usize,
+    /// Cumulative candidate probability over cells, divided by the cell count.
+    cumulative: Vec<f64>,
+    /// Mean candidate probability per virtual facet.
+    mean_q: f64,
+    /// Per cell: bound of the normal density on the +H and −H caps (0 for an unused side).
+    bound: Vec<[f64; 2]>,
+    /// Per cell: draw normals from the lobe directly (q would reach 1).
+    direct: Vec<bool>,
+    one_minus_cos_alpha: f64,
+    uniform: bool,
+}
+
+impl CellTable {
+    fn build(space: &Space, lobe: &Lobe, geo: &Geometry, alpha: f64, two_sided: bool) -> Self {
+        let uniform = lobe.is_uniform();
+        let cells = space.cell_count(uniform);
+        let omc = one_minus_cos(alpha);
+        let cap_area = 2.0 * std::f64::consts::PI * omc;
+        let mut bound = vec![[0.0; 2]; cells];
+        let mut direct = vec![false; cells];
+        let mut cumulative = Vec::with_capacity(cells);
+        let mut total = 0.0;
+        for c in 0..cells {
+            let mut q = 0.0;
+            if uniform {
+                bound[c] = [lobe.density(1.0), if two_sided { lobe.density(1.0) } else { 0.0 }];
+                q = cap_area * (bound[c][0] + bound[c][1]);
+            } else {
+                let (centre, radius, axis_spread) = space.cell_bounds(c, cells);
+                let axis = space.radial_axis(centre);
+                let spread = geo.half_vector_spread(centre, radius);
+                let h = geo.half_vector(centre);
+                for (side, sign) in [1.0f32, -1.0].into_iter().enumerate() {
+                    if side == 1 && !two_sided {
+                        continue;
+                    }
+                    let beta = match h {
+                        Some(h) => {
+                            f64::from((h * sign).dot(axis).clamp(-1.0, 1.0)).acos()
+                                - axis_spread
+                                - spread
+                                - alpha
+                        }
+                        None => 0.0,
+                    };
+                    bound[c][side] = lobe.density(beta.max(0.0).cos());
+                    q += cap_area * bound[c][side];
+                }
+                if q >= 1.0 {
+                    direct[c] = true;
+                    q = 1.0;
+                }
+            }
+            total += q;
+            cumulative.push(total);
+        }
+        let mean_q = total / cells as f64;
+        Self { cells, cumulative, mean_q: mean_q.min(1.0), bound, direct, one_minus_cos_alpha: omc, uniform }
+    }
+
+    /// [`CellTable::draw`] for uniform normals (one cell, no thinning), skipping the
+    /// candidates `before` shows were seen at t.
+    #[inline]
+    fn draw_uniform(
+        &self,
+        space: &Space,
+        geo: &Geometry,
+        before: Option<&SeenBefore>,
+        rng: &mut Stream,
+    ) -> Option<(Vec3, Vec3)> {
+        let x = space.sample_in_cell(0, 1, rng);
+        let (v, r_eye) = match geo.eye {
+            Eye::Point(e) => {
+                let d = e - x;
+                let r = d.length();
+                (d / r, r)
+            }
+            Eye::Direction(d) => (d, f32::INFINITY),
+        };
+        let (l, r_lamp) = match geo.light {
+            LightAt::Direction(d) => (d, f32::INFINITY),
+            LightAt::Position(p) => {
+                let d = p - x;
+                let r = d.length();
+                (d / r, r)
+            }
+        };
+        let u = l + v;
+        let u_len = u.length();
+        if !(u_len > 1e-20 && r_eye > 0.0 && r_lamp > 0.0) {
+            return None;
+        }
+        let side = if self.bound[0][1] > 0.0 && rng.next_f32() >= 0.5 { -1.0 } else { 1.0 };
+        let omw = rng.next_f64() * self.one_minus_cos_alpha;
+        if let Some(b) = before
+            && omw <= f64::from(b.certain_below(x, u_len, r_eye, r_lamp))
+        {
+            return None;
+        }
+        Some((x, crate::model::around(u * (side / u_len), 1.0 - omw, rng)))
+    }
+
+    /// One candidate: a position (at the destination frame) and a normal (at the
+    /// previous frame) in the cap around ±H there; `None` when thinning rejects it.
+    #[inline]
+    fn draw(&self, space: &Space, lobe: &Lobe, geo: &Geometry, rng: &mut Stream) -> Option<(Vec3, Vec3)> {
+        let c = if self.cells == 1 {
+            0
+        } else {
+            let u = rng.next_f64() * self.cumulative[self.cells - 1];
+            self.cumulative.partition_point(|&v| v <= u).min(self.cells - 1)
+        };
+        let x = space.sample_in_cell(c, self.cells, rng);
+        let axis = space.radial_axis(x);
+        if self.direct[c] {
+            return Some((x, lobe.sample(axis, rng)));
+        }
+        let h = geo.half_vector(x)?;
+        let [b0, b1] = self.bound[c];
+        let side = if b1 > 0.0 && rng.next_f64() * (b0 + b1) >= b0 { -1.0 } else { 1.0 };
+        let n = in_cap(h * side, self.one_minus_cos_alpha, rng);
+        if !self.uniform {
+            let b = if side > 0.0 { b0 } else { b1 };
+            if rng.next_f64() * b >= lobe.density(f64::from(n.dot(axis))) {
+                return None;
+            }
+        }
+        Some((x, n))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Leaves, Method};
+
+    fn small(method: Method) -> SparkleConfig {
+        let mut c = SparkleConfig { method, ..SparkleConfig::default() };
+        if let Population::DiamondDust(d) = &mut c.population {
+            d.density_per_m3 = 50.0; // 10⁷ crystals
+        }
+        c.phong.exponent_n = 100.0;
+        c
+    }
+
+    #[test]
+    fn same_seed_same_glints_for_any_thread_count() {
+        for method in [Method::Stochastic, Method::BruteForce] {
+            let mut c = small(method);
+            if let Population::DiamondDust(d) = &mut c.population {
+                d.density_per_m3 = 1.0;
+            }
+            let run = |threads| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                pool.install(|| {
+                    let mut sim = SparkleSim::new(c, 9).unwrap();
+                    for _ in 0..4 {
+                        sim.step();
+                    }
+                    sim.glints().clone()
+                })
+            };
+            let one = run(1);
+            assert!(one.len() > 100, "{}", one.len());
+            assert_eq!(one, run(3), "{method:?}");
+        }
+    }
+
+    #[test]
+    fn empty_cone_generates_nothing() {
+        let mut c = small(Method::Stochastic);
+        c.phong.threshold_i_e = 2.0;
+        let mut sim = SparkleSim::new(c, 1).unwrap();
+        assert!(sim.cone_is_empty());
+        assert_eq!(sim.step().generated, 0);
+    }
+
+    #[test]
+    fn memory_follows_the_visible_set() {
+        // 10⁹ virtual crystals, about 3·10⁵ seen: well under 50 MB held.
+        let sim = SparkleSim::new(SparkleConfig::default(), 1).unwrap();
+        let s = sim.stats();
+        assert_eq!(s.virtual_count, 1_000_000_000);
+        let p = sim.config().phong.uniform_fraction();
+        let sd = (1e9 * p * (1.0 - p)).sqrt();
+        assert!((s.generated as f64 - 1e9 * p).abs() < 5.0 * sd, "{} vs {}", s.generated, 1e9 * p);
+        assert!(s.bytes_held < 50_000_000, "{}", s.bytes_held);
+    }
+
+    #[test]
+    fn leaves_glint_only_on_the_lit_side_facing_the_eye() {
+        let c = SparkleConfig {
+            population: Population::LeafGlitter(Leaves::default()),
+            camera: phenomena_core::camera::Camera {
+                position: Vec3::new(0.0, 2.0, 10.0),
+                look_at: Vec3::new(0.0, 2.0, -12.0),
+                up: Vec3::Y,
+                projection: Projection::Perspective { fov_y_deg: 40.0 },
+            },
+            phong: crate::config::Phong { exponent_n: 200.0, threshold_i_e: 0.05, ..Default::default() },
+            ..SparkleConfig::default()
+        };
+        let sim = SparkleSim::new(c, 2).unwrap();
+        let g = sim.glints();
+        assert!(g.len() > 100, "{}", g.len());
+        let Population::LeafGlitter(l) = c.population else { unreachable!() };
+        for &x in &g.position_m {
+            assert!(((x - l.centre_m).length() - l.radius_m).abs() < 1e-3);
+            assert!((x - l.centre_m).dot(c.camera.position - x) > 0.0);
+        }
+    }
+}
