@@ -242,15 +242,32 @@ impl SparkleRenderer {
                 ))
             })
             .collect();
+        // Counting sort of glint indices by band (a glint whose footprint spans two bands
+        // is listed in both), keeping glint order within each band.
         let bands = hu.div_ceil(BAND_ROWS);
-        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); bands];
-        for (k, &(_, y, _, len)) in dots.iter().enumerate() {
+        let band_range = |y: f32, len: f32| {
             let lo = ((y - len - 1.0).max(0.0) as usize / BAND_ROWS).min(bands - 1);
             let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as usize / BAND_ROWS).min(bands - 1);
-            for list in &mut lists[lo..=hi] {
-                list.push(k as u32);
+            lo..=hi
+        };
+        let mut start = vec![0usize; bands + 1];
+        for &(_, y, _, len) in &dots {
+            for b in band_range(y, len) {
+                start[b + 1] += 1;
             }
         }
+        for b in 0..bands {
+            start[b + 1] += start[b];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0u32; start[bands]];
+        for (k, &(_, y, _, len)) in dots.iter().enumerate() {
+            for b in band_range(y, len) {
+                order[fill[b]] = k as u32;
+                fill[b] += 1;
+            }
+        }
+        let lists: Vec<&[u32]> = (0..bands).map(|b| &order[start[b]..start[b + 1]]).collect();
         let [c0, c1, c2] = self.frame.planes_mut();
         let stride = BAND_ROWS * wu;
         c0.data_mut()
@@ -271,18 +288,20 @@ impl SparkleRenderer {
                         bl[at] += v.z;
                     }
                 };
-                for &k in list {
+                for &k in *list {
                     let (x, y, v, len) = dots[k as usize];
                     // Bilinear share among the four pixels around the point (as
                     // `Plane::deposit_bilinear`: pixel centres at +0.5).
                     let (fx, fy) = (x - 0.5, y - 0.5);
-                    let (x0, y0) = (fx.floor(), fy.floor());
-                    let (tx, ty) = (fx - x0, fy - y0);
-                    let (i0, j0) = (x0 as i64, y0 as i64);
-                    add(i0, j0, v * ((1.0 - tx) * (1.0 - ty)));
-                    add(i0 + 1, j0, v * (tx * (1.0 - ty)));
-                    add(i0, j0 + 1, v * ((1.0 - tx) * ty));
-                    add(i0 + 1, j0 + 1, v * (tx * ty));
+                    if fx >= -1.0 && fy >= -1.0 {
+                        // floor without a libm call: the values are above -1.
+                        let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
+                        let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
+                        add(i0, j0, v * ((1.0 - tx) * (1.0 - ty)));
+                        add(i0 + 1, j0, v * (tx * (1.0 - ty)));
+                        add(i0, j0 + 1, v * ((1.0 - tx) * ty));
+                        add(i0 + 1, j0 + 1, v * (tx * ty));
+                    }
                     if len == 0.0 {
                         continue;
                     }

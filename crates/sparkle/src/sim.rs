@@ -70,6 +70,15 @@ pub struct Glints {
 }
 
 impl Glints {
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            position_m: Vec::with_capacity(n),
+            normal: Vec::with_capacity(n),
+            intensity: Vec::with_capacity(n),
+            birth_frame: Vec::with_capacity(n),
+        }
+    }
+
     /// Number of glints.
     pub fn len(&self) -> usize {
         self.position_m.len()
@@ -122,13 +131,15 @@ pub struct StepStats {
     pub bytes_held: u64,
 }
 
-/// k_s I_l c^n for c in [cos θ, 1], tabulated over t = (1 - c)/(1 - cos θ) and read by
-/// linear interpolation: c^n = exp(-k t) nearly, k = ln(k_s I_l / I_e), so the relative
-/// error is below k² h²/8 = 4·10⁻⁶ for k = 6 and 1024 intervals h (powf would cost a
-/// fifth of a frame).
+/// k_s I_l c^n for c² = (N·H)² in [cos²θ, 1], tabulated over t = (1 - c²)/(1 - cos²θ)
+/// and read by linear interpolation: c^n = (c²)^(n/2) = exp(-k t) nearly,
+/// k = ln(k_s I_l / I_e), so the relative error is below k² h²/8 = 4·10⁻⁶ for k = 6 and
+/// 1024 intervals h (powf would cost a fifth of a frame; keying on c² saves a square root).
 #[derive(Clone, Debug)]
 struct IntensityLut {
-    one_minus_cos: f32,
+    one_minus_cos2: f32,
+    /// INTERVALS / one_minus_cos2.
+    scale: f32,
     table: Vec<f32>,
 }
 
@@ -137,23 +148,25 @@ impl IntensityLut {
 
     fn new(phong: &crate::config::Phong, cos_theta: Option<f64>) -> Self {
         let c0 = cos_theta.unwrap_or(1.0);
-        let omc = 1.0 - c0;
+        let omc2 = 1.0 - c0 * c0;
         let peak = f64::from(phong.specular_k_s) * f64::from(phong.light_intensity);
         let table = (0..=Self::INTERVALS)
             .map(|i| {
-                let c = 1.0 - omc * i as f64 / Self::INTERVALS as f64;
-                (peak * c.max(0.0).powf(f64::from(phong.exponent_n))) as f32
+                let c2 = 1.0 - omc2 * i as f64 / Self::INTERVALS as f64;
+                (peak * c2.max(0.0).powf(0.5 * f64::from(phong.exponent_n))) as f32
             })
             .collect();
-        Self { one_minus_cos: omc as f32, table }
+        let scale = if omc2 > 0.0 { (Self::INTERVALS as f64 / omc2) as f32 } else { 0.0 };
+        Self { one_minus_cos2: omc2 as f32, scale, table }
     }
 
+    /// Brightness for c² = (N·H)².
     #[inline]
-    fn get(&self, c: f32) -> f32 {
-        if !(self.one_minus_cos > 0.0) {
+    fn get(&self, c2: f32) -> f32 {
+        if !(self.one_minus_cos2 > 0.0) {
             return self.table[0];
         }
-        let t = ((1.0 - c) / self.one_minus_cos).clamp(0.0, 1.0) * Self::INTERVALS as f32;
+        let t = ((1.0 - c2) * self.scale).clamp(0.0, Self::INTERVALS as f32);
         let i = (t as usize).min(Self::INTERVALS - 1);
         let f = t - i as f32;
         self.table[i] + (self.table[i + 1] - self.table[i]) * f
@@ -164,29 +177,45 @@ impl IntensityLut {
 #[derive(Clone, Copy, Debug)]
 struct Seen {
     geo: Geometry,
-    cos_theta: f32,
+    /// cos²θ (the cone's half-angle θ < 90°; for one-sided facets N·H ≥ 0 is also required).
+    cos2_theta: f32,
     two_sided: bool,
     dome: bool,
 }
 
 impl Seen {
-    /// |N·H| or N·H when the facet at x is seen, else `None`. On the dome a leaf must
-    /// also face the eye and the sun (the crown hides its far side).
+    /// (N·H)² when the facet at x is seen, else `None`: N·u ≥ cos θ |u| with u = L + V
+    /// (H = u/|u|), tested squared so neither H nor its length is needed. On the dome a
+    /// leaf must also face the eye and the sun (the crown hides its far side).
     #[inline]
     fn test(&self, x: Vec3, n: Vec3, space: &Space) -> Option<f32> {
-        let h = self.geo.half_vector(x)?;
-        let c = n.dot(h);
-        let c = if self.two_sided { c.abs() } else { c };
-        if !(c >= self.cos_theta) {
+        let v = match self.geo.eye {
+            Eye::Point(e) => {
+                let d = e - x;
+                d * (1.0 / d.length_squared().sqrt())
+            }
+            Eye::Direction(d) => d,
+        };
+        let l = match self.geo.light {
+            LightAt::Direction(d) => d,
+            LightAt::Position(p) => {
+                let d = p - x;
+                d * (1.0 / d.length_squared().sqrt())
+            }
+        };
+        let u = l + v;
+        let u2 = u.length_squared();
+        let dot = n.dot(u);
+        if !(u2 > 1e-12) || (!self.two_sided && dot < 0.0) || !(dot * dot >= self.cos2_theta * u2) {
             return None;
         }
         if self.dome {
             let a = space.radial_axis(x);
-            if a.dot(self.geo.eye_dir(x)) <= 0.0 || a.dot(self.geo.light_dir(x)) <= 0.0 {
+            if a.dot(v) <= 0.0 || a.dot(l) <= 0.0 {
                 return None;
             }
         }
-        Some(c)
+        Some(dot * dot / u2)
     }
 }
 
@@ -233,7 +262,10 @@ impl Motion {
         };
         let (e1, e2) = n.any_orthonormal_pair();
         let c = (1.0 - (a * a + b * b)).max(0.0).sqrt();
-        let proposal = (n * c + e1 * a + e2 * b).normalize();
+        // Unit up to rounding (e1, e2, n orthonormal, c² + a² + b² = 1): one Newton step
+        // toward length 1 keeps it there without a square root or a division.
+        let p = n * c + e1 * a + e2 * b;
+        let proposal = p * (1.5 - 0.5 * p.length_squared());
         if self.lobe.is_uniform() {
             return proposal;
         }
@@ -384,7 +416,7 @@ impl SparkleSim {
         let t = frame as f32 * self.config.dt_s();
         Seen {
             geo: Geometry { eye, light: self.config.light.at(t) },
-            cos_theta: self.cos_theta.unwrap_or(2.0) as f32,
+            cos2_theta: self.cos_theta.map_or(4.0, |c| c * c) as f32,
             two_sided: self.config.phong.two_sided,
             dome: matches!(self.space, Space::Dome { .. }),
         }
@@ -479,31 +511,24 @@ impl SparkleSim {
         let n = self.virtual_count;
         let chunks = n.div_ceil(BIRTH_CHUNK).clamp(1, MAX_BIRTH_CHUNKS);
         let lut = &self.intensity;
-        let before = match (from, motion, self.space) {
-            (Some(f), Some(m), Space::Box { min, size }) => Some(SeenBefore {
-                reach_m: m.shared_m.length() + 3f32.sqrt() * m.jitter_m,
-                sun_chord: match (f.geo.light, to.geo.light) {
-                    (LightAt::Direction(a), LightAt::Direction(b)) => (a - b).length(),
-                    _ => 0.0,
-                },
-                sin_half_inner: (0.5 * (theta - CAP_MARGIN_RAD).max(0.0)).sin() as f32,
-                min,
-                max: min + size,
-            }),
+        let regions = match (from, motion, self.space) {
+            (Some(f), Some(m), Space::Box { min, size }) if table.uniform => {
+                Regions::build(min, size, m, f, to, theta, alpha, self.config.phong.two_sided)
+            }
             _ => None,
         };
+        let mean_q = regions.as_ref().map_or(table.mean_q, |r| r.mean_q);
         let parts: Vec<(Glints, u64)> = (0..chunks)
             .into_par_iter()
             .map(|k| {
                 let len = n / chunks + u64::from(k < n % chunks);
                 let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
-                let count = rng.binomial(len, table.mean_q);
+                let count = rng.binomial(len, mean_q);
                 let mut out = Glints::default();
                 for _ in 0..count {
-                    let drawn = if table.uniform {
-                        table.draw_uniform(&self.space, &to.geo, before.as_ref(), &mut rng)
-                    } else {
-                        table.draw(&self.space, &self.lobe, &to.geo, &mut rng)
+                    let drawn = match &regions {
+                        Some(r) => r.draw(&to.geo, &mut rng),
+                        None => table.draw(&self.space, &self.lobe, &to.geo, &mut rng),
                     };
                     let Some((x1, n0)) = drawn else { continue };
                     let n1 = motion.map_or(n0, |m| m.rotate(n0, &mut rng));
@@ -540,7 +565,7 @@ impl SparkleSim {
             .map(|k| {
                 let mut rng = Stream::new(self.seed, TRACK, (u64::from(next) << 32) | k as u64);
                 let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
-                let mut kept = Glints::default();
+                let mut kept = Glints::with_capacity(range.len());
                 let mut lifetimes = Vec::new();
                 let mut deaths = 0;
                 for i in range {
@@ -640,43 +665,142 @@ impl SparkleSim {
     }
 }
 
-/// For births in the periodic box with uniform normals: candidates whose normal lies so
-/// close to ±H_{t+1}(x_{t+1}) that the facet was certainly seen at t are skipped before
-/// any further work (they would be rejected by the test at t anyway).
+/// Birth candidates in the periodic box with uniform normals, by region: a facet whose
+/// normal at t lay within an inner angle β of ±H_{t+1}(x_{t+1}) was certainly seen at t,
+/// so only the annulus between β and α (α = θ + δ + margin) holds candidates.
 ///
-/// The facet moved at most `reach_m` (when no wrap was possible), so with
-/// u = L + V, |u_t(x_t) - u_{t+1}(x_{t+1})| ≤ e = d/(r_eye - d) + d/(r_lamp - d) + |L_t - L_{t+1}|
-/// (V and a lamp's L are 1/r-Lipschitz; the sun's L moves by a chord), and H moves by a
-/// chord ≤ 2e/|u_{t+1}| (|a/|a| - b/|b|| ≤ 2|a - b|/|b|), an angle η ≤ (π/2) chord. A normal
-/// within θ' - η of ±H_{t+1} (θ' = θ minus the cap margin) is within θ' of ±H_t: seen.
-/// In terms of 1 - cos: below 2 sin²((θ' - η)/2) ≥ 2 (sin(θ'/2) - η/2)².
-struct SeenBefore {
-    reach_m: f32,
-    sun_chord: f32,
-    sin_half_inner: f32,
-    min: Vec3,
-    max: Vec3,
+/// The facet moved by at most d (the shared displacement plus its own) without wrapping,
+/// so with u = L + V, |u_t(x_t) - u_{t+1}(x_{t+1})| ≤ e = d/r_eye + d/r_lamp + |L_t - L_{t+1}|
+/// (V and a lamp's L are 1/r-Lipschitz, r the least distance along the way; the sun's L
+/// moves by a chord), so H moves by a chord ≤ 2e/|u_{t+1}| (|a/|a| - b/|b|| ≤ 2|a - b|/|b|),
+/// an angle η ≤ (π/2) chord, and a normal within θ' - η of ±H_{t+1} (θ' = θ minus the cap
+/// margin) is within θ' of ±H_t: seen. In 1 - cos terms the inner cap reaches at least
+/// 2 (sin(θ'/2) - η/2)². The interior of the box is cut into 16³ cells, each with the
+/// bound over its points; thin slabs along the faces, where a facet may have wrapped
+/// from the other side, keep the whole cap.
+struct Regions {
+    /// (corner, size, 1 - cos β) per region.
+    boxes: Vec<(Vec3, Vec3, f64)>,
+    cumulative: Vec<f64>,
+    mean_q: f64,
+    one_minus_cos_alpha: f64,
+    two_sided: bool,
 }
 
-impl SeenBefore {
-    /// A value of 1 - cos(angle to ±H_{t+1}) below which the facet was seen at t (0: none).
-    #[inline]
-    fn certain_below(&self, x: Vec3, u_len: f32, r_eye: f32, r_lamp: f32) -> f32 {
-        let d = self.reach_m;
-        if (x - self.min).min_element() < d || (self.max - x).min_element() < d {
-            return 0.0; // it may have wrapped from the other side of the box
+impl Regions {
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        min: Vec3,
+        size: Vec3,
+        m: &Motion,
+        from: &Seen,
+        to: &Seen,
+        theta: f64,
+        alpha: f64,
+        two_sided: bool,
+    ) -> Option<Self> {
+        let omc_alpha = one_minus_cos(alpha);
+        let reach = f64::from(m.shared_m.length() + 3f32.sqrt() * m.jitter_m) + 1e-4;
+        // Slab thickness at the low and high face of each axis: only faces the step can
+        // cross (x_t = x_{t+1} - D - j leaves the box there).
+        let lo = (m.shared_m + Vec3::splat(m.jitter_m)).max(Vec3::ZERO) + Vec3::splat(1e-4);
+        let hi = (-m.shared_m + Vec3::splat(m.jitter_m)).max(Vec3::ZERO) + Vec3::splat(1e-4);
+        if !(lo + hi).cmplt(size * 0.25).all() {
+            return None; // steps as large as the box: keep the whole cap everywhere
         }
-        let mut e = self.sun_chord;
-        for r in [r_eye, r_lamp] {
-            if r.is_finite() {
-                if !(r > d) {
-                    return 0.0;
+        let sun_chord = match (from.geo.light, to.geo.light) {
+            (LightAt::Direction(a), LightAt::Direction(b)) => f64::from((a - b).length()),
+            _ => 0.0,
+        };
+        let s_inner = (0.5 * (theta - CAP_MARGIN_RAD).max(0.0)).sin();
+        let far: Vec<Vec3> = [
+            match to.geo.eye {
+                Eye::Point(e) => Some(e),
+                Eye::Direction(_) => None,
+            },
+            match to.geo.light {
+                LightAt::Position(p) => Some(p),
+                LightAt::Direction(_) => None,
+            },
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        let mut boxes = Vec::new();
+        // Slabs, made disjoint by carving axis by axis.
+        let (mut cmin, mut cmax) = (min, min + size);
+        for axis in 0..3 {
+            let (mut a_lo, mut a_hi) = (cmin, cmax);
+            a_hi[axis] = cmin[axis] + lo[axis];
+            boxes.push((a_lo, a_hi - a_lo, 0.0));
+            a_lo = cmin;
+            a_hi = cmax;
+            a_lo[axis] = cmax[axis] - hi[axis];
+            boxes.push((a_lo, a_hi - a_lo, 0.0));
+            cmin[axis] += lo[axis];
+            cmax[axis] -= hi[axis];
+        }
+        let n = 16usize;
+        let cell = (cmax - cmin) / n as f32;
+        let radius = f64::from(0.5 * cell.length());
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let corner = cmin + cell * Vec3::new(i as f32, j as f32, k as f32);
+                    let centre = corner + 0.5 * cell;
+                    // Least distances from the cell (and the path of length `reach` out
+                    // of it) to the eye and the lamp.
+                    let mut e = sun_chord;
+                    let mut lip = 0.0;
+                    let mut near = false;
+                    for p in &far {
+                        let dist = f64::from((*p - centre).length());
+                        let (r_cell, r_path) = (dist - radius, dist - radius - reach);
+                        if !(r_path > 0.0) {
+                            near = true;
+                            break;
+                        }
+                        e += reach / r_path;
+                        lip += 1.0 / r_cell;
+                    }
+                    let u_min = f64::from((to.geo.light_dir(centre) + to.geo.eye_dir(centre)).length())
+                        - lip * radius;
+                    let omc_inner = if near || !(u_min > 0.0) {
+                        0.0
+                    } else {
+                        let lim = s_inner - std::f64::consts::FRAC_PI_4 * 2.0 * e / u_min;
+                        if lim > 0.0 { 2.0 * lim * lim } else { 0.0 }
+                    };
+                    boxes.push((corner, cell, omc_inner.min(omc_alpha)));
                 }
-                e += d / (r - d);
             }
         }
-        let lim = self.sin_half_inner - std::f32::consts::FRAC_PI_4 * 2.0 * e / u_len;
-        if lim > 0.0 { 2.0 * lim * lim } else { 0.0 }
+        let volume = f64::from(size.x) * f64::from(size.y) * f64::from(size.z);
+        let sides = if two_sided { 2.0 } else { 1.0 };
+        let mut total = 0.0;
+        let cumulative: Vec<f64> = boxes
+            .iter()
+            .map(|(_, s, omc_inner)| {
+                let w = f64::from(s.x) * f64::from(s.y) * f64::from(s.z) / volume;
+                total += w * sides * 0.5 * (omc_alpha - omc_inner);
+                total
+            })
+            .collect();
+        Some(Self { boxes, cumulative, mean_q: total.min(1.0), one_minus_cos_alpha: omc_alpha, two_sided })
+    }
+
+    /// One candidate: x_{t+1} uniform in a region chosen by its candidate mass, and N_t
+    /// uniform in that region's annulus around ±H_{t+1}(x_{t+1}).
+    #[inline]
+    fn draw(&self, geo: &Geometry, rng: &mut Stream) -> Option<(Vec3, Vec3)> {
+        let u = rng.next_f64() * self.cumulative[self.cumulative.len() - 1];
+        let r = self.cumulative.partition_point(|&v| v <= u).min(self.boxes.len() - 1);
+        let (corner, size, omc_inner) = self.boxes[r];
+        let x = corner + size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let h = geo.half_vector(x)?;
+        let side = if self.two_sided && rng.next_f32() >= 0.5 { -1.0 } else { 1.0 };
+        let omw = omc_inner + rng.next_f64() * (self.one_minus_cos_alpha - omc_inner);
+        Some((x, crate::model::around(h * side, 1.0 - omw, rng)))
     }
 }
 
@@ -741,48 +865,6 @@ impl CellTable {
         }
         let mean_q = total / cells as f64;
         Self { cells, cumulative, mean_q: mean_q.min(1.0), bound, direct, one_minus_cos_alpha: omc, uniform }
-    }
-
-    /// [`CellTable::draw`] for uniform normals (one cell, no thinning), skipping the
-    /// candidates `before` shows were seen at t.
-    #[inline]
-    fn draw_uniform(
-        &self,
-        space: &Space,
-        geo: &Geometry,
-        before: Option<&SeenBefore>,
-        rng: &mut Stream,
-    ) -> Option<(Vec3, Vec3)> {
-        let x = space.sample_in_cell(0, 1, rng);
-        let (v, r_eye) = match geo.eye {
-            Eye::Point(e) => {
-                let d = e - x;
-                let r = d.length();
-                (d / r, r)
-            }
-            Eye::Direction(d) => (d, f32::INFINITY),
-        };
-        let (l, r_lamp) = match geo.light {
-            LightAt::Direction(d) => (d, f32::INFINITY),
-            LightAt::Position(p) => {
-                let d = p - x;
-                let r = d.length();
-                (d / r, r)
-            }
-        };
-        let u = l + v;
-        let u_len = u.length();
-        if !(u_len > 1e-20 && r_eye > 0.0 && r_lamp > 0.0) {
-            return None;
-        }
-        let side = if self.bound[0][1] > 0.0 && rng.next_f32() >= 0.5 { -1.0 } else { 1.0 };
-        let omw = rng.next_f64() * self.one_minus_cos_alpha;
-        if let Some(b) = before
-            && omw <= f64::from(b.certain_below(x, u_len, r_eye, r_lamp))
-        {
-            return None;
-        }
-        Some((x, crate::model::around(u * (side / u_len), 1.0 - omw, rng)))
     }
 
     /// One candidate: a position (at the destination frame) and a normal (at the
