@@ -399,12 +399,12 @@ impl SparkleConfig {
         }
     }
 
-    /// An upper bound of the visible fraction (exact for uniform normals; for lobes the
-    /// fraction of facets in the cone can be larger, bounded here by the whole lobe).
+    /// The visible fraction where it is known in advance (uniform normals); lobes are
+    /// checked by `SparkleSim::new` against their candidate bound for the scene's geometry.
     fn upper_fraction(&self) -> f64 {
         match self.population {
             Population::DiamondDust(Dust { normals: Normals::Uniform, .. }) => self.phong.uniform_fraction(),
-            _ => 1.0,
+            _ => 0.0,
         }
     }
 }

@@ -76,6 +76,10 @@ pub struct RenderSettings {
     pub ground_rgb: [f32; 3],
     /// Crown albedo for leaf glitter, linear RGB.
     pub crown_rgb: [f32; 3],
+    /// An extension (the paper has none): glints farther than this from the camera dim
+    /// as (distance / this)⁻², as the light a point reflector sends to the eye does;
+    /// 0 keeps the paper's distance-independent brightness. Metres.
+    pub falloff_from_m: f32,
 }
 
 impl Default for RenderSettings {
@@ -92,6 +96,7 @@ impl Default for RenderSettings {
             sky_horizon_rgb: [0.45, 0.55, 0.70],
             ground_rgb: [0.55, 0.58, 0.62],
             crown_rgb: [0.05, 0.16, 0.04],
+            falloff_from_m: 0.0,
         }
     }
 }
@@ -104,6 +109,7 @@ impl RenderSettings {
         i.range("glare_length_px", self.glare_length_px, 0.0..=256.0);
         i.range("glare_strength", self.glare_strength, 0.0..=100.0);
         i.range("glare_threshold", self.glare_threshold, 0.0..=1.0);
+        i.range("falloff_from_m", self.falloff_from_m, 0.0..=1e6);
         for (name, v) in [
             ("light_rgb", self.light_rgb),
             ("sky_zenith_rgb", self.sky_zenith_rgb),
@@ -222,6 +228,8 @@ impl SparkleRenderer {
         let (w, h) = (wu as f32, hu as f32);
         let (glare_length, glare_threshold) = (s.glare_length_px, s.glare_threshold);
         let glare = !rays.is_empty();
+        let eye = sim.config().camera.position;
+        let falloff2 = s.falloff_from_m * s.falloff_from_m;
         // (x_px, y_px, radiance, glare length in px or 0) per glint on screen.
         let dots: Vec<(f32, f32, Vec3, f32)> = g
             .position_m
@@ -230,6 +238,11 @@ impl SparkleRenderer {
             .with_min_len(4096)
             .filter_map(|(x, &intensity)| {
                 let p = view.project(*x)?;
+                let intensity = if falloff2 > 0.0 {
+                    intensity * (falloff2 / (*x - eye).length_squared()).min(1.0)
+                } else {
+                    intensity
+                };
                 let rel = intensity / peak;
                 let len =
                     if glare && rel >= glare_threshold { (glare_length * rel.sqrt()).max(1.0) } else { 0.0 };

@@ -334,6 +334,27 @@ impl SparkleSim {
             lifetimes: Vec::new(),
             last: StepStats::default(),
         };
+        if !sim.lobe.is_uniform()
+            && let Some(c) = sim.cos_theta
+        {
+            // Lobes: refuse cones whose candidates (an upper bound of the facets seen)
+            // would not fit, judged on frame 0's geometry.
+            let alpha =
+                (c.acos() + sim.config.step_rotation_rad() + CAP_MARGIN_RAD).min(std::f64::consts::PI);
+            let seen = sim.seen_at(0);
+            let table = CellTable::build(&sim.space, &sim.lobe, &seen.geo, alpha, sim.config.phong.two_sided);
+            let expected = sim.virtual_count as f64 * table.mean_q;
+            if expected > crate::config::MAX_EXPECTED_VISIBLE {
+                return Err(SparkleError::Invalid(vec![Issue {
+                    field: "phong.threshold_i_e".into(),
+                    value: sim.config.phong.threshold_i_e.to_string(),
+                    expected: format!(
+                        "fewer than {:e} candidate particles per frame: this cone and lobe give up to {expected:.3e}; raise the threshold, the exponent or lower the count",
+                        crate::config::MAX_EXPECTED_VISIBLE
+                    ),
+                }]));
+            }
+        }
         sim.start();
         Ok(sim)
     }

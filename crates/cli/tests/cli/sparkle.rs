@@ -88,3 +88,18 @@ fn bad_sparkle_values_are_located() {
     let err = fails(dir.path(), &["render", &scene, "--out", "o"]);
     assert!(err.contains("use the stochastic method"), "{err}");
 }
+
+#[test]
+fn glints_go_over_a_background_image_of_the_frame_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let red = image::RgbImage::from_pixel(96, 54, image::Rgb([200, 30, 30]));
+    red.save(dir.path().join("bg.png")).unwrap();
+    let text = format!("{TINY_DUST}\n[render]\nbackground = {{ kind = \"image\", path = \"bg.png\" }}\n");
+    let scene = write(dir.path(), "bg.toml", &text);
+    ok(dir.path(), &["render", &scene, "--out", "o", "--frames", "0"]);
+    let png = image::open(dir.path().join("o/frame_00000.png")).unwrap().to_rgb8();
+    let reddish = png.pixels().filter(|p| u32::from(p.0[0]) > 2 * u32::from(p.0[2]) + 40).count();
+    assert!(reddish > 96 * 54 / 2, "{reddish}");
+    let err = fails(dir.path(), &["render", &scene, "--out", "o2", "--width", "64"]);
+    assert!(err.contains("background image is 96×54 but the frame is 64×54"), "{err}");
+}
