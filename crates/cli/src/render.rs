@@ -185,7 +185,7 @@ impl Runner {
             Runner::Flame { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Aurora { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Snow { sim, .. } => serde_json::to_value(sim.step())?,
-            Runner::Sparkle { sim, .. } => serde_json::to_value(sim.step())?,
+            Runner::Sparkle { sim, .. } => serde_json::to_value(sim.step()?)?,
         })
     }
 

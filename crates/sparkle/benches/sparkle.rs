@@ -24,13 +24,13 @@ fn bench(c: &mut Criterion) {
     g.sample_size(20).measurement_time(Duration::from_secs(8));
     let mut sim = SparkleSim::new(config(Method::Stochastic, 1e9), 1).expect("valid");
     let mut renderer = SparkleRenderer::new(RenderSettings::default(), 1280, 720, None).expect("valid");
-    g.bench_function("stochastic_1e9_step", |b| b.iter(|| black_box(sim.step())));
+    g.bench_function("stochastic_1e9_step", |b| b.iter(|| black_box(sim.step().expect("step"))));
     g.bench_function("stochastic_1e9_render_1280x720", |b| {
         b.iter(|| black_box(renderer.render(&sim).c0.sum()))
     });
     g.bench_function("stochastic_1e9_step_and_render", |b| {
         b.iter(|| {
-            sim.step();
+            sim.step().expect("step");
             black_box(renderer.render(&sim).c0.sum())
         })
     });
@@ -41,7 +41,7 @@ fn bench(c: &mut Criterion) {
     for method in [Method::Stochastic, Method::BruteForce] {
         let mut sim = SparkleSim::new(config(method, 1e7), 1).expect("valid");
         g.bench_with_input(BenchmarkId::new(format!("{method:?}"), "1e7"), &(), |b, _| {
-            b.iter(|| black_box(sim.step()))
+            b.iter(|| black_box(sim.step().expect("step")))
         });
     }
     g.finish();

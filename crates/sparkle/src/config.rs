@@ -163,7 +163,7 @@ pub struct Dust {
     pub wind_m_per_s: Vec3,
     /// Gust amplitude: a smooth random velocity shared by all crystals, metres per second.
     pub gust_m_per_s: f32,
-    /// Each crystal's own random displacement per frame, uniform in a ball of this speed
+    /// Each crystal's own random displacement per frame, uniform in a cube of half-side this speed
     /// times the frame time, metres per second.
     pub turbulence_m_per_s: f32,
     /// Largest random rotation of a crystal per frame, degrees (uniform in [0, this]
@@ -238,6 +238,11 @@ pub struct SparkleConfig {
     pub camera: Camera,
     /// The particles.
     pub population: Population,
+    /// Frames a facet that stopped being seen is still followed (unseen), so that if it
+    /// turns back into the cone it reappears where it was, as in the full system. With 0
+    /// (the paper's plain "delete") every newcomer is drawn afresh and such quick returns
+    /// come back anywhere. More frames cost more held facets (about deaths × frames).
+    pub memory_frames: u32,
 }
 
 impl Default for SparkleConfig {
@@ -259,16 +264,22 @@ impl Default for SparkleConfig {
                 projection: Projection::Perspective { fov_y_deg: 60.0 },
             },
             population: Population::DiamondDust(Dust::default()),
+            memory_frames: 4,
         }
     }
 }
 
 /// Most virtual particles a scene may hold.
 pub const MAX_VIRTUAL: f64 = 1e13;
-/// Most particles a brute-force run may create (24 bytes each: 4.8 GB).
+/// Most particles a brute-force run may create (32 bytes each: 6.4 GB).
 pub const MAX_BRUTE_FORCE: u64 = 200_000_000;
-/// Most glints a frame may expect (memory guard: 28 bytes each).
+/// Most glints a frame may expect (memory guard: 32 bytes each).
 pub const MAX_EXPECTED_VISIBLE: f64 = 5e7;
+/// Most candidate facets a frame may draw (time guard).
+pub const MAX_CANDIDATES: f64 = 2e8;
+/// Narrowest visible cone, degrees: below it the f32 visibility test cannot resolve the
+/// cone's edge to the margin the samplers leave (1e-4 rad).
+pub const MIN_CONE_DEG: f64 = 0.25;
 
 impl SparkleConfig {
     /// Number of virtual particles N (dust: density × box volume, rounded).
@@ -291,6 +302,7 @@ impl SparkleConfig {
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
         i.range("fps", self.fps, 0.01..=10_000.0);
+        i.count("memory_frames", u64::from(self.memory_frames), 0..=64);
         let p = &self.phong;
         i.range_open_low("phong.specular_k_s", p.specular_k_s, 0.0, 1e6);
         i.range_open_low("phong.light_intensity", p.light_intensity, 0.0, 1e9);
@@ -375,6 +387,34 @@ impl SparkleConfig {
                             theta.to_degrees()
                         ),
                     );
+                }
+                if theta.to_degrees() < MIN_CONE_DEG {
+                    i.push(
+                        "phong.exponent_n",
+                        p.exponent_n,
+                        format!(
+                            "a visible cone of at least {MIN_CONE_DEG}° (this one is {:.4}°): lower the exponent or the threshold",
+                            theta.to_degrees()
+                        ),
+                    );
+                }
+                if self.method == Method::Stochastic {
+                    let sides = if p.two_sided { 2.0 } else { 1.0 };
+                    let cap = 0.5 * sides * (1.0 - (theta + margin + 1e-4).min(std::f64::consts::PI).cos());
+                    let uniform = matches!(
+                        self.population,
+                        Population::DiamondDust(Dust { normals: Normals::Uniform, .. })
+                    );
+                    if uniform && n as f64 * cap > MAX_CANDIDATES {
+                        i.push(
+                            "phong.threshold_i_e",
+                            p.threshold_i_e,
+                            format!(
+                                "fewer than {MAX_CANDIDATES:e} candidate facets per frame: the cone plus a frame's rotation gives {:.3e}; raise the threshold or the exponent, lower the rotation or the count",
+                                n as f64 * cap
+                            ),
+                        );
+                    }
                 }
                 let expected = n as f64 * self.upper_fraction();
                 if expected > MAX_EXPECTED_VISIBLE {

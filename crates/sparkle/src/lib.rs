@@ -19,7 +19,7 @@
 //! use phenomena_sparkle::{Population, SparkleConfig, SparkleSim};
 //! let mut config = SparkleConfig::default(); // 10⁹ crystals of diamond dust
 //! let mut sim = SparkleSim::new(config, 7).unwrap();
-//! let s = sim.step();
+//! let s = sim.step().unwrap();
 //! // About (1 - cos θ)/2 = 3.0e-4 of them are seen: ~3·10⁵ held, not 10⁹.
 //! assert_eq!(s.virtual_count, 1_000_000_000);
 //! assert!((s.generated as f64 / 1e9 - 3.0e-4).abs() < 1e-5);
@@ -34,8 +34,8 @@ mod render;
 mod sim;
 
 pub use config::{
-    Dust, Leaves, Light, LightAt, MAX_BRUTE_FORCE, MAX_EXPECTED_VISIBLE, MAX_VIRTUAL, Method, Normals, Phong,
-    Population, SparkleConfig,
+    Dust, Leaves, Light, LightAt, MAX_BRUTE_FORCE, MAX_CANDIDATES, MAX_EXPECTED_VISIBLE, MAX_VIRTUAL,
+    MIN_CONE_DEG, Method, Normals, Phong, Population, SparkleConfig,
 };
 pub use render::{Background, GlareShape, RenderError, RenderSettings, SparkleRenderer};
-pub use sim::{Glints, SparkleError, SparkleSim, StepStats};
+pub use sim::{Glints, SparkleError, SparkleSim, StepError, StepStats};

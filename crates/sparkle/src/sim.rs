@@ -5,25 +5,34 @@
 //! N facets, positions uniform over the space and normals drawn from the population's
 //! lobe. Diamond dust (§3.1) moves each frame by one displacement shared by all crystals
 //! (fall, wind and a smooth gust), plus each crystal's own random displacement uniform in
-//! a small ball, in a periodic box; each normal takes a random rotation of at most δ about
+//! a small cube, in a periodic box; each normal takes a random rotation of at most δ about
 //! a random axis (a Metropolis step against the lobe, so the lobe is kept: for uniform
 //! normals every rotation is accepted). Leaves (§3.2) do not move; the sun does.
 //!
-//! **The stochastic model** holds only the facets seen now. Frame 0 draws them directly
-//! (module `model`: a binomial count, positions uniform, normals in the cone around each
-//! position's own H). A step moves each held facet with the same dynamics and deletes
-//! those no longer seen (§2's "delete"), then adds the newcomers (§2's "stochastically
-//! generate"): facets unseen at t and seen at t+1. Those are drawn exactly by sampling
-//! the *destination* first: under the stationary distribution the position at t+1 is
-//! uniform and independent of the facet's own displacement j, so x_t = x_{t+1} - D - j;
-//! and a facet seen at t+1 had, at t, its normal within θ + δ of H_{t+1}(x_{t+1}). So the
-//! candidates are virtual facets with x_{t+1} uniform and N_t in that cap (a binomial
-//! count, thinned for lobes), moved one step, and kept when unseen at t and seen at t+1.
-//! Each newcomer's state has exactly the full system's distribution, so glint lifetimes
-//! (followed with the same dynamics) match too. The one approximation: the newcomers'
-//! count is drawn independently of how many are held, as for a Poisson population of mean
-//! N; for exactly N facets the count's variance differs by a relative O(p) (p the visible
-//! fraction, 3·10⁻⁴ in the benchmark scene).
+//! **The stochastic model** holds only the facets seen now, plus "ghosts": facets that
+//! stopped being seen within the last `memory_frames` frames, still followed unseen. Frame
+//! 0 draws the seen facets directly (module `model`: a binomial count, positions uniform,
+//! normals in the cone around each position's own H). A step moves each held facet with
+//! the same dynamics; seen ones that left the cone become ghosts (§2's "delete", delayed),
+//! ghosts that turn back into the cone are seen again where they are, ghosts unseen for
+//! longer than the memory are dropped. Then the newcomers are added (§2's "stochastically
+//! generate"): facets unseen in each remembered frame and seen at t+1. They are drawn
+//! exactly by sampling the *destination* first: under the stationary distribution the
+//! position at t+1 is uniform and independent of the facet's own displacement j, so
+//! x_t = x_{t+1} - D - j; and a facet seen at t+1 had, at t, its normal within θ + δ of
+//! H_{t+1}(x_{t+1}). So the candidates are virtual facets with x_{t+1} uniform and N_t in
+//! that cap (a binomial count, thinned for lobes), moved one step forward to t+1 and
+//! walked back through the remembered frames (positions undo each frame's displacement;
+//! normals take the same Metropolis step, which is reversible), and kept when seen at
+//! t+1 and unseen in every remembered frame. Each newcomer's state has exactly the full
+//! system's distribution, so glint lifetimes (followed with the same dynamics) match, and
+//! so does how often and after how long a glint returns (up to the memory; tested).
+//!
+//! Two approximations remain, both documented and small: the newcomers' count is drawn
+//! independently of how many are held, as for a Poisson population of mean N (for
+//! exactly N facets the count's variance differs by a relative O(p), p the visible
+//! fraction, 3·10⁻⁴ in the benchmark scene); and a facet unseen for longer than the
+//! memory is forgotten, so a return after a longer gap comes back at a fresh place.
 
 use glam::Vec3;
 use phenomena_core::camera::Projection;
@@ -40,6 +49,7 @@ const TRACK: Purpose = Purpose::named("sparkle.track");
 const BIRTH: Purpose = Purpose::named("sparkle.birth");
 const BRUTE: Purpose = Purpose::named("sparkle.brute");
 const GUST: Purpose = Purpose::named("sparkle.gust");
+const GHOST: Purpose = Purpose::named("sparkle.ghost");
 
 /// Facets per parallel chunk of held or brute-force particles (fixed: results do not
 /// depend on the thread count).
@@ -121,6 +131,8 @@ pub struct StepStats {
     pub virtual_count: u64,
     /// Facets seen now (held by the stochastic model).
     pub generated: u64,
+    /// Facets held unseen because they were seen within the last `memory_frames`.
+    pub ghosts: u64,
     /// Facets that became visible in this frame.
     pub births: u64,
     /// Facets that stopped being visible in this frame.
@@ -141,6 +153,8 @@ struct IntensityLut {
     /// INTERVALS / one_minus_cos2.
     scale: f32,
     table: Vec<f32>,
+    /// k = ln(k_s I_l / I_e) is too large for the table (I_e near 0): use powf.
+    direct: Option<(f32, f32)>,
 }
 
 impl IntensityLut {
@@ -157,12 +171,18 @@ impl IntensityLut {
             })
             .collect();
         let scale = if omc2 > 0.0 { (Self::INTERVALS as f64 / omc2) as f32 } else { 0.0 };
-        Self { one_minus_cos2: omc2 as f32, scale, table }
+        // The table's error bound k² h²/8 stays below 1e-4 for k ≤ 12.
+        let k = (peak / f64::from(phong.threshold_i_e)).ln();
+        let direct = (!(k <= 12.0)).then_some((peak as f32, 0.5 * phong.exponent_n));
+        Self { one_minus_cos2: omc2 as f32, scale, table, direct }
     }
 
     /// Brightness for c² = (N·H)².
     #[inline]
     fn get(&self, c2: f32) -> f32 {
+        if let Some((peak, half_n)) = self.direct {
+            return peak * c2.max(0.0).powf(half_n);
+        }
         if !(self.one_minus_cos2 > 0.0) {
             return self.table[0];
         }
@@ -281,6 +301,26 @@ struct Everything {
     normal: Vec<Vec3>,
     /// Frame since which the facet is seen, `u32::MAX` when it is not.
     since: Vec<u32>,
+    /// Last frame in which it was seen, `u32::MAX` if never.
+    last_seen: Vec<u32>,
+}
+
+/// Why a step cannot be taken.
+#[derive(Debug, Error)]
+pub enum StepError {
+    /// The light moved so that far more facets became candidates than the memory guard
+    /// allows (lobes under a moving sun: their bound is only known frame by frame).
+    #[error(
+        "frame {frame}: this cone and lobe would draw up to {expected:.3e} candidate facets (at most {max:e}): raise phong.threshold_i_e or phong.exponent_n, or lower the count"
+    )]
+    TooManyCandidates {
+        /// The frame being made.
+        frame: u32,
+        /// Candidates it would draw.
+        expected: f64,
+        /// The limit ([`crate::MAX_CANDIDATES`]).
+        max: f64,
+    },
 }
 
 /// The glints of §2, frame by frame.
@@ -296,8 +336,12 @@ pub struct SparkleSim {
     gust_phase: [[f32; 3]; 3],
     intensity: IntensityLut,
     glints: Glints,
+    /// Facets seen within the last `memory_frames` frames but not now; `birth_frame`
+    /// holds the last frame each was seen.
+    ghosts: Glints,
     everything: Option<Everything>,
     lifetimes: Vec<u32>,
+    gaps: Vec<u32>,
     last: StepStats,
 }
 
@@ -330,33 +374,38 @@ impl SparkleSim {
             lobe,
             gust_phase,
             glints: Glints::default(),
+            ghosts: Glints::default(),
             everything: None,
             lifetimes: Vec::new(),
+            gaps: Vec::new(),
             last: StepStats::default(),
         };
-        if !sim.lobe.is_uniform()
-            && let Some(c) = sim.cos_theta
+        if sim.config.method == crate::config::Method::Stochastic
+            && let Some(expected) = sim.candidate_bound(0)
+            && expected > crate::config::MAX_CANDIDATES
         {
-            // Lobes: refuse cones whose candidates (an upper bound of the facets seen)
-            // would not fit, judged on frame 0's geometry.
-            let alpha =
-                (c.acos() + sim.config.step_rotation_rad() + CAP_MARGIN_RAD).min(std::f64::consts::PI);
-            let seen = sim.seen_at(0);
-            let table = CellTable::build(&sim.space, &sim.lobe, &seen.geo, alpha, sim.config.phong.two_sided);
-            let expected = sim.virtual_count as f64 * table.mean_q;
-            if expected > crate::config::MAX_EXPECTED_VISIBLE {
-                return Err(SparkleError::Invalid(vec![Issue {
-                    field: "phong.threshold_i_e".into(),
-                    value: sim.config.phong.threshold_i_e.to_string(),
-                    expected: format!(
-                        "fewer than {:e} candidate particles per frame: this cone and lobe give up to {expected:.3e}; raise the threshold, the exponent or lower the count",
-                        crate::config::MAX_EXPECTED_VISIBLE
-                    ),
-                }]));
-            }
+            return Err(SparkleError::Invalid(vec![Issue {
+                field: "phong.threshold_i_e".into(),
+                value: sim.config.phong.threshold_i_e.to_string(),
+                expected: format!(
+                    "fewer than {:e} candidate facets per frame: this cone and lobe give up to {expected:.3e}; raise the threshold or the exponent, or lower the count",
+                    crate::config::MAX_CANDIDATES
+                ),
+            }]));
         }
         sim.start();
         Ok(sim)
+    }
+
+    /// The number of candidates a birth step into `frame` draws (an upper bound of the
+    /// facets seen there); `None` when nothing can be seen.
+    fn candidate_bound(&self, frame: u32) -> Option<f64> {
+        let c = self.cos_theta?;
+        let delta = if frame == 0 { 0.0 } else { self.config.step_rotation_rad() };
+        let alpha = (c.acos() + delta + CAP_MARGIN_RAD).min(std::f64::consts::PI);
+        let to = self.seen_at(frame);
+        let table = CellTable::build(&self.space, &self.lobe, &to.geo, alpha, self.config.phong.two_sided);
+        Some(self.virtual_count as f64 * table.mean_q)
     }
 
     /// The configuration.
@@ -386,6 +435,12 @@ impl SparkleSim {
         &self.lifetimes
     }
 
+    /// For each glint born in the last step: how many frames it had been unseen, 1 to
+    /// `memory_frames`, or `memory_frames + 1` for longer (or never seen before).
+    pub fn birth_gaps(&self) -> &[u32] {
+        &self.gaps
+    }
+
     /// Counters of the last frame.
     pub fn stats(&self) -> StepStats {
         self.last
@@ -396,28 +451,34 @@ impl SparkleSim {
         self.cos_theta.is_none()
     }
 
-    /// Advance one frame.
-    pub fn step(&mut self) -> StepStats {
+    /// Advance one frame. Fails only when a lobe population under a moving light would
+    /// draw more candidates than [`crate::MAX_CANDIDATES`] (the state is then unchanged).
+    pub fn step(&mut self) -> Result<StepStats, StepError> {
         let next = self.frame + 1;
+        self.gaps.clear();
         let (births, deaths, candidates) = match self.cos_theta {
             None => (0, 0, 0),
             Some(_) if self.everything.is_some() => self.step_brute(next),
-            Some(_) => self.step_stochastic(next),
+            Some(_) => self.step_stochastic(next)?,
         };
         self.frame = next;
         self.last = self.stats_now(births, deaths, candidates);
-        self.last
+        Ok(self.last)
     }
 
     fn stats_now(&self, births: u64, deaths: u64, candidates: u64) -> StepStats {
         let held = match &self.everything {
-            Some(e) => (e.position_m.capacity() * 24 + e.since.capacity() * 4) as u64 + self.glints.bytes(),
-            None => self.glints.bytes(),
+            Some(e) => {
+                (e.position_m.capacity() * 24 + (e.since.capacity() + e.last_seen.capacity()) * 4) as u64
+                    + self.glints.bytes()
+            }
+            None => self.glints.bytes() + self.ghosts.bytes(),
         };
         StepStats {
             frame: self.frame,
             virtual_count: self.virtual_count,
             generated: self.glints.len() as u64,
+            ghosts: self.ghosts.len() as u64,
             births,
             deaths,
             candidates,
@@ -425,7 +486,6 @@ impl SparkleSim {
         }
     }
 
-    /// The visibility test at `frame`.
     fn seen_at(&self, frame: u32) -> Seen {
         let cam = &self.config.camera;
         let eye = match cam.projection {
@@ -476,69 +536,79 @@ impl SparkleSim {
         let to = self.seen_at(0);
         if self.config.method == crate::config::Method::BruteForce {
             let n = self.virtual_count as usize;
-            let chunks = n.div_ceil(CHUNK);
-            let parts: Vec<(Everything, Glints)> = (0..chunks)
-                .into_par_iter()
-                .map(|k| {
-                    let mut rng = Stream::new(self.seed, BRUTE, k as u64);
-                    let len = CHUNK.min(n - k * CHUNK);
-                    let mut e = Everything {
-                        position_m: Vec::with_capacity(len),
-                        normal: Vec::with_capacity(len),
-                        since: Vec::with_capacity(len),
-                    };
+            // Filled in place, chunk by chunk (no second copy of the population).
+            let mut all = Everything {
+                position_m: vec![Vec3::ZERO; n],
+                normal: vec![Vec3::ZERO; n],
+                since: vec![u32::MAX; n],
+                last_seen: vec![u32::MAX; n],
+            };
+            let (space, lobe, lut, seed) = (self.space, self.lobe, &self.intensity, self.seed);
+            let parts: Vec<Glints> = all
+                .position_m
+                .par_chunks_mut(CHUNK)
+                .zip(all.normal.par_chunks_mut(CHUNK))
+                .zip(all.since.par_chunks_mut(CHUNK))
+                .zip(all.last_seen.par_chunks_mut(CHUNK))
+                .enumerate()
+                .map(|(k, (((xs, ns), since), last))| {
+                    let mut rng = Stream::new(seed, BRUTE, k as u64);
                     let mut g = Glints::default();
-                    for _ in 0..len {
-                        let x = self.space.sample_in_cell(0, 1, &mut rng);
-                        let nrm = self.lobe.sample(self.space.radial_axis(x), &mut rng);
-                        let seen = to.test(x, nrm, &self.space);
-                        if let Some(c) = seen {
-                            g.push(x, nrm, self.intensity.get(c), 0);
+                    for (((x, nrm), s), l) in
+                        xs.iter_mut().zip(ns.iter_mut()).zip(since.iter_mut()).zip(last.iter_mut())
+                    {
+                        *x = space.sample_in_cell(0, 1, &mut rng);
+                        *nrm = lobe.sample(space.radial_axis(*x), &mut rng);
+                        if let Some(c) = to.test(*x, *nrm, &space) {
+                            g.push(*x, *nrm, lut.get(c), 0);
+                            *s = 0;
+                            *l = 0;
                         }
-                        e.position_m.push(x);
-                        e.normal.push(nrm);
-                        e.since.push(if seen.is_some() { 0 } else { u32::MAX });
                     }
-                    (e, g)
+                    g
                 })
                 .collect();
-            let mut all = Everything::default();
-            all.position_m.reserve_exact(n);
-            all.normal.reserve_exact(n);
-            all.since.reserve_exact(n);
-            for (mut e, mut g) in parts {
-                all.position_m.append(&mut e.position_m);
-                all.normal.append(&mut e.normal);
-                all.since.append(&mut e.since);
+            for mut g in parts {
                 self.glints.append(&mut g);
             }
             self.everything = Some(all);
             self.last = self.stats_now(self.glints.len() as u64, 0, 0);
         } else {
-            let (mut born, candidates) = self.generate(None, &to, None, 0);
+            let (mut born, candidates) = self.generate(&to, 0);
             let births = born.len() as u64;
             self.glints.append(&mut born);
             self.last = self.stats_now(births, 0, candidates);
         }
     }
 
-    /// Draw the facets seen at `to` (frame `frame`) that were not seen at `from` (frame
-    /// 0: every facet seen), see the module docs. Returns them and the candidate count.
-    fn generate(&self, from: Option<&Seen>, to: &Seen, motion: Option<&Motion>, frame: u32) -> (Glints, u64) {
+    /// Draw the facets seen at `to` (frame `frame`) that the held set does not already
+    /// account for: at frame 0 every facet seen; later, those unseen in each of the
+    /// frames `frame - 1 - memory_frames ..= frame - 1` (the others are held, seen or as
+    /// ghosts). See the module docs. Returns them and the candidate count.
+    fn generate(&self, to: &Seen, frame: u32) -> (Glints, u64) {
+        let motion = if frame == 0 { None } else { self.motion_into(frame) };
         let delta = motion.map_or(0.0, |m| f64::from(m.rotation_rad));
         let theta = self.cos_theta.unwrap_or(1.0).acos();
         let alpha = (theta + delta + CAP_MARGIN_RAD).min(std::f64::consts::PI);
         let table = CellTable::build(&self.space, &self.lobe, &to.geo, alpha, self.config.phong.two_sided);
-        let n = self.virtual_count;
-        let chunks = n.div_ceil(BIRTH_CHUNK).clamp(1, MAX_BIRTH_CHUNKS);
-        let lut = &self.intensity;
-        let regions = match (from, motion, self.space) {
-            (Some(f), Some(m), Space::Box { min, size }) if table.uniform => {
-                Regions::build(min, size, m, f, to, theta, alpha, self.config.phong.two_sided)
+        // The frames looked back at, newest first: (test at frame f, motion into f).
+        let history: Vec<(Seen, Option<Motion>)> = if frame == 0 {
+            Vec::new()
+        } else {
+            let oldest = frame.saturating_sub(1 + self.config.memory_frames);
+            (oldest..frame).rev().map(|f| (self.seen_at(f), self.motion_into(f))).collect()
+        };
+        let regions = match (history.first(), motion, self.space) {
+            (Some((from, _)), Some(m), Space::Box { min, size }) if table.uniform => {
+                Regions::build(min, size, &m, from, to, theta, alpha, self.config.phong.two_sided)
             }
             _ => None,
         };
         let mean_q = regions.as_ref().map_or(table.mean_q, |r| r.mean_q);
+        let n = self.virtual_count;
+        let chunks = n.div_ceil(BIRTH_CHUNK).clamp(1, MAX_BIRTH_CHUNKS);
+        let lut = &self.intensity;
+        let space = &self.space;
         let parts: Vec<(Glints, u64)> = (0..chunks)
             .into_par_iter()
             .map(|k| {
@@ -546,19 +616,31 @@ impl SparkleSim {
                 let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
                 let count = rng.binomial(len, mean_q);
                 let mut out = Glints::default();
-                for _ in 0..count {
+                'candidate: for _ in 0..count {
                     let drawn = match &regions {
                         Some(r) => r.draw(&to.geo, &mut rng),
-                        None => table.draw(&self.space, &self.lobe, &to.geo, &mut rng),
+                        None => table.draw(space, &self.lobe, &to.geo, &mut rng),
                     };
                     let Some((x1, n0)) = drawn else { continue };
                     let n1 = motion.map_or(n0, |m| m.rotate(n0, &mut rng));
-                    let Some(c) = to.test(x1, n1, &self.space) else { continue };
-                    if let Some(f) = from {
-                        let x0 = motion.map_or(x1, |m| self.space.wrap(x1 - m.shared_m - m.jitter(&mut rng)));
-                        if f.test(x0, n0, &self.space).is_some() {
-                            continue; // seen already: it is one of the held facets
+                    let Some(c) = to.test(x1, n1, space) else { continue };
+                    // Walk back through the remembered frames: seen in any of them means
+                    // the facet is held already. Going back, the position undoes each
+                    // frame's displacement (uniform positions make x_{t+1} and the own
+                    // step independent) and the normal takes the same Metropolis step
+                    // (reversible, so its reverse kernel is itself).
+                    let (mut x, mut nrm, mut into) = (x1, n0, motion);
+                    for (k, (seen, m)) in history.iter().enumerate() {
+                        if let Some(mi) = into {
+                            x = space.wrap(x - mi.shared_m - mi.jitter(&mut rng));
+                            if k > 0 {
+                                nrm = mi.rotate(nrm, &mut rng);
+                            }
                         }
+                        if seen.test(x, nrm, space).is_some() {
+                            continue 'candidate;
+                        }
+                        into = *m;
                     }
                     out.push(x1, n1, lut.get(c), frame);
                 }
@@ -574,58 +656,110 @@ impl SparkleSim {
         (all, candidates)
     }
 
-    fn step_stochastic(&mut self, next: u32) -> (u64, u64, u64) {
-        let from = self.seen_at(next - 1);
+    /// Move the held glints (seen, then ghosts) one frame, delete the seen ones that left
+    /// the cone (they become ghosts), bring back ghosts seen again, and add the newborn.
+    /// Returns (births, deaths, candidates).
+    fn step_stochastic(&mut self, next: u32) -> Result<(u64, u64, u64), StepError> {
+        if !self.lobe.is_uniform()
+            && let Some(expected) = self.candidate_bound(next)
+            && expected > crate::config::MAX_CANDIDATES
+        {
+            return Err(StepError::TooManyCandidates {
+                frame: next,
+                expected,
+                max: crate::config::MAX_CANDIDATES,
+            });
+        }
         let to = self.seen_at(next);
         let motion = self.motion_into(next);
+        let memory = self.config.memory_frames;
         let lut = &self.intensity;
+        let space = self.space;
+        let seed = self.seed;
+        // Seen glints: kept, or dead (becoming ghosts last seen at next - 1).
         let g = &self.glints;
-        let chunks = g.len().div_ceil(CHUNK);
-        let parts: Vec<(Glints, Vec<u32>, u64)> = (0..chunks)
+        let parts: Vec<(Glints, Glints, Vec<u32>)> = (0..g.len().div_ceil(CHUNK))
             .into_par_iter()
             .map(|k| {
-                let mut rng = Stream::new(self.seed, TRACK, (u64::from(next) << 32) | k as u64);
+                let mut rng = Stream::new(seed, TRACK, (u64::from(next) << 32) | k as u64);
                 let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
                 let mut kept = Glints::with_capacity(range.len());
+                let mut dead = Glints::default();
                 let mut lifetimes = Vec::new();
-                let mut deaths = 0;
                 for i in range {
                     let (mut x, mut nrm) = (g.position_m[i], g.normal[i]);
                     if let Some(m) = &motion {
-                        x = self.space.wrap(x + m.shared_m + m.jitter(&mut rng));
+                        x = space.wrap(x + m.shared_m + m.jitter(&mut rng));
                         nrm = m.rotate(nrm, &mut rng);
                     }
-                    match to.test(x, nrm, &self.space) {
+                    match to.test(x, nrm, &space) {
                         Some(c) => kept.push(x, nrm, lut.get(c), g.birth_frame[i]),
                         None => {
-                            deaths += 1;
                             if g.birth_frame[i] > 0 {
                                 lifetimes.push(next - g.birth_frame[i]);
+                            }
+                            if memory > 0 {
+                                dead.push(x, nrm, 0.0, next - 1);
                             }
                         }
                     }
                 }
-                (kept, lifetimes, deaths)
+                (kept, dead, lifetimes)
             })
             .collect();
-        let (mut born, candidates) = self.generate(Some(&from), &to, motion.as_ref(), next);
-        let mut glints = Glints::default();
-        let reserve = self.glints.len() + born.len();
-        glints.position_m.reserve(reserve);
-        glints.normal.reserve(reserve);
-        glints.intensity.reserve(reserve);
-        glints.birth_frame.reserve(reserve);
+        // Ghosts: seen again (a birth after a short gap), still remembered, or forgotten
+        // once unseen for more than `memory` frames.
+        let gh = &self.ghosts;
+        let ghost_parts: Vec<(Glints, Glints, Vec<u32>)> = (0..gh.len().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|k| {
+                let mut rng = Stream::new(seed, GHOST, (u64::from(next) << 32) | k as u64);
+                let range = k * CHUNK..((k + 1) * CHUNK).min(gh.len());
+                let mut back = Glints::default();
+                let mut still = Glints::with_capacity(range.len());
+                let mut gaps = Vec::new();
+                for i in range {
+                    let (mut x, mut nrm) = (gh.position_m[i], gh.normal[i]);
+                    if let Some(m) = &motion {
+                        x = space.wrap(x + m.shared_m + m.jitter(&mut rng));
+                        nrm = m.rotate(nrm, &mut rng);
+                    }
+                    let last = gh.birth_frame[i];
+                    match to.test(x, nrm, &space) {
+                        Some(c) => {
+                            back.push(x, nrm, lut.get(c), next);
+                            gaps.push(next - last - 1);
+                        }
+                        None if next - last <= memory => still.push(x, nrm, 0.0, last),
+                        None => {}
+                    }
+                }
+                (back, still, gaps)
+            })
+            .collect();
+        let (mut born, candidates) = self.generate(&to, next);
+        let mut glints = Glints::with_capacity(self.glints.len() + born.len());
+        let mut ghosts = Glints::default();
         self.lifetimes.clear();
-        let mut deaths = 0;
-        for (mut kept, lifetimes, d) in parts {
+        for (mut kept, mut dead, lifetimes) in parts {
             glints.append(&mut kept);
+            ghosts.append(&mut dead);
             self.lifetimes.extend(lifetimes);
-            deaths += d;
         }
-        let births = born.len() as u64;
+        let deaths = (self.glints.len() - glints.len()) as u64;
+        let mut births = 0;
+        for (mut back, mut still, gaps) in ghost_parts {
+            births += back.len() as u64;
+            glints.append(&mut back);
+            ghosts.append(&mut still);
+            self.gaps.extend(gaps);
+        }
+        births += born.len() as u64;
+        self.gaps.extend(std::iter::repeat_n(memory + 1, born.len()));
         glints.append(&mut born);
         self.glints = glints;
-        (births, deaths, candidates)
+        self.ghosts = ghosts;
+        Ok((births, deaths, candidates))
     }
 
     fn step_brute(&mut self, next: u32) -> (u64, u64, u64) {
@@ -634,19 +768,24 @@ impl SparkleSim {
         let lut = &self.intensity;
         let space = self.space;
         let seed = self.seed;
+        let memory = self.config.memory_frames;
         let Some(all) = self.everything.as_mut() else { return (0, 0, 0) };
-        let parts: Vec<(Glints, Vec<u32>, u64, u64)> = all
+        let parts: Vec<(Glints, Vec<u32>, Vec<u32>, u64)> = all
             .position_m
             .par_chunks_mut(CHUNK)
             .zip(all.normal.par_chunks_mut(CHUNK))
             .zip(all.since.par_chunks_mut(CHUNK))
+            .zip(all.last_seen.par_chunks_mut(CHUNK))
             .enumerate()
-            .map(|(k, ((xs, ns), since))| {
+            .map(|(k, (((xs, ns), since), last))| {
                 let mut rng = Stream::new(seed, BRUTE, (u64::from(next) << 32) | k as u64);
                 let mut g = Glints::default();
                 let mut lifetimes = Vec::new();
-                let (mut births, mut deaths) = (0, 0);
-                for ((x, nrm), s) in xs.iter_mut().zip(ns.iter_mut()).zip(since.iter_mut()) {
+                let mut gaps = Vec::new();
+                let mut deaths = 0;
+                for (((x, nrm), s), l) in
+                    xs.iter_mut().zip(ns.iter_mut()).zip(since.iter_mut()).zip(last.iter_mut())
+                {
                     if let Some(m) = &motion {
                         *x = space.wrap(*x + m.shared_m + m.jitter(&mut rng));
                         *nrm = m.rotate(*nrm, &mut rng);
@@ -655,8 +794,11 @@ impl SparkleSim {
                         Some(c) => {
                             if *s == u32::MAX {
                                 *s = next;
-                                births += 1;
+                                let gap =
+                                    if *l == u32::MAX { memory + 1 } else { (next - *l - 1).min(memory + 1) };
+                                gaps.push(gap);
                             }
+                            *l = next;
                             g.push(*x, *nrm, lut.get(c), *s);
                         }
                         None => {
@@ -670,16 +812,17 @@ impl SparkleSim {
                         }
                     }
                 }
-                (g, lifetimes, births, deaths)
+                (g, lifetimes, gaps, deaths)
             })
             .collect();
         self.glints = Glints::default();
         self.lifetimes.clear();
         let (mut births, mut deaths) = (0, 0);
-        for (mut g, l, b, d) in parts {
+        for (mut g, l, gaps, d) in parts {
             self.glints.append(&mut g);
             self.lifetimes.extend(l);
-            births += b;
+            births += gaps.len() as u64;
+            self.gaps.extend(gaps);
             deaths += d;
         }
         (births, deaths, 0)
@@ -943,7 +1086,7 @@ mod tests {
                 pool.install(|| {
                     let mut sim = SparkleSim::new(c, 9).unwrap();
                     for _ in 0..4 {
-                        sim.step();
+                        sim.step().unwrap();
                     }
                     sim.glints().clone()
                 })
@@ -960,7 +1103,7 @@ mod tests {
         c.phong.threshold_i_e = 2.0;
         let mut sim = SparkleSim::new(c, 1).unwrap();
         assert!(sim.cone_is_empty());
-        assert_eq!(sim.step().generated, 0);
+        assert_eq!(sim.step().unwrap().generated, 0);
     }
 
     #[test]
