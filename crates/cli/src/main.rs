@@ -102,6 +102,8 @@ enum Command {
 enum NewWhat {
     /// The SPH flame of Inagaki et al.
     Flame,
+    /// Diamond dust or leaf glitter (Hwang and Noma).
+    Sparkle,
 }
 
 /// Format of a data table.
@@ -267,15 +269,19 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Export { what: ExportWhat::Shape { scene, frame, out } } => {
             export::aurora(&scene, frame, &out, export::AuroraData::Shape)
         }
-        Command::New { phenomenon: NewWhat::Flame, path, force } => {
-            let path = path.unwrap_or_else(|| PathBuf::from("flame.toml"));
+        Command::New { phenomenon, path, force } => {
+            let (name, text) = match phenomenon {
+                NewWhat::Flame => ("flame", starter::FLAME),
+                NewWhat::Sparkle => ("sparkle", starter::SPARKLE),
+            };
+            let path = path.unwrap_or_else(|| PathBuf::from(format!("{name}.toml")));
             if path.exists() && !force {
                 anyhow::bail!("{} already exists (use --force to overwrite)", path.display());
             }
             if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
                 output::ensure_dir(parent)?;
             }
-            output::write_bytes_atomic(&path, starter::FLAME.as_bytes())?;
+            output::write_bytes_atomic(&path, text.as_bytes())?;
             Ok(format!(
                 "wrote {}; render it with: phenomena render {} --out out",
                 path.display(),

@@ -88,10 +88,77 @@ dark = [0.02, 0.02, 0.02]
 # or: kind = "image" with path = "background.png" (relative to this file), or kind = "black"
 "#;
 
+/// A sparkle scene with every parameter at its default, each explained.
+pub(crate) const SPARKLE: &str = r#"# A phenomena sparkle scene (Hwang and Noma: only the facets that can be seen are
+# created). Render it with
+#   phenomena render sparkle.toml --out out/sparkle --stats out/sparkle.jsonl
+# Every value below is the default; delete what you do not change.
+
+[scene]
+frames = 120            # frames to render
+width = 1280            # pixels
+height = 720
+seed = 1                # every random number derives from this
+exposure_ev = 0.0       # PNG only: exposure compensation in stops
+tone_map = "aces"       # PNG only: "aces", "reinhard" or "clamp"
+
+[sparkle]
+method = "stochastic"   # the paper's model; "brute-force" simulates every facet (Table 1)
+fps = 30.0              # the time step is 1/fps
+memory_frames = 4       # frames a faded glint is still followed (0 = the paper's plain delete)
+
+[sparkle.phong]         # §2: seen when k_s I_l (N·H)^n >= I_e
+specular_k_s = 1.0
+light_intensity = 1.0   # I_l
+threshold_i_e = 0.0025  # I_e; with n = 10,000 the cone is θ = 1.98°, 3.0e-4 of all facets
+exponent_n = 10000.0    # n
+two_sided = false       # the paper counts one face; plates and leaves reflect from both
+
+[sparkle.light]         # or: kind = "point", position_m = [x, y, z] (a street lamp)
+kind = "sun"
+azimuth_deg = 20.0      # 0 = towards -z, 90 = towards +x
+elevation_deg = 12.0
+azimuth_rate_deg_per_s = 0.0
+elevation_rate_deg_per_s = 0.0
+
+[sparkle.camera]
+position = [0.0, 1.6, 0.0]
+look_at = [0.0, 4.0, -20.0]
+up = [0.0, 1.0, 0.0]
+projection = { kind = "perspective", fov_y_deg = 60.0 }
+
+[sparkle.population]    # §3.1 diamond dust; or kind = "leaf-glitter" (§3.2) with
+                        # centre_m, radius_m, count and spread_deg
+kind = "diamond-dust"
+box_min_m = [-50.0, 0.0, -100.0]   # a periodic box of air
+box_max_m = [50.0, 20.0, 0.0]
+density_per_m3 = 5000.0            # crystals per m³ (real diamond dust: 1e3-1e4): 1e9 here
+fall_speed_m_per_s = 0.3
+wind_m_per_s = [0.5, 0.0, 0.0]
+gust_m_per_s = 0.3                 # a smooth gust shared by all crystals
+turbulence_m_per_s = 0.1           # each crystal's own random step
+rotation_deg_per_frame = 0.5       # largest random turn per frame
+normals = { kind = "uniform" }     # or { kind = "plates", tilt_deg = 2.0 }: sun pillars
+
+[render]
+background = { kind = "sky" }      # or { kind = "black" }, { kind = "image", path = "bg.png" }
+glint_gain = 4.0                   # radiance per unit of glint brightness
+light_rgb = [1.0, 0.97, 0.92]
+glare = "cross"                    # "none", "cross" or "star"
+glare_length_px = 9.0
+glare_strength = 0.35
+glare_threshold = 0.5              # glints dimmer than this share of k_s I_l get no glare
+sky_zenith_rgb = [0.06, 0.12, 0.3]
+sky_horizon_rgb = [0.45, 0.55, 0.7]
+ground_rgb = [0.55, 0.58, 0.62]
+crown_rgb = [0.05, 0.16, 0.04]
+falloff_from_m = 0.0               # > 0: glints beyond this distance dim as 1/r² (0 = the paper)
+"#;
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{FlameScene, Scene, parse};
+    use crate::scene::{FlameScene, Scene, SparkleScene, parse};
     use std::path::Path;
 
     #[test]
@@ -99,6 +166,11 @@ mod tests {
         match parse(FLAME, Path::new("flame.toml")) {
             Ok(Scene::Flame(s)) => assert_eq!(*s, FlameScene::default()),
             Ok(other) => panic!("the flame starter parsed as a {} scene", other.phenomenon()),
+            Err(e) => panic!("{e}"),
+        }
+        match parse(SPARKLE, Path::new("sparkle.toml")) {
+            Ok(Scene::Sparkle(s)) => assert_eq!(*s, SparkleScene::default()),
+            Ok(other) => panic!("the sparkle starter parsed as a {} scene", other.phenomenon()),
             Err(e) => panic!("{e}"),
         }
     }
