@@ -25,5 +25,5 @@ pub mod reference;
 pub mod render;
 mod sim;
 
-pub use render::{SnowRenderSettings, SnowView, render};
+pub use render::{Flakes, SnowRenderSettings, SnowView, render};
 pub use sim::{Footprint, SnowError, SnowMap, SnowParams, SnowSim, SnowStats, snowfall_directions};

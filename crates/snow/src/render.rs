@@ -38,6 +38,31 @@ pub struct SnowRenderSettings {
     pub sun_direction: Vec3,
     /// Fog density per metre (0: no fog); the paper's figures use fog.
     pub fog_per_m: f32,
+    /// Falling flakes drawn over the scene view (decoration; none by default).
+    pub flakes: Flakes,
+}
+
+/// Snowflakes falling through the scene view along the snowfall directions: flake k
+/// starts at a place drawn from its own random stream inside a box over the scene and
+/// falls along direction k mod (number of directions), wrapping round the box; frame f
+/// shows them at display time f / `frames_per_s`. They are hidden behind the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Flakes {
+    /// Number of flakes (0: none).
+    pub count: u32,
+    /// Fall speed, metres per second.
+    pub fall_m_per_s: f32,
+    /// Flake radius, pixels.
+    pub radius_px: f32,
+    /// Display frames per second (how far flakes fall between frames).
+    pub frames_per_s: f32,
+}
+
+impl Default for Flakes {
+    fn default() -> Self {
+        Self { count: 0, fall_m_per_s: 1.0, radius_px: 1.2, frames_per_s: 30.0 }
+    }
 }
 
 impl Default for SnowRenderSettings {
@@ -52,6 +77,7 @@ impl Default for SnowRenderSettings {
             },
             sun_direction: Vec3::new(-0.4, 1.0, 0.3),
             fog_per_m: 0.0,
+            flakes: Flakes::default(),
         }
     }
 }
@@ -66,6 +92,10 @@ impl SnowRenderSettings {
             i.push("sun_direction", format!("{:?}", self.sun_direction.to_array()), "a non-zero direction");
         }
         i.range("fog_per_m", self.fog_per_m, 0.0..=100.0);
+        i.count("flakes.count", u64::from(self.flakes.count), 0..=1_000_000);
+        i.range("flakes.fall_m_per_s", self.flakes.fall_m_per_s, 0.0..=100.0);
+        i.range("flakes.radius_px", self.flakes.radius_px, 0.1..=50.0);
+        i.range_open_low("flakes.frames_per_s", self.flakes.frames_per_s, 0.0, 1000.0);
         i.into_result()
     }
 }
@@ -129,7 +159,56 @@ fn render_scene(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, heig
             frame.set_pixel(x, y, colour);
         }
     }
+    draw_flakes(sim, &settings.flakes, &view, &buf, &mut frame);
     frame
+}
+
+/// Purpose of the flakes' starting places.
+const FLAKE: phenomena_core::rng::Purpose = phenomena_core::rng::Purpose::named("snow.flake");
+
+fn draw_flakes(
+    sim: &SnowSim,
+    flakes: &Flakes,
+    view: &phenomena_core::camera::CameraView,
+    buf: &phenomena_core::raster::DepthBuffer,
+    frame: &mut Frame,
+) {
+    let dirs = sim.directions();
+    let tris = &sim.mesh().triangles;
+    if flakes.count == 0 || dirs.is_empty() || tris.is_empty() {
+        return;
+    }
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for p in tris.iter().flatten() {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let extent = hi - lo;
+    hi.y += 0.5 * extent.x.max(extent.z);
+    let size = (hi - lo).max(Vec3::splat(1e-3));
+    let t_s = sim.steps() as f32 / flakes.frames_per_s;
+    let (w, h) = (frame.width(), frame.height());
+    let r = flakes.radius_px;
+    for k in 0..flakes.count {
+        let mut rng = phenomena_core::rng::Stream::new(0, FLAKE, u64::from(k));
+        let start = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * size;
+        let moved = start + dirs[k as usize % dirs.len()] * flakes.fall_m_per_s * t_s;
+        let p = lo + moved.rem_euclid(size);
+        let Some(q) = view.project(p) else { continue };
+        let (cx, cy) = (q.x_px, q.y_px);
+        let (x0, x1) = ((cx - r).floor().max(0.0) as usize, ((cx + r).ceil().max(0.0) as usize).min(w));
+        let (y0, y1) = ((cy - r).floor().max(0.0) as usize, ((cy + r).ceil().max(0.0) as usize).min(h));
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (dx, dy) = (x as f32 + 0.5 - cx, y as f32 + 0.5 - cy);
+                let cover = (1.0 - (dx * dx + dy * dy).sqrt() / r).clamp(0.0, 1.0);
+                if cover > 0.0 && buf.depth_at(x, y) > q.depth {
+                    let c = frame.pixel(x, y);
+                    frame.set_pixel(x, y, c.lerp(Vec3::splat(1.4), 0.9 * cover));
+                }
+            }
+        }
+    }
 }
 
 fn render_probability(sim: &SnowSim, width: usize, height: usize) -> Frame {
@@ -189,5 +268,33 @@ mod tests {
         assert!(p.pixel(ground * 64 + 32, 32).x < 0.1, "under the table");
         assert!(p.pixel(ground * 64 + 4, 32).x > 0.95, "open ground");
         assert!(p.pixel(top * 64 + 32, 32).x > 0.95, "table top");
+    }
+
+    #[test]
+    fn flakes_fall_in_front_of_the_sky_and_move_between_frames() {
+        let params = SnowParams { map_resolution: 32, directions: 8, ..SnowParams::default() };
+        let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
+        let plain = SnowRenderSettings::default();
+        let with = SnowRenderSettings { flakes: Flakes { count: 4000, ..Flakes::default() }, ..plain };
+        let a0 = render(&sim, &plain, 160, 120);
+        let a1 = render(&sim, &with, 160, 120);
+        // Flakes only lighten: every pixel is at least as bright, and many are brighter.
+        let lighter = (0..120 * 160)
+            .filter(|&i| {
+                let (x, y) = (i % 160, i / 160);
+                let (p, q) = (a0.pixel(x, y), a1.pixel(x, y));
+                assert!(q.y >= p.y - 1e-6 || p.y > 0.9, "flakes darkened ({x}, {y})");
+                q.y > p.y + 0.05
+            })
+            .count();
+        assert!(lighter > 200, "{lighter}");
+        assert_eq!(a1, render(&sim, &with, 160, 120), "the same frame twice");
+        let mask = |sim: &SnowSim| -> Vec<bool> {
+            let (p, q) = (render(sim, &plain, 160, 120), render(sim, &with, 160, 120));
+            (0..120 * 160).map(|i| q.pixel(i % 160, i / 160).y > p.pixel(i % 160, i / 160).y + 0.05).collect()
+        };
+        let before = mask(&sim);
+        sim.step();
+        assert_ne!(before, mask(&sim), "flakes moved between frames");
     }
 }

@@ -286,6 +286,11 @@ impl SnowSim {
         &mut self.maps
     }
 
+    /// Steps taken so far.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
     /// The snowfall directions (unit vectors pointing the way the snow moves, down).
     pub fn directions(&self) -> &[Vec3] {
         &self.directions
