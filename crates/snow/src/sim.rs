@@ -415,8 +415,14 @@ impl SnowSim {
                 .enumerate()
                 .filter(|(o, m)| *o != mi && m.possible(nk) && m.surface(nk) < h)
                 .max_by(|a, b| a.1.surface(nk).total_cmp(&b.1.surface(nk)).then(b.0.cmp(&a.0)));
+            // The height the slope is measured to: the edge's own ground (a cliff: the
+            // pile at the edge may not stand more than the repose above it), or the lower
+            // map's snow surface where that is higher (a neighbouring group at about the
+            // same height: the two behave as one surface; measuring to the own ground
+            // there sent snow back and forth between the two edges for ever, found on
+            // the Stanford bunny).
             match lower {
-                Some((o, _)) => (Target::Map(o as u32, nk as u32), map.ground_m[k]),
+                Some((o, m)) => (Target::Map(o as u32, nk as u32), map.ground_m[k].max(m.surface(nk))),
                 None => (Target::Off, map.ground_m[k]),
             }
         })
@@ -425,7 +431,7 @@ impl SnowSim {
     /// Move snow until no slope exceeds the angle of repose (§2.4.1, Fig 6): a snow-covered
     /// texel whose slope to some of its 4 neighbours exceeds the repose gives half the
     /// largest excess (the amount that levels a pair to the repose) times an
-    /// over-relaxation factor of 1.8 (at most all its snow), in equal shares, to those
+    /// over-relaxation factor `OVER_RELAXATION` (at most all its snow), in equal shares, to those
     /// neighbours; past
     /// the edge of its region the snow falls to the highest lower map or off the scene
     /// (§2.4.2). Texels are visited in place, maps in order and texels alternately
@@ -443,9 +449,8 @@ impl SnowSim {
         // Texels to look at: those with snow at first, then those next to a change.
         let mut active: Vec<Vec<bool>> =
             self.maps.iter().map(|m| m.snow_m.iter().map(|&s| s > 0.0).collect()).collect();
-        let mark = |active: &mut Vec<Vec<bool>>, mi: usize, k: usize| {
+        let mark_one = |a: &mut [bool], k: usize| {
             let (i, j) = (k % n, k / n);
-            let a = &mut active[mi];
             a[k] = true;
             if i > 0 {
                 a[k - 1] = true;
@@ -458,6 +463,14 @@ impl SnowSim {
             }
             if j + 1 < n {
                 a[k + n] = true;
+            }
+        };
+        // A change at texel k of one map can steepen the slopes of the texels around k on
+        // every map (past a region's edge the slope is measured to another map's
+        // surface), so all maps' texels around k are looked at again.
+        let mark = |active: &mut Vec<Vec<bool>>, _mi: usize, k: usize| {
+            for a in active.iter_mut() {
+                mark_one(a, k);
             }
         };
         for pass in 0..self.params.max_passes {
@@ -526,8 +539,8 @@ impl SnowSim {
 /// Over-relaxation of the stabilisation moves. The paper does not say how much snow a
 /// steep texel gives; half the excess levels one pair exactly, but chains of such moves
 /// relax like diffusion. Measured on the table scene (60 steps of 1 cm, repose 30°), the
-/// passes a step needs grew to 512+ at 1.0, 443 at 1.5 and 250 at 1.8. The end state is
-/// checked against the repose either way.
+/// passes a step needs grew to 512+ at 1.0, 443 at 1.5 and 250 at 1.8 (1.95 is used).
+/// The end state is checked against the repose either way.
 const OVER_RELAXATION: f32 = 1.95;
 
 /// Where moved snow goes.
