@@ -465,12 +465,23 @@ impl SnowSim {
                 a[k + n] = true;
             }
         };
-        // A change at texel k of one map can steepen the slopes of the texels around k on
-        // every map (past a region's edge the slope is measured to another map's
-        // surface), so all maps' texels around k are looked at again.
-        let mark = |active: &mut Vec<Vec<bool>>, _mi: usize, k: usize| {
-            for a in active.iter_mut() {
-                mark_one(a, k);
+        // A change at texel k of map mi steepens slopes around k on that map, and on any
+        // other map whose region ends next to k (past a region's edge the slope is
+        // measured to the lower map's surface): those edge texels are looked at again.
+        let possible: Vec<Vec<bool>> =
+            self.maps.iter().map(|m| (0..texels).map(|k| m.possible(k)).collect()).collect();
+        let mark = |active: &mut Vec<Vec<bool>>, mi: usize, k: usize| {
+            mark_one(&mut active[mi], k);
+            let (i, j) = (k % n, k / n);
+            for (o, a) in active.iter_mut().enumerate() {
+                if o == mi || possible[o][k] {
+                    continue;
+                }
+                for (ni, nj) in [(i.wrapping_sub(1), j), (i + 1, j), (i, j.wrapping_sub(1)), (i, j + 1)] {
+                    if ni < n && nj < n && possible[o][nj * n + ni] {
+                        a[nj * n + ni] = true;
+                    }
+                }
             }
         };
         for pass in 0..self.params.max_passes {
