@@ -73,11 +73,6 @@ impl Phong {
         let one_side = 0.5 * (1.0 - c);
         if self.two_sided { 2.0 * one_side } else { one_side }
     }
-
-    /// The glint brightness k_s I_l (N·H)^n for a facet with cos_nh = N·H (or |N·H|).
-    pub fn intensity(&self, cos_nh: f32) -> f32 {
-        self.specular_k_s * self.light_intensity * cos_nh.max(0.0).powf(self.exponent_n)
-    }
 }
 
 /// The light.

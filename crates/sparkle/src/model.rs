@@ -68,6 +68,20 @@ impl Geometry {
         (self.light_dir(x) + self.eye_dir(x)).try_normalize()
     }
 
+    /// The eye and the light where they are points at a finite distance (a perspective
+    /// camera, a lamp): near them V and L turn quickly.
+    pub(crate) fn points(&self) -> impl Iterator<Item = Vec3> {
+        let eye = match self.eye {
+            Eye::Point(e) => Some(e),
+            Eye::Direction(_) => None,
+        };
+        let lamp = match self.light {
+            LightAt::Position(p) => Some(p),
+            LightAt::Direction(_) => None,
+        };
+        eye.into_iter().chain(lamp)
+    }
+
     /// A bound, radians, on the angle between H at the centre and H anywhere within
     /// `radius_m` of it: L + V is Lipschitz with constant g = 1/r_eye + 1/r_light (0 for
     /// a distant one) along segments staying at least r away, and
@@ -75,19 +89,7 @@ impl Geometry {
     pub(crate) fn half_vector_spread(&self, centre: Vec3, radius_m: f32) -> f64 {
         let r = f64::from(radius_m);
         let mut g = 0.0;
-        for far in [
-            match self.eye {
-                Eye::Point(e) => Some(e),
-                Eye::Direction(_) => None,
-            },
-            match self.light {
-                LightAt::Position(p) => Some(p),
-                LightAt::Direction(_) => None,
-            },
-        ]
-        .into_iter()
-        .flatten()
-        {
+        for far in self.points() {
             let d = f64::from((far - centre).length()) - r;
             if !(d > 0.0) {
                 return PI;

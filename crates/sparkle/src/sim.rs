@@ -877,19 +877,7 @@ impl Regions {
             _ => 0.0,
         };
         let s_inner = (0.5 * (theta - CAP_MARGIN_RAD).max(0.0)).sin();
-        let far: Vec<Vec3> = [
-            match to.geo.eye {
-                Eye::Point(e) => Some(e),
-                Eye::Direction(_) => None,
-            },
-            match to.geo.light {
-                LightAt::Position(p) => Some(p),
-                LightAt::Direction(_) => None,
-            },
-        ]
-        .into_iter()
-        .flatten()
-        .collect();
+        let far: Vec<Vec3> = to.geo.points().collect();
         let mut boxes = Vec::new();
         // Slabs, made disjoint by carving axis by axis.
         let (mut cmin, mut cmax) = (min, min + size);

@@ -25,6 +25,21 @@ const P_MIN: f64 = 0.01 / 9.0;
 const MEMORY: u32 = 4;
 const TILES: (usize, usize) = (32, 18);
 
+/// The lamp scene's 600 m³ box of 10⁶ crystals, turning up to `rotation_deg` a frame.
+fn lamp_dust(rotation_deg: f32) -> Dust {
+    Dust {
+        box_min_m: Vec3::new(-5.0, 0.0, -15.0),
+        box_max_m: Vec3::new(5.0, 6.0, -5.0),
+        density_per_m3: 1e6 / 600.0,
+        fall_speed_m_per_s: 0.3,
+        wind_m_per_s: Vec3::new(0.5, 0.0, 0.0),
+        gust_m_per_s: 0.3,
+        turbulence_m_per_s: 0.2,
+        rotation_deg_per_frame: rotation_deg,
+        normals: Normals::Uniform,
+    }
+}
+
 /// A street lamp inside a 600 m³ box of 10⁶ crystals, seen by a perspective camera.
 fn lamp_scene(method: Method, exponent_n: f32, cos_theta: f32, rotation_deg: f32) -> SparkleConfig {
     SparkleConfig {
@@ -44,17 +59,7 @@ fn lamp_scene(method: Method, exponent_n: f32, cos_theta: f32, rotation_deg: f32
             up: Vec3::Y,
             projection: Projection::Perspective { fov_y_deg: 60.0 },
         },
-        population: Population::DiamondDust(Dust {
-            box_min_m: Vec3::new(-5.0, 0.0, -15.0),
-            box_max_m: Vec3::new(5.0, 6.0, -5.0),
-            density_per_m3: 1e6 / 600.0,
-            fall_speed_m_per_s: 0.3,
-            wind_m_per_s: Vec3::new(0.5, 0.0, 0.0),
-            gust_m_per_s: 0.3,
-            turbulence_m_per_s: 0.2,
-            rotation_deg_per_frame: rotation_deg,
-            normals: Normals::Uniform,
-        }),
+        population: Population::DiamondDust(lamp_dust(rotation_deg)),
         memory_frames: MEMORY,
     }
 }
@@ -249,10 +254,7 @@ fn plates_match_brute_force() {
             },
             population: Population::DiamondDust(Dust {
                 normals: Normals::Plates { tilt_deg },
-                ..match lamp_scene(method, 1.0, 0.5, 3.0).population {
-                    Population::DiamondDust(d) => d,
-                    _ => unreachable!(),
-                }
+                ..lamp_dust(3.0)
             }),
             ..lamp_scene(method, 200.0, 0.99, 3.0)
         };
