@@ -7,6 +7,8 @@ mod output;
 mod render;
 mod scene;
 mod starter;
+#[cfg(feature = "studio")]
+mod studio;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -70,6 +72,25 @@ enum Command {
     Export {
         #[command(subcommand)]
         what: ExportWhat,
+    },
+    /// Serve the studio: a local web page that draws aurora shapes, steers every
+    /// phenomenon and shows it live (needs a build with `--features studio`).
+    Studio {
+        /// Address to listen on. Loopback by default: other machines cannot connect.
+        #[arg(long, default_value = "127.0.0.1")]
+        bind: std::net::IpAddr,
+        /// Port (0 picks a free one; the address is printed).
+        #[arg(long, default_value_t = 7878)]
+        port: u16,
+        /// Open the page in the desktop's browser.
+        #[arg(long)]
+        open: bool,
+        /// Folder for "render final" outputs.
+        #[arg(long, default_value = "studio-renders")]
+        out: PathBuf,
+        /// Most browser tabs served at once.
+        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
+        max_sessions: u16,
     },
     /// Check a scene file and report every problem with file:line:column.
     Validate {
@@ -288,6 +309,14 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                 path.display()
             ))
         }
+        #[cfg(feature = "studio")]
+        Command::Studio { bind, port, open, out, max_sessions } => {
+            studio::serve(studio::Options { bind, port, open, out, max_sessions: usize::from(max_sessions) })
+        }
+        #[cfg(not(feature = "studio"))]
+        Command::Studio { .. } => anyhow::bail!(
+            "this phenomena was built without the studio: build it with `cargo build --release -p phenomena --features studio`"
+        ),
         Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
         Command::Validate { scene } => {
             let s = scene::load(&scene)?;

@@ -180,7 +180,7 @@ impl Runner {
     }
 
     /// Advance one frame; the phenomenon's counters as JSON.
-    fn step(&mut self) -> Result<serde_json::Value> {
+    pub(crate) fn step(&mut self) -> Result<serde_json::Value> {
         Ok(match self {
             Runner::Flame { sim, .. } => serde_json::to_value(sim.step()?)?,
             Runner::Aurora { sim, .. } => serde_json::to_value(sim.step()?)?,

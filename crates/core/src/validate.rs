@@ -55,15 +55,17 @@ impl Issues {
         self.list.push(Issue { field: field.into(), value: value.to_string(), expected: expected.into() });
     }
 
-    /// Require `lo <= value <= hi` (and finite). The value is reported as written (an
-    /// `f32` prints as the shortest decimal that reads back to it).
+    /// Require `lo <= value <= hi` (and finite). The value is compared and reported as
+    /// written (an `f32` prints as the shortest decimal that reads back to it), so
+    /// `0.0001` written for an `f32` meets a bound of `0.0001`, although the nearest
+    /// `f32` is 9.99999975e-5.
     pub fn range<T: Into<f64> + fmt::Display + Copy>(
         &mut self,
         field: &str,
         value: T,
         range: RangeInclusive<f64>,
     ) {
-        let v: f64 = value.into();
+        let v = as_written(value);
         if !(v.is_finite() && range.contains(&v)) {
             self.push(field, value, format!("a value in [{}, {}]", range.start(), range.end()));
         }
@@ -77,7 +79,7 @@ impl Issues {
         lo: f64,
         hi: f64,
     ) {
-        let v: f64 = value.into();
+        let v = as_written(value);
         if !(v.is_finite() && v > lo && v <= hi) {
             self.push(field, value, format!("a value in ({lo}, {hi}]"));
         }
@@ -116,9 +118,25 @@ impl Issues {
     }
 }
 
+/// The value as its shortest round-trip decimal reads in `f64` (see [`Issues::range`]).
+fn as_written<T: Into<f64> + fmt::Display + Copy>(value: T) -> f64 {
+    value.to_string().parse().unwrap_or_else(|_| value.into())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f32_values_meet_the_decimal_bounds_they_are_written_as() {
+        let mut i = Issues::default();
+        i.range("a", 0.0001f32, 0.0001..=100.0);
+        i.range("b", 0.1f32, 0.0..=0.1);
+        i.range_open_low("c", 0.3f32, 0.0, 0.3);
+        assert!(i.is_empty(), "{:?}", i.list);
+        i.range("d", 0.000_099_99f32, 0.0001..=100.0);
+        assert_eq!(i.list.len(), 1);
+    }
 
     #[test]
     fn collects_every_problem() {

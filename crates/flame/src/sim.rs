@@ -299,6 +299,17 @@ impl FlameSim {
         &self.config
     }
 
+    /// Replace the wind from the next step on (the paper's §6 mouse drag: the drag
+    /// vector becomes the wind force). Rejects a wind that
+    /// [`FlameConfig::validate`](crate::FlameConfig::validate) would reject, naming it.
+    pub fn set_wind(&mut self, wind: crate::config::Wind) -> Result<(), FlameError> {
+        let mut config = self.config.clone();
+        config.wind = wind;
+        config.validate().map_err(FlameError::Config)?;
+        self.config = config;
+        Ok(())
+    }
+
     /// Frames completed.
     pub fn frame(&self) -> u64 {
         self.frame
@@ -570,6 +581,34 @@ mod tests {
         }
         // 420 frames at 60 fps = 7 s -> exactly 1000 particles due.
         assert_eq!(total, 1000);
+    }
+
+    #[test]
+    fn set_wind_acts_from_the_next_step_and_rejects_bad_values() {
+        use crate::config::Wind;
+        let mean_x = |sim: &FlameSim| {
+            let p = sim.particles();
+            p.position_m.iter().map(|x| f64::from(x.x)).sum::<f64>() / p.len() as f64
+        };
+        let mut calm = FlameSim::new(FlameConfig::default(), 3).unwrap();
+        let mut windy = FlameSim::new(FlameConfig::default(), 3).unwrap();
+        for _ in 0..10 {
+            calm.step().unwrap();
+            windy.step().unwrap();
+        }
+        assert_eq!(mean_x(&calm), mean_x(&windy));
+        let gust = Wind { force_n_m3: glam::Vec3::new(2.0, 0.0, 0.0), keys: Vec::new() };
+        windy.set_wind(gust.clone()).unwrap();
+        assert_eq!(windy.config().wind, gust);
+        for _ in 0..20 {
+            calm.step().unwrap();
+            windy.step().unwrap();
+        }
+        assert!(mean_x(&windy) > mean_x(&calm) + 0.01, "{} vs {}", mean_x(&windy), mean_x(&calm));
+        let bad = Wind { force_n_m3: glam::Vec3::new(f32::NAN, 0.0, 0.0), keys: Vec::new() };
+        let e = windy.set_wind(bad).unwrap_err().to_string();
+        assert!(e.contains("wind.force_n_m3"), "{e}");
+        assert_eq!(windy.config().wind, gust, "a rejected wind leaves the old one");
     }
 
     #[test]

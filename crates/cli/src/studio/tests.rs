@@ -1,0 +1,226 @@
+//! Server tests: the HTTP and WebSocket surface on a real socket.
+
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio_tungstenite::tungstenite::Message as WsMessage;
+
+use super::*;
+
+type Client = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap()
+}
+
+/// A studio on a free loopback port; returns its address.
+async fn start(max_sessions: usize) -> (SocketAddr, tempfile::TempDir) {
+    let out = tempfile::tempdir().unwrap();
+    let shared = Arc::new(Shared {
+        controls: controls::Catalogue::build(),
+        options: Options {
+            bind: IpAddr::from([127, 0, 0, 1]),
+            port: 0,
+            open: false,
+            out: out.path().to_path_buf(),
+            max_sessions,
+        },
+        sessions: Mutex::new(HashMap::new()),
+        counter: AtomicU64::new(0),
+        key: std::hash::RandomState::new(),
+    });
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move { axum::serve(listener, router(shared)).await });
+    (addr, out)
+}
+
+/// Send raw HTTP/1.1 bytes (so paths are not normalised) and return the status code
+/// and body.
+async fn raw(addr: SocketAddr, head: &str, body: &[u8]) -> (u16, String) {
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(head.as_bytes()).await.unwrap();
+    // A server may answer (413) before the whole body is sent; ignore write errors.
+    let _ = s.write_all(body).await;
+    let mut buf = Vec::new();
+    let _ = tokio::time::timeout(Duration::from_secs(20), s.read_to_end(&mut buf)).await;
+    let text = String::from_utf8_lossy(&buf).to_string();
+    let code = text.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    (code, text)
+}
+
+async fn get(addr: SocketAddr, path: &str) -> (u16, String) {
+    raw(addr, &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"), &[]).await
+}
+
+async fn connect(addr: SocketAddr) -> (Client, String) {
+    let (mut ws, _) = tokio_tungstenite::connect_async(format!("ws://{addr}/ws")).await.unwrap();
+    let hello = next_json(&mut ws, "hello").await;
+    (ws, hello["session"].as_str().unwrap().to_string())
+}
+
+/// The next JSON message of `kind`, skipping others (frames, notices); 60 s at most.
+async fn next_json(ws: &mut Client, kind: &str) -> Value {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
+    loop {
+        let m = tokio::time::timeout_at(deadline, ws.next())
+            .await
+            .unwrap_or_else(|_| panic!("no `{kind}` message within 60 s"))
+            .expect("socket open")
+            .expect("no socket error");
+        if let WsMessage::Text(t) = m {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == kind {
+                return v;
+            }
+        }
+    }
+}
+
+async fn send(ws: &mut Client, v: Value) {
+    ws.send(WsMessage::Text(v.to_string().into())).await.unwrap();
+}
+
+async fn live(addr: SocketAddr) -> u64 {
+    let (code, text) = get(addr, "/api/sessions").await;
+    assert_eq!(code, 200, "{text}");
+    let body = &text[text.find("\r\n\r\n").unwrap() + 4..];
+    serde_json::from_str::<Value>(body).unwrap()["live"].as_u64().unwrap()
+}
+
+#[test]
+fn static_files_only_from_the_embedded_set() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (code, page) = get(addr, "/").await;
+        assert_eq!(code, 200);
+        assert!(page.contains("phenomena studio"));
+        assert_eq!(get(addr, "/static/app.js").await.0, 200);
+        for path in [
+            "/static/../Cargo.toml",
+            "/../../Cargo.toml",
+            "/static/%2e%2e/%2e%2e/Cargo.toml",
+            "/static/..%2fmod.rs",
+            "/etc/passwd",
+            "/static/web/app.js",
+        ] {
+            let (code, text) = get(addr, path).await;
+            assert_eq!(code, 404, "{path}: {text}");
+            assert!(!text.contains("[package]"), "{path} leaked a file");
+        }
+    });
+}
+
+#[test]
+fn oversized_uploads_get_413_and_small_ones_land() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (_ws, id) = connect(addr).await;
+        let big = vec![b'x'; MAX_UPLOAD_BYTES + 1];
+        let head = format!(
+            "POST /api/session/{id}/upload/big.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            big.len()
+        );
+        let (code, text) = raw(addr, &head, &big).await;
+        assert_eq!(code, 413, "{}", &text[..text.len().min(300)]);
+        let small = b"v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n";
+        let head = format!(
+            "POST /api/session/{id}/upload/tri.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            small.len()
+        );
+        let (code, text) = raw(addr, &head, small).await;
+        assert_eq!(code, 200, "{text}");
+        let head = format!(
+            "POST /api/session/{id}/upload/..%2fx.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            small.len()
+        );
+        assert_eq!(raw(addr, &head, small).await.0, 400, "names with a path are refused");
+    });
+}
+
+#[test]
+fn tabs_have_their_own_scenes_and_bad_messages_keep_the_connection() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut a, _) = connect(addr).await;
+        let (mut b, _) = connect(addr).await;
+        send(&mut a, json!({"type": "builtin", "name": "flame-paper"})).await;
+        let sa = next_json(&mut a, "scene").await;
+        send(&mut b, json!({"type": "builtin", "name": "sparkle-paper"})).await;
+        let sb = next_json(&mut b, "scene").await;
+        assert_eq!((sa["phenomenon"].as_str(), sb["phenomenon"].as_str()), (Some("flame"), Some("sparkle")));
+        send(&mut a, json!({"type": "set", "path": "scene.seed", "value": 77})).await;
+        let sa = next_json(&mut a, "scene").await;
+        assert_eq!(sa["scene"]["scene"]["seed"], 77);
+        send(&mut b, json!({"type": "save"})).await;
+        let saved = next_json(&mut b, "saved").await;
+        assert!(saved["toml"].as_str().unwrap().contains("[sparkle"), "{saved}");
+        assert!(!saved["toml"].as_str().unwrap().contains("seed = 77"), "tab b saw tab a's change");
+        // Malformed and unknown messages get an error; the socket stays usable.
+        a.send(WsMessage::Text("{not json".into())).await.unwrap();
+        let e = next_json(&mut a, "error").await;
+        assert!(e["message"].as_str().unwrap().contains("malformed"), "{e}");
+        send(&mut a, json!({"type": "explode"})).await;
+        next_json(&mut a, "error").await;
+        send(&mut a, json!({"type": "set", "path": "flame.emitter.rate_per_s", "value": -5})).await;
+        let e = next_json(&mut a, "error").await;
+        assert!(e["issues"][0]["field"].as_str().unwrap().ends_with("rate_per_s"), "{e}");
+        send(&mut a, json!({"type": "save"})).await;
+        let saved = next_json(&mut a, "saved").await;
+        assert!(saved["toml"].as_str().unwrap().contains("seed = 77"), "{saved}");
+        assert!(!saved["toml"].as_str().unwrap().contains("rate_per_s = -5"), "a refused value stays out");
+    });
+}
+
+#[test]
+fn closing_a_tab_stops_its_simulation_and_the_cap_holds() {
+    runtime().block_on(async {
+        let (addr, _out) = start(2).await;
+        let (mut a, _) = connect(addr).await;
+        send(&mut a, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut a, "frame").await;
+        let (b, _) = connect(addr).await;
+        assert_eq!(live(addr).await, 2);
+        // A third tab is refused while two are open.
+        let third = tokio_tungstenite::connect_async(format!("ws://{addr}/ws")).await;
+        assert!(third.is_err(), "a third session was accepted past the cap of 2");
+        drop(b);
+        a.close(None).await.unwrap();
+        drop(a);
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
+        while live(addr).await > 0 {
+            assert!(
+                tokio::time::Instant::now() < deadline,
+                "sessions still live 10 s after their tabs closed"
+            );
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    });
+}
+
+#[test]
+fn snow_glb_download_is_a_gltf_binary() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, id) = connect(addr).await;
+        assert_eq!(get(addr, &format!("/api/session/{id}/snow.glb")).await.0, 409, "no snow scene yet");
+        send(&mut ws, json!({"type": "builtin", "name": "snow-table"})).await;
+        next_json(&mut ws, "frame").await;
+        let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+        s.write_all(
+            format!("GET /api/session/{id}/snow.glb HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+                .as_bytes(),
+        )
+        .await
+        .unwrap();
+        let mut buf = Vec::new();
+        s.read_to_end(&mut buf).await.unwrap();
+        let split = buf.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+        let head = String::from_utf8_lossy(&buf[..split]);
+        assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+        assert!(head.contains("model/gltf-binary"), "{head}");
+        assert_eq!(&buf[split..split + 4], b"glTF", "GLB magic");
+    });
+}

@@ -1,0 +1,149 @@
+// Parameter controls, generated from the server's catalogue (/api/controls): every
+// number, switch, choice and vector of a scene, with its unit (from the field name)
+// and the range the scene's own validation accepts.
+
+// Field-name suffixes and their units, longest first.
+const UNITS = [
+  ['_deg_per_frame', '°/frame'], ['_deg_per_s', '°/s'], ['_m_s2_per_k', 'm/s² per K'],
+  ['_kg_m3', 'kg/m³'], ['_m2_s2', 'm²/s²'], ['_n_m3', 'N/m³'], ['_cm_per_h', 'cm/h'],
+  ['_m_per_s', 'm/s'], ['_km_s', 'km/s'], ['_m_s', 'm/s'], ['_per_s', '1/s'], ['_f_m', 'F/m'],
+  ['_hz', 'Hz'], ['_kev', 'keV'], ['_km', 'km'], ['_deg', '°'], ['_kg', 'kg'], ['_nm', 'nm'],
+  ['_ev', 'stops'], ['_m', 'm'], ['_s', 's'], ['_k', 'K'], ['_h', 'h'], ['_t', 'T'], ['_c', 'C'],
+];
+
+export function labelOf(path) {
+  const key = path.split('.').pop();
+  for (const [suffix, unit] of UNITS) {
+    if (key.endsWith(suffix) && key.length > suffix.length) {
+      return { name: key.slice(0, -suffix.length).replaceAll('_', ' '), unit };
+    }
+  }
+  return { name: key.replaceAll('_', ' '), unit: '' };
+}
+
+export function getPath(obj, path) {
+  return path.split('.').reduce((o, k) => (o == null ? undefined : o[k]), obj);
+}
+
+// Build the form into `root`. `send(path, value)` is called on every change.
+export function buildForm(root, controls, featured, scene, send) {
+  root.replaceChildren();
+  const present = controls.filter((c) => getPath(scene, c.path) !== undefined);
+  const top = document.createElement('div');
+  top.className = 'featured';
+  for (const path of featured) {
+    const c = present.find((x) => x.path === path);
+    if (c) top.append(controlElement(c, getPath(scene, c.path), send));
+  }
+  root.append(top);
+  const groups = new Map();
+  for (const c of present) {
+    if (featured.includes(c.path)) continue;
+    const parts = c.path.split('.');
+    const group = parts.length > 2 ? parts.slice(0, 2).join('.') : parts[0];
+    if (!groups.has(group)) groups.set(group, []);
+    groups.get(group).push(c);
+  }
+  for (const [group, list] of groups) {
+    const d = document.createElement('details');
+    const s = document.createElement('summary');
+    s.textContent = `[${group}]`;
+    d.append(s);
+    for (const c of list) d.append(controlElement(c, getPath(scene, c.path), send));
+    root.append(d);
+  }
+}
+
+function controlElement(c, value, send) {
+  const row = document.createElement('label');
+  row.className = 'control';
+  row.dataset.path = c.path;
+  const { name, unit } = labelOf(c.path);
+  const title = document.createElement('span');
+  title.className = 'name';
+  title.textContent = name;
+  title.title = c.path;
+  row.append(title);
+  const box = document.createElement('span');
+  let input;
+  if (c.kind === 'bool') {
+    input = document.createElement('input');
+    input.type = 'checkbox';
+    input.checked = !!value;
+    input.addEventListener('change', () => send(c.path, input.checked));
+    box.append(input);
+  } else if (c.kind === 'choice') {
+    input = document.createElement('select');
+    for (const choice of c.choices) {
+      const o = document.createElement('option');
+      o.value = choice;
+      o.textContent = choice;
+      input.append(o);
+    }
+    input.value = value;
+    input.addEventListener('change', () => send(c.path, input.value));
+    box.append(input);
+  } else if (c.kind === 'vector') {
+    box.className = 'vector';
+    const inputs = value.map((x) => {
+      const i = numberInput(c, x, false);
+      box.append(i);
+      return i;
+    });
+    for (const i of inputs) {
+      i.addEventListener('change', () => send(c.path, inputs.map((e) => Number(e.value))));
+    }
+    input = inputs[0];
+  } else if (c.kind === 'text') {
+    input = document.createElement('input');
+    input.type = 'text';
+    input.value = value;
+    input.addEventListener('change', () => send(c.path, input.value));
+    box.append(input);
+  } else {
+    input = numberInput(c, value, c.kind === 'integer');
+    input.addEventListener('change', () => {
+      if (input.value === '') return;
+      send(c.path, Number(input.value));
+    });
+    box.append(input);
+  }
+  if (unit) {
+    const u = document.createElement('span');
+    u.className = 'unit';
+    u.textContent = ` ${unit}`;
+    box.append(u);
+  }
+  row.append(box);
+  if (c.valid) {
+    const v = document.createElement('span');
+    v.className = 'valid';
+    v.textContent = `valid: ${c.valid}`;
+    row.append(v);
+  }
+  return row;
+}
+
+function numberInput(c, value, integer) {
+  const i = document.createElement('input');
+  i.type = 'number';
+  i.step = integer ? '1' : 'any';
+  if (c.min != null && c.kind !== 'vector') i.min = c.min;
+  if (c.max != null && c.kind !== 'vector') i.max = c.max;
+  i.value = value;
+  return i;
+}
+
+// Mark the controls the server refused (issues carry field paths).
+export function markIssues(root, issues) {
+  for (const row of root.querySelectorAll('.control.bad')) row.classList.remove('bad');
+  for (const issue of issues || []) {
+    for (const row of root.querySelectorAll('.control')) {
+      const path = row.dataset.path;
+      if (path === issue.field || path.endsWith(`.${issue.field}`)) {
+        row.classList.add('bad');
+        row.title = issue.message;
+      }
+    }
+  }
+}
