@@ -214,3 +214,35 @@ fn the_ground_hides_what_is_below_the_horizon_and_stars_shine_above_it() {
     // up to 4 pixels (bilinear): at least several hundred lit pixels.
     assert!(added > 500, "{added} pixels gained starlight");
 }
+
+#[test]
+fn the_phases_of_a_particle_subset_average_to_the_full_image() {
+    // The preview's particle subset (every k-th particle, k times the weight) is
+    // unbiased: the k phases partition the particles, so their mean is the full image,
+    // up to f32 rounding of the sums (relative 1e-4 is ~800 ulps of headroom).
+    let s = sim(20_000, 3);
+    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };
+    let mut full = SkyRenderer::new(settings, 160, 90).expect("sky");
+    full.render(&s);
+    let reference: Vec<Vec<f32>> = full.line_images().iter().map(|p| p.data().to_vec()).collect();
+    let k = 4;
+    let mut mean = vec![vec![0.0f64; reference[0].len()]; 5];
+    let mut one_phase_differs = false;
+    for phase in 0..k {
+        let mut sky = SkyRenderer::new(settings, 160, 90).expect("sky");
+        sky.set_particle_subset(k, phase);
+        sky.render(&s);
+        for (m, (plane, r)) in mean.iter_mut().zip(sky.line_images().iter().zip(&reference)) {
+            for (acc, v) in m.iter_mut().zip(plane.data()) {
+                *acc += f64::from(*v) / k as f64;
+            }
+            one_phase_differs |= plane.data() != r.as_slice();
+        }
+    }
+    assert!(one_phase_differs, "a phase alone should differ from the full image");
+    for (line, (m, r)) in mean.iter().zip(&reference).enumerate() {
+        let total: f64 = r.iter().map(|v| f64::from(*v)).sum();
+        let diff: f64 = m.iter().zip(r).map(|(a, b)| (a - f64::from(*b)).abs()).sum();
+        assert!(diff <= 1e-4 * total.max(1e-30), "line {line}: |mean - full| = {diff} of {total}");
+    }
+}

@@ -38,6 +38,11 @@ pub(crate) enum Out {
 /// rest of the machine stays free for the other tabs and final renders.
 const MAX_PREVIEW_FPS: f64 = 30.0;
 
+/// The aurora's sky preview emits for about this many particles per frame (every k-th
+/// particle, k times the weight, the phase turning each frame: an unbiased thinning,
+/// see `SkyRenderer::set_particle_subset`); final renders use all of them.
+const AURORA_PREVIEW_PARTICLES: usize = 25_000;
+
 /// Largest preview, pixels per side.
 const MAX_PREVIEW_SIDE: u32 = 1920;
 
@@ -463,6 +468,10 @@ impl Session {
     fn render_and_send(&mut self, step_ms: f64, counters: Value) -> Result<(), Closed> {
         let (Some(runner), Some(scene)) = (&mut self.runner, &self.scene) else { return Ok(()) };
         let exposure: Exposure = scene.settings().exposure();
+        if let Runner::Aurora { sim, sky: Some(sky), .. } = runner {
+            let k = sim.particles().len().div_ceil(AURORA_PREVIEW_PARTICLES).max(1);
+            sky.set_particle_subset(k, self.frame as usize % k);
+        }
         let t = Instant::now();
         let frame = runner.render();
         let render_ms = t.elapsed().as_secs_f64() * 1e3;

@@ -1,0 +1,286 @@
+// Browser end-to-end tests of `phenomena studio` (issue 7): Playwright (playwright-core)
+// driving Debian's chromium headless. Usage:
+//   node e2e.mjs PATH/TO/phenomena OUT_DIR
+// Starts the studio on a free port, runs every check, writes OUT_DIR/studio-snow.glb
+// (validated by .ci/run with the Khronos validator) and OUT_DIR/studio-e2e.json (the
+// measured preview rates and change-to-frame latencies), and exits non-zero on failure.
+import { chromium } from 'playwright-core';
+import { spawn, spawnSync } from 'node:child_process';
+import { mkdirSync, writeFileSync, readdirSync, mkdtempSync } from 'node:fs';
+import { join } from 'node:path';
+import { tmpdir } from 'node:os';
+import assert from 'node:assert/strict';
+
+const [bin, outDir] = process.argv.slice(2);
+if (!bin || !outDir) {
+  console.error('usage: node e2e.mjs PATH/TO/phenomena OUT_DIR');
+  process.exit(2);
+}
+mkdirSync(outDir, { recursive: true });
+const work = mkdtempSync(join(tmpdir(), 'studio-e2e-'));
+
+const server = spawn(bin, ['studio', '--port', '0', '--out', join(work, 'renders')], {
+  stdio: ['ignore', 'pipe', 'inherit'],
+});
+const url = await new Promise((resolve, reject) => {
+  const timer = setTimeout(() => reject(new Error('the studio did not start within 60 s')), 60000);
+  server.stdout.on('data', (d) => {
+    const m = /serving (\S+)/.exec(String(d));
+    if (m) {
+      clearTimeout(timer);
+      resolve(m[1]);
+    }
+  });
+  server.on('exit', (code) => reject(new Error(`the studio exited with ${code}`)));
+});
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync'],
+});
+const page = await browser.newPage({ viewport: { width: 1400, height: 1000 }, acceptDownloads: true });
+const consoleErrors = [];
+page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
+page.on('pageerror', (e) => consoleErrors.push(e.message));
+
+const report = { url, tabs: {} };
+const results = [];
+async function check(name, fn) {
+  const t0 = Date.now();
+  try {
+    await fn();
+    results.push({ name, ok: true });
+    console.log(`ok    ${name} (${Date.now() - t0} ms)`);
+  } catch (e) {
+    results.push({ name, ok: false, error: String(e.stack || e) });
+    console.log(`FAIL  ${name}: ${e.stack || e}`);
+    await page.screenshot({ path: join(outDir, `fail-${name.replace(/\W+/g, '-')}.png`) }).catch(() => {});
+  }
+}
+
+const studio = (expr) => page.evaluate(expr);
+async function until(what, fn, timeoutMs = 30000) {
+  const end = Date.now() + timeoutMs;
+  for (;;) {
+    const v = await fn();
+    if (v) return v;
+    if (Date.now() > end) throw new Error(`timed out after ${timeoutMs} ms waiting for ${what}`);
+    await page.waitForTimeout(100);
+  }
+}
+
+// Luminance statistics of the preview, and the centroid of its bright pixels.
+function previewStats() {
+  return page.evaluate(() => {
+    const c = document.getElementById('preview');
+    const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let n = 0, sum = 0, sum2 = 0, bx = 0, bw = 0, hash = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      const y = 0.2126 * d[i] + 0.7152 * d[i + 1] + 0.0722 * d[i + 2];
+      sum += y; sum2 += y * y; n += 1;
+      if (d[i] > 200 && d[i + 1] > 100) { bx += ((i / 4) % c.width); bw += 1; }
+      hash = (hash * 31 + d[i] + 7 * d[i + 1]) >>> 0;
+    }
+    const mean = sum / n;
+    return { mean, sd: Math.sqrt(Math.max(sum2 / n - mean * mean, 0)), brightX: bw ? bx / bw : null, bright: bw, hash, width: c.width };
+  });
+}
+
+async function openTab(phenomenon) {
+  await page.click(`#tabs button[data-phenomenon="${phenomenon}"]`);
+  await until(`a ${phenomenon} scene`, () => studio(`window.studio.phenomenon === '${phenomenon}' && window.studio.scene && window.studio.scene['${phenomenon === 'snow' ? 'snow' : phenomenon}'] !== undefined`));
+}
+
+// Frames shown per second over `ms` of play, and the change-to-first-frame latency of
+// three seed changes (median).
+async function measure(phenomenon) {
+  await page.click('#play');
+  const f0 = await studio('window.studio.frames');
+  const t0 = Date.now();
+  await page.waitForTimeout(5000);
+  const fps = ((await studio('window.studio.frames')) - f0) / ((Date.now() - t0) / 1000);
+  const latencies = [];
+  for (const seed of [11, 12, 13]) {
+    const n = await studio('window.studio.latencies.length');
+    await page.fill('#seed', String(seed));
+    await page.dispatchEvent('#seed', 'change');
+    await until('the first frame after a change', () => studio(`window.studio.latencies.length > ${n}`), 30000);
+    latencies.push(await studio('window.studio.latencies[window.studio.latencies.length - 1]'));
+  }
+  latencies.sort((a, b) => a - b);
+  report.tabs[phenomenon] = { fps: Number(fps.toFixed(2)), latency_ms: latencies.map((x) => Math.round(x)), median_latency_ms: Math.round(latencies[1]) };
+}
+
+await page.goto(url);
+await until('the session', () => studio('window.studio && window.studio.session'));
+
+await check('the page loads with no console errors', async () => {
+  await until('a first frame', () => studio('window.studio.frames > 0'));
+  assert.deepEqual(consoleErrors, []);
+});
+
+for (const phenomenon of ['aurora', 'flame', 'snow', 'sparkle']) {
+  await check(`${phenomenon}: the preview shows a non-uniform image within a few seconds`, async () => {
+    await openTab(phenomenon);
+    const t0 = Date.now();
+    const s = await until('a non-uniform preview', async () => {
+      const st = await previewStats();
+      return st.sd > 3 ? st : null;
+    }, 20000);
+    report.tabs[phenomenon] = { first_image_ms: Date.now() - t0 };
+    assert.ok(s.sd > 3, JSON.stringify(s));
+    await measure(phenomenon);
+    report.tabs[phenomenon].first_image_ms = Date.now() - t0;
+  });
+}
+
+// --- aurora editor ---
+async function kmToPage(canvasId, p) {
+  return page.evaluate(([id, p]) => {
+    const c = document.getElementById(id);
+    const r = c.getBoundingClientRect();
+    const [x, y] = window.studio.editor.toPx(c, p);
+    return [r.left + (x * r.width) / c.width, r.top + (y * r.height) / c.height];
+  }, [canvasId, p]);
+}
+async function dragKm(canvasId, from, to, steps = 12) {
+  const a = await kmToPage(canvasId, from);
+  const b = await kmToPage(canvasId, to);
+  await page.mouse.move(a[0], a[1]);
+  await page.mouse.down();
+  await page.mouse.move(b[0], b[1], { steps });
+  await page.mouse.up();
+}
+async function clickKm(canvasId, p) {
+  const a = await kmToPage(canvasId, p);
+  await page.mouse.click(a[0], a[1]);
+}
+const shapeOf = (k) => studio(`JSON.stringify(window.studio.editor.state.keyframes[${k}].shape)`).then(JSON.parse);
+// A merge and a split each add two control points (the joined ends meet at the new
+// pair; a split's new ends part from it) and rewire the links.
+const links = (shape) => JSON.stringify(shape.next);
+const generation = () => studio('window.studio.generation');
+
+await check('aurora: a drag on the source canvas creates control points and the preview changes', async () => {
+  await openTab('aurora');
+  await page.click('#clear-shapes');
+  await until('an empty source', async () => (await shapeOf(0)).points.length === 0);
+  const before = await previewStats();
+  const g = await generation();
+  await dragKm('source-canvas', [60, 150], [190, 150]);
+  await until('control points on the source', async () => (await shapeOf(0)).points.length > 0);
+  const n = await studio('window.studio.editor.state.control_points');
+  assert.equal((await shapeOf(0)).points.length, n);
+  await until('a frame of the new shape', () => studio(`window.studio.generation > ${g} && window.studio.frames > 0`));
+  const after = await until('a changed preview', async () => {
+    const s = await previewStats();
+    return s.hash !== before.hash && s.sd > 1 ? s : null;
+  }, 20000);
+  assert.notEqual(after.hash, before.hash);
+});
+
+await check('aurora: a crossing stroke is refused with a visible message', async () => {
+  const refusals = await studio('window.studio.messages.filter((m) => m.kind === "refused").length');
+  const pts = (await shapeOf(0)).points.length;
+  await dragKm('source-canvas', [120, 60], [120, 260]);
+  await until('a refusal', () => studio(`window.studio.messages.filter((m) => m.kind === "refused").length > ${refusals}`));
+  const text = await page.textContent('#messages');
+  assert.match(text, /crosses sheet 0/);
+  assert.equal((await shapeOf(0)).points.length, pts, 'the crossing stroke was not added');
+});
+
+await check('aurora: split and merge clicks change the shape', async () => {
+  // A second source sheet, then both target sheets (the highlighted placeholders).
+  await dragKm('source-canvas', [210, 150], [340, 150]);
+  await until('two source sheets', async () => new Set((await shapeOf(0)).sheet).size === 2);
+  await dragKm('target-canvas', [60, 250], [190, 250]);
+  await until('target sheet 0 drawn', () => studio('window.studio.editor.state.keyframes[1].drawn[0] === true'));
+  await dragKm('target-canvas', [210, 250], [340, 250]);
+  await until('target sheet 1 drawn', () => studio('window.studio.editor.state.keyframes[1].drawn[1] === true'));
+  // Merge: the right end of sheet 0 and the left end of sheet 1.
+  const before = await shapeOf(1);
+  await page.selectOption('#target-tool', 'merge');
+  await clickKm('target-canvas', [190, 250]);
+  await clickKm('target-canvas', [210, 250]);
+  await until('a merge', async () => (await shapeOf(1)).points.length === before.points.length + 2);
+  const merged = await shapeOf(1);
+  assert.notEqual(links(merged), links(before));
+  // Split: the middle of sheet 0.
+  await page.selectOption('#target-tool', 'split');
+  await clickKm('target-canvas', [125, 250]);
+  await until('a split', async () => (await shapeOf(1)).points.length === merged.points.length + 2);
+  assert.notEqual(links(await shapeOf(1)), links(merged));
+  await page.selectOption('#target-tool', 'draw');
+});
+
+await check('aurora: keyframes can be added, moved and deleted', async () => {
+  const count = () => studio('window.studio.editor.state.keyframes.length');
+  const k0 = await count();
+  await page.click('#add-keyframe');
+  await until('a new keyframe', async () => (await count()) === k0 + 1);
+  await page.fill('#keyframe-frame', '400');
+  await page.dispatchEvent('#keyframe-frame', 'change');
+  await until('the keyframe moved', () => studio(`window.studio.editor.state.keyframes[${k0}].frame === 400`));
+  await page.click('#delete-keyframe');
+  await until('the keyframe deleted', async () => (await count()) === k0);
+});
+
+// --- flame wind ---
+await check('flame: a drag on the preview moves the flame toward the drag', async () => {
+  await openTab('flame');
+  await page.click('#play');
+  await page.waitForTimeout(3000);
+  const calm = await previewStats();
+  assert.ok(calm.bright > 50, `no flame to see: ${JSON.stringify(calm)}`);
+  const box = await page.locator('#preview').boundingBox();
+  const cx = box.x + box.width / 2, cy = box.y + box.height / 2;
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + box.width * 0.35, cy, { steps: 8 });
+  await page.mouse.up();
+  const windy = await until('the flame to lean right', async () => {
+    const s = await previewStats();
+    return s.brightX > calm.brightX + 15 ? s : null;
+  }, 15000);
+  report.flame_wind = { calm_x: calm.brightX, windy_x: windy.brightX };
+});
+
+// --- snow GLB download ---
+await check('snow: the GLB download is a glTF binary', async () => {
+  await openTab('snow');
+  await until('a snow frame', () => studio('window.studio.frames > 0'));
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#snow-glb')]);
+  const path = join(outDir, 'studio-snow.glb');
+  await download.saveAs(path);
+  const bytes = (await import('node:fs')).readFileSync(path);
+  assert.equal(bytes.subarray(0, 4).toString('latin1'), 'glTF');
+});
+
+// --- save, then render the saved file ---
+await check('save scene, then phenomena render on the saved file works', async () => {
+  await openTab('sparkle');
+  await page.fill('#seed', '5');
+  await page.dispatchEvent('#seed', 'change');
+  await until('seed 5', () => studio('window.studio.scene.scene.seed === 5'));
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+  const saved = join(work, 'saved.toml');
+  await download.saveAs(saved);
+  const out = join(work, 'render');
+  const r = spawnSync(bin, ['render', saved, '--out', out, '--frames', '0..2', '--width', '64', '--height', '36'], { encoding: 'utf8' });
+  assert.equal(r.status, 0, r.stderr);
+  assert.deepEqual(readdirSync(out).filter((f) => f.endsWith('.png')).sort(), ['frame_00000.png', 'frame_00001.png']);
+});
+
+await check('no console errors during the whole run', async () => {
+  assert.deepEqual(consoleErrors, []);
+});
+
+report.results = results;
+writeFileSync(join(outDir, 'studio-e2e.json'), JSON.stringify(report, null, 2));
+console.log(JSON.stringify(report.tabs));
+await browser.close();
+server.kill();
+const failed = results.filter((r) => !r.ok).length;
+console.log(`${results.length - failed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);
