@@ -272,6 +272,21 @@ await check('save scene, then phenomena render on the saved file works', async (
   assert.deepEqual(readdirSync(out).filter((f) => f.endsWith('.png')).sort(), ['frame_00000.png', 'frame_00001.png']);
 });
 
+await check('render final writes the frames with progress', async () => {
+  await openTab('flame');
+  const n = await studio('window.studio.messages.length');
+  await page.fill('#final-frames', '3');
+  await page.click('#render-final');
+  const done = await until('the render to finish', async () => {
+    const m = await studio(`window.studio.messages.slice(${n}).find((x) => x.text.startsWith('render final:') || x.kind === 'error')`);
+    return m;
+  }, 60000);
+  assert.equal(done.kind, 'notice', done.text);
+  const dir = /written to (.*)$/.exec(done.text)[1];
+  assert.deepEqual(readdirSync(dir).sort(), ['frame_00000.png', 'frame_00001.png', 'frame_00002.png', 'scene.toml']);
+  assert.equal(await page.getAttribute('#final-progress', 'value'), '3');
+});
+
 await check('no console errors during the whole run', async () => {
   assert.deepEqual(consoleErrors, []);
 });

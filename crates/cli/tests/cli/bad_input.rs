@@ -81,3 +81,11 @@ fn command_line_values_are_checked() {
     assert!(e.contains("goes past the scene's 4 frames"), "{e}");
     ok(dir.path(), &["validate", &scene]);
 }
+
+#[cfg(not(feature = "studio"))]
+#[test]
+fn studio_without_the_feature_says_how_to_build_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = fails(dir.path(), &["studio", "--port", "0"]);
+    assert!(e.contains("--features studio"), "{e}");
+}
