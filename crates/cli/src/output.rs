@@ -58,9 +58,18 @@ pub(crate) fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Tone map a linear frame to 8-bit sRGB bytes (row-major RGB triples).
 pub(crate) fn to_srgb8(frame: &Frame, exposure: &Exposure) -> Vec<u8> {
+    use rayon::prelude::*;
+    // Each value maps on its own, so chunks in parallel give the same bytes.
+    const CHUNK: usize = 1 << 14;
     let linear = frame.to_interleaved();
-    let mut out = Vec::with_capacity(linear.len());
-    exposure.apply_all(&linear, |v| out.push(srgb_encode_u8_fast(v)));
+    let mut out = vec![0u8; linear.len()];
+    out.par_chunks_mut(CHUNK).zip(linear.par_chunks(CHUNK)).for_each(|(o, l)| {
+        let mut k = 0;
+        exposure.apply_all(l, |v| {
+            o[k] = srgb_encode_u8_fast(v);
+            k += 1;
+        });
+    });
     out
 }
 

@@ -226,6 +226,49 @@ struct Session {
     next_due: Instant,
     render_cancel: Option<Arc<AtomicBool>>,
     renders: u32,
+    encoder: std::sync::mpsc::SyncSender<EncodeJob>,
+}
+
+/// A preview frame for the encoder thread.
+struct EncodeJob {
+    /// generation, frame, width, height.
+    header: [u32; 4],
+    /// 8-bit sRGB, interleaved.
+    rgb: Vec<u8>,
+    /// The `frame` message, completed with `encode_ms`.
+    stats: Value,
+}
+
+/// Encode preview frames as JPEG and send them, each after its `frame` message, until
+/// the session drops its sender or the page goes away.
+fn encode_frames(jobs: Receiver<EncodeJob>, out: tokio::sync::mpsc::Sender<Out>) {
+    for mut job in jobs {
+        let t = Instant::now();
+        let [_, _, w, h] = job.header;
+        let mut bytes = Vec::with_capacity(16 + job.rgb.len() / 8);
+        for v in job.header {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        let encoded = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 85).encode(
+            &job.rgb,
+            w,
+            h,
+            image::ExtendedColorType::Rgb8,
+        );
+        let ok = encoded.is_ok();
+        let message = match encoded {
+            Ok(()) => {
+                job.stats["encode_ms"] = json!(t.elapsed().as_secs_f64() * 1e3);
+                Out::Text(job.stats.to_string())
+            }
+            Err(e) => Out::Text(
+                json!({"type": "error", "message": format!("cannot encode the preview: {e}")}).to_string(),
+            ),
+        };
+        if out.blocking_send(message).is_err() || (ok && out.blocking_send(Out::Binary(bytes)).is_err()) {
+            return;
+        }
+    }
 }
 
 /// Why the loop ends.
@@ -238,7 +281,20 @@ pub(crate) fn run(
     inbox: Receiver<Command>,
     out: tokio::sync::mpsc::Sender<Out>,
 ) {
+    // One frame waits while one is encoded: a slow page or encoder slows the session.
+    let (encoder, jobs) = std::sync::mpsc::sync_channel::<EncodeJob>(1);
+    let frames_out = out.clone();
+    let encoding = std::thread::Builder::new()
+        .name("studio-encode".into())
+        .spawn(move || encode_frames(jobs, frames_out));
+    if encoding.is_err() {
+        let _ = out.blocking_send(Out::Text(
+            json!({"type": "error", "message": "cannot start the preview encoder"}).to_string(),
+        ));
+        return;
+    }
     let mut s = Session {
+        encoder,
         dir,
         out_root,
         out,
@@ -478,30 +534,19 @@ impl Session {
         let t = Instant::now();
         let (w, h) = (frame.width() as u32, frame.height() as u32);
         let rgb = crate::output::to_srgb8(frame, &exposure);
-        let mut bytes = Vec::with_capacity(16 + rgb.len() / 8);
-        for v in [self.generation, self.frame, w, h] {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        let encoded = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 85).encode(
-            &rgb,
-            w,
-            h,
-            image::ExtendedColorType::Rgb8,
-        );
-        if let Err(e) = encoded {
-            return self.error(format!("cannot encode the preview: {e}"));
-        }
-        let encode_ms = t.elapsed().as_secs_f64() * 1e3;
-        self.send(json!({
+        let tonemap_ms = t.elapsed().as_secs_f64() * 1e3;
+        let stats = json!({
             "type": "frame",
             "generation": self.generation,
             "frame": self.frame,
             "step_ms": step_ms,
             "render_ms": render_ms,
-            "encode_ms": encode_ms,
+            "tonemap_ms": tonemap_ms,
             "counters": counters,
-        }))?;
-        self.out.blocking_send(Out::Binary(bytes)).map_err(|_| Closed)
+        });
+        // JPEG encoding overlaps the next step on the encoder thread.
+        let job = EncodeJob { header: [self.generation, self.frame, w, h], rgb, stats };
+        self.encoder.send(job).map_err(|_| Closed)
     }
 
     fn set(&mut self, path: &str, value: Value) -> Result<(), Closed> {

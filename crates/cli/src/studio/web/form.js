@@ -33,7 +33,7 @@ export function buildForm(root, controls, featured, scene, send) {
   top.className = 'featured';
   for (const path of featured) {
     const c = present.find((x) => x.path === path);
-    if (c) top.append(controlElement(c, getPath(scene, c.path), send));
+    if (c) top.append(controlElement(c, getPath(scene, c.path), send, true));
   }
   root.append(top);
   const groups = new Map();
@@ -54,11 +54,16 @@ export function buildForm(root, controls, featured, scene, send) {
   }
 }
 
-function controlElement(c, value, send) {
+// Featured controls stand outside their table, so their label names the table too
+// (`shimmer enabled`, `light azimuth`).
+function controlElement(c, value, send, featured = false) {
   const row = document.createElement('label');
   row.className = 'control';
   row.dataset.path = c.path;
-  const { name, unit } = labelOf(c.path);
+  const label = labelOf(c.path);
+  const unit = label.unit;
+  const parents = c.path.split('.').slice(1, -1).map((p) => p.replaceAll('_', ' '));
+  const name = featured && parents.length ? `${parents.join(' ')} ${label.name}` : label.name;
   const title = document.createElement('span');
   title.className = 'name';
   title.textContent = name;
