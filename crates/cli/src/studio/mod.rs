@@ -221,7 +221,28 @@ async fn snow_glb(State(shared): State<Arc<Shared>>, UrlPath(id): UrlPath<String
     }
 }
 
-async fn websocket(State(shared): State<Arc<Shared>>, upgrade: WebSocketUpgrade) -> Response {
+/// Whether a WebSocket handshake comes from this studio's own page (or from a client
+/// that sends no `Origin`, i.e. not a browser). Browsers let any site open a socket to
+/// 127.0.0.1; this check keeps other sites' pages out.
+fn same_origin(headers: &axum::http::HeaderMap) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN) else { return true };
+    let host = headers.get(header::HOST).and_then(|h| h.to_str().ok()).unwrap_or_default();
+    let origin = origin.to_str().unwrap_or_default();
+    !host.is_empty() && origin.strip_prefix("http://").is_some_and(|rest| rest == host)
+}
+
+async fn websocket(
+    State(shared): State<Arc<Shared>>,
+    headers: axum::http::HeaderMap,
+    upgrade: WebSocketUpgrade,
+) -> Response {
+    if !same_origin(&headers) {
+        return (
+            StatusCode::FORBIDDEN,
+            "cross-origin WebSocket connections are refused: open the studio's own page",
+        )
+            .into_response();
+    }
     if shared.sessions().len() >= shared.options.max_sessions {
         return (
             StatusCode::SERVICE_UNAVAILABLE,

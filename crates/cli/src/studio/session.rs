@@ -206,6 +206,46 @@ pub(crate) fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(),
     Ok(())
 }
 
+/// Files a scene reads (mesh, background image), as written in it.
+fn asset_paths(scene: &Scene) -> Vec<(&'static str, PathBuf)> {
+    let mut paths = Vec::new();
+    match scene {
+        Scene::Flame(f) => {
+            if let phenomena_flame::Background::Image { path } = &f.render.background {
+                paths.push(("render.background.path", PathBuf::from(path)));
+            }
+        }
+        Scene::Snow(s) => {
+            if let Some(mesh) = &s.geometry.mesh {
+                paths.push(("geometry.mesh", mesh.clone()));
+            }
+        }
+        Scene::Sparkle(s) => {
+            if let phenomena_sparkle::Background::Image { path } = &s.render.background {
+                paths.push(("render.background.path", path.clone()));
+            }
+        }
+        Scene::Aurora(_) => {}
+    }
+    paths
+}
+
+/// In the studio a scene reads only files uploaded to its session: plain file names,
+/// no folders, so a page cannot make the server read anything else on the machine.
+fn check_assets(scene: &Scene) -> Result<(), String> {
+    for (field, path) in asset_paths(scene) {
+        let mut parts = path.components();
+        let plain = matches!((parts.next(), parts.next()), (Some(std::path::Component::Normal(_)), None));
+        if !plain {
+            return Err(format!(
+                "{field} = {:?}: in the studio, upload the file and use its plain name (no folders)",
+                path.display().to_string()
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Editor bookkeeping of the aurora: which sheets of each keyframe the artist drew
 /// (the others are placeholders copied from the source, so the scene stays valid while
 /// targets are being drawn).
@@ -443,6 +483,9 @@ impl Session {
 
     /// Take a new scene (already valid) and start it.
     fn replace(&mut self, scene: Scene) -> Result<(), Closed> {
+        if let Err(e) = check_assets(&scene) {
+            return self.error(format!("scene refused: {e}"));
+        }
         self.drawn = match &scene {
             Scene::Aurora(a) => {
                 Drawn(a.aurora.keyframes.iter().map(|k| vec![true; k.sheets.len()]).collect())
@@ -563,6 +606,10 @@ impl Session {
                 return self.send_scene();
             }
         };
+        if let Err(e) = check_assets(&candidate) {
+            self.send(json!({"type": "error", "message": e, "issues": [{"field": path, "message": e}]}))?;
+            return self.send_scene();
+        }
         let problems = candidate.validate();
         if !problems.is_empty() {
             self.send(json!({
@@ -1028,6 +1075,20 @@ pub(super) mod tests {
             assert_eq!(back, scene, "{}", b.name);
             let json = scene_json(&scene);
             assert_eq!(scene_from_json(scene.phenomenon(), json).unwrap(), scene, "{}", b.name);
+        }
+    }
+
+    #[test]
+    fn scenes_read_only_plain_uploaded_names() {
+        let mut scene = scene::parse(super::super::controls::BUILTINS[0].text, Path::new("f")).unwrap();
+        assert!(check_assets(&scene).is_ok());
+        for (path, ok) in
+            [("bg.png", true), ("../bg.png", false), ("/etc/passwd", false), ("a/bg.png", false)]
+        {
+            if let Scene::Flame(f) = &mut scene {
+                f.render.background = phenomena_flame::Background::Image { path: path.into() };
+            }
+            assert_eq!(check_assets(&scene).is_ok(), ok, "{path}");
         }
     }
 

@@ -201,6 +201,29 @@ fn closing_a_tab_stops_its_simulation_and_the_cap_holds() {
 }
 
 #[test]
+fn other_sites_cannot_open_a_session() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let handshake = |origin: &str| {
+            format!(
+                "GET /ws HTTP/1.1\r\nHost: {addr}\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n\
+                 Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nOrigin: {origin}\r\n\r\n"
+            )
+        };
+        let status = |origin: String| async move {
+            let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+            s.write_all(handshake(&origin).as_bytes()).await.unwrap();
+            let mut buf = [0u8; 12];
+            s.read_exact(&mut buf).await.unwrap();
+            buf
+        };
+        assert_eq!(&status("http://evil.example".into()).await, b"HTTP/1.1 403");
+        let buf = status(format!("http://{addr}")).await;
+        assert_eq!(&buf, b"HTTP/1.1 101", "the page's own origin is accepted");
+    });
+}
+
+#[test]
 fn snow_glb_download_is_a_gltf_binary() {
     runtime().block_on(async {
         let (addr, _out) = start(4).await;
