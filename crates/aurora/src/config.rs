@@ -264,6 +264,18 @@ impl Default for Redistribution {
 }
 
 impl AuroraConfig {
+    /// The shapes as an [`Animation`](crate::shape::Animation): the strokes resampled to
+    /// `shape.control_points_per_sheet` points, checked, with the splits and merges.
+    pub fn animation(&self) -> Result<crate::shape::Animation, crate::shape::ShapeError> {
+        crate::shape::Animation::build(
+            &self.keyframes,
+            &self.splits,
+            &self.merges,
+            self.shape.control_points_per_sheet as usize,
+            self.shape.resample,
+        )
+    }
+
     /// Every problem, each naming the field (relative to `[aurora]`), value and range.
     /// Shape problems (crossings, bad splits) are found when the shapes are built.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {

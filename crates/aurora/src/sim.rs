@@ -163,13 +163,7 @@ impl AuroraSim {
     /// Build the shapes, place the particles near the source shape and compute its field.
     pub fn new(config: AuroraConfig, seed: u64) -> Result<Self, AuroraError> {
         config.validate().map_err(AuroraError::Config)?;
-        let animation = Animation::build(
-            &config.keyframes,
-            &config.splits,
-            &config.merges,
-            config.shape.control_points_per_sheet as usize,
-            config.shape.resample,
-        )?;
+        let animation = config.animation()?;
         let grid = config.grid();
         let model = ForceModel::new(&config.motion);
         let noise = config.field.noise.sampler();

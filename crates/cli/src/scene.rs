@@ -177,14 +177,7 @@ impl Scene {
                     if let Err(e) = s.render.sky.validate() {
                         i.extend_prefixed("render.sky", e);
                     }
-                    let a = &s.aurora;
-                    if let Err(e) = phenomena_aurora::shape::Animation::build(
-                        &a.keyframes,
-                        &a.splits,
-                        &a.merges,
-                        a.shape.control_points_per_sheet as usize,
-                        a.shape.resample,
-                    ) {
+                    if let Err(e) = s.aurora.animation() {
                         i.extend_prefixed("aurora", vec![Issue::described(e.field(), e.to_string())]);
                     }
                 }

@@ -18,7 +18,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
-use phenomena_aurora::shape::{Animation, Keyframe, Merge, PointRef, Split, resample, segments_intersect};
+use phenomena_aurora::shape::{Keyframe, Merge, PointRef, Split, resample, segments_intersect};
 use phenomena_core::tonemap::Exposure;
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -924,28 +924,14 @@ fn apply_aurora_op(
 }
 
 fn check_animation(config: &phenomena_aurora::AuroraConfig) -> Result<(), String> {
-    Animation::build(
-        &config.keyframes,
-        &config.splits,
-        &config.merges,
-        config.shape.control_points_per_sheet as usize,
-        config.shape.resample,
-    )
-    .map(|_| ())
-    .map_err(|e| format!("refused: {e}"))
+    config.animation().map(|_| ()).map_err(|e| format!("refused: {e}"))
 }
 
 /// What the editor draws: per keyframe, the control points with their links as the
 /// simulation sees them at that keyframe (splits open, merges joined), which sheets
 /// the artist drew, and the sheet the next stroke on that canvas fills.
 fn aurora_editor(config: &phenomena_aurora::AuroraConfig, drawn: &Drawn) -> Value {
-    let built = Animation::build(
-        &config.keyframes,
-        &config.splits,
-        &config.merges,
-        config.shape.control_points_per_sheet as usize,
-        config.shape.resample,
-    );
+    let built = config.animation();
     let keyframes: Vec<Value> = config
         .keyframes
         .iter()
