@@ -249,7 +249,9 @@ await check('flame: a drag on the preview moves the flame toward the drag', asyn
 // --- snow GLB download ---
 await check('snow: the GLB download is a glTF binary', async () => {
   await openTab('snow');
-  await until('a snow frame', () => studio('window.studio.frames > 0'));
+  await page.click('#play');
+  // Switching tabs restarts the scene: wait for snow to lie (10 steps of this generation).
+  await until('snow to accumulate', () => studio('window.studio.lastFrame >= 10'));
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#snow-glb')]);
   const path = join(outDir, 'studio-snow.glb');
   await download.saveAs(path);

@@ -175,6 +175,14 @@ pub fn to_ply(mesh: &TriMesh) -> Vec<u8> {
 /// glTF 2.0 binary (GLB): one mesh with POSITION, NORMAL and u32 indices, a white
 /// rough material, in one buffer.
 pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
+    if mesh.indices.is_empty() {
+        // No snow yet: a scene with nothing in it (glTF forbids empty buffers and
+        // accessors with count 0, and a scene's node list may not be empty).
+        return glb_chunks(
+            br#"{"asset":{"version":"2.0","generator":"phenomena"},"scene":0,"scenes":[{}]}"#.to_vec(),
+            &[],
+        );
+    }
     let mut bin = Vec::new();
     for p in &mesh.positions {
         for v in p.to_array() {
@@ -226,11 +234,17 @@ pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
         y1 = hi.y,
         z1 = hi.z,
     );
-    let mut json = json.into_bytes();
+    glb_chunks(json.into_bytes(), &bin)
+}
+
+/// A GLB file: header, the JSON chunk padded with spaces, and the BIN chunk when `bin`
+/// is not empty (already 4-byte aligned).
+fn glb_chunks(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
     while json.len() % 4 != 0 {
         json.push(b' ');
     }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let total = 12 + 8 + json.len() + bin_chunk;
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -238,9 +252,11 @@ pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(bin);
+    }
     out
 }
 
@@ -248,6 +264,17 @@ pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
 mod tests {
     use super::*;
     use crate::mesh::table_scene;
+
+    #[test]
+    fn no_snow_is_an_empty_scene_without_a_bin_chunk() {
+        let glb = to_glb(&TriMesh::default());
+        assert_eq!(&glb[..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        assert_eq!(20 + json_len, glb.len(), "only the JSON chunk");
+        let json = std::str::from_utf8(&glb[20..]).unwrap();
+        assert!(json.contains(r#""scenes":[{}]"#) && !json.contains("accessors"), "{json}");
+    }
     use crate::sim::SnowParams;
     use std::collections::HashMap;
 

@@ -118,6 +118,7 @@ function buildExtras(phenomenon) {
 
 function onScene(msg) {
   studio.generation = msg.generation;
+  studio.lastFrame = -1; // no frame of this generation shown yet
   studio.scene = msg.scene;
   scenes[msg.phenomenon] = msg.scene;
   if (msg.phenomenon !== studio.phenomenon) {
