@@ -240,7 +240,7 @@ pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
 /// A GLB file: header, the JSON chunk padded with spaces, and the BIN chunk when `bin`
 /// is not empty (already 4-byte aligned).
 fn glb_chunks(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
