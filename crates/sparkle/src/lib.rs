@@ -28,6 +28,7 @@
 //! # Feature flags
 //! None.
 
+mod batch;
 mod config;
 mod model;
 mod render;

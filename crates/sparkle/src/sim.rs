@@ -57,6 +57,8 @@ const CHUNK: usize = 4096;
 /// Virtual facets per birth chunk (at most `MAX_BIRTH_CHUNKS` chunks).
 const BIRTH_CHUNK: u64 = 1 << 16;
 const MAX_BIRTH_CHUNKS: u64 = 256;
+/// Birth candidates drawn and tested together.
+const CANDIDATE_BATCH: u64 = 4096;
 
 /// Why a simulation cannot be built.
 #[derive(Debug, Error)]
@@ -195,12 +197,12 @@ impl IntensityLut {
 
 /// Everything that decides whether a facet is seen at one frame.
 #[derive(Clone, Copy, Debug)]
-struct Seen {
-    geo: Geometry,
+pub(crate) struct Seen {
+    pub(crate) geo: Geometry,
     /// cos²θ (the cone's half-angle θ < 90°; for one-sided facets N·H ≥ 0 is also required).
-    cos2_theta: f32,
-    two_sided: bool,
-    dome: bool,
+    pub(crate) cos2_theta: f32,
+    pub(crate) two_sided: bool,
+    pub(crate) dome: bool,
 }
 
 impl Seen {
@@ -208,7 +210,7 @@ impl Seen {
     /// (H = u/|u|), tested squared so neither H nor its length is needed. On the dome a
     /// leaf must also face the eye and the sun (the crown hides its far side).
     #[inline]
-    fn test(&self, x: Vec3, n: Vec3, space: &Space) -> Option<f32> {
+    pub(crate) fn test(&self, x: Vec3, n: Vec3, space: &Space) -> Option<f32> {
         let v = match self.geo.eye {
             Eye::Point(e) => {
                 let d = e - x;
@@ -241,57 +243,16 @@ impl Seen {
 
 /// One frame's motion of the diamond dust.
 #[derive(Clone, Copy, Debug)]
-struct Motion {
+pub(crate) struct Motion {
     /// Displacement shared by all crystals, metres.
-    shared_m: Vec3,
+    pub(crate) shared_m: Vec3,
     /// Half-side of each crystal's own random displacement, metres.
-    jitter_m: f32,
+    pub(crate) jitter_m: f32,
     /// Largest rotation, radians.
-    rotation_rad: f32,
+    pub(crate) rotation_rad: f32,
     /// sin of `rotation_rad`.
-    sin_rotation: f32,
-    lobe: Lobe,
-}
-
-impl Motion {
-    /// The crystal's own displacement: uniform in a cube of half-side `jitter_m` (any
-    /// distribution works for the model as long as both methods use it).
-    #[inline]
-    fn jitter(&self, rng: &mut Stream) -> Vec3 {
-        if self.jitter_m == 0.0 {
-            return Vec3::ZERO;
-        }
-        (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE) * self.jitter_m
-    }
-
-    /// A random rotation of at most δ: N' = N cos ψ + t sin ψ with the tangent step
-    /// t sin ψ uniform over the tangent disc of radius sin δ (so N' is spread evenly
-    /// around N, ψ ≤ δ). The proposal's density depends only on the angle between N and
-    /// N', so it is symmetric, and the Metropolis rule against the plate lobe around +y
-    /// keeps that lobe (for uniform normals every rotation is accepted). No trigonometry.
-    #[inline]
-    fn rotate(&self, n: Vec3, rng: &mut Stream) -> Vec3 {
-        if self.rotation_rad == 0.0 {
-            return n;
-        }
-        let (a, b) = loop {
-            let (a, b) = (2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 1.0);
-            if a * a + b * b <= 1.0 {
-                break (a * self.sin_rotation, b * self.sin_rotation);
-            }
-        };
-        let (e1, e2) = n.any_orthonormal_pair();
-        let c = (1.0 - (a * a + b * b)).max(0.0).sqrt();
-        // Unit up to rounding (e1, e2, n orthonormal, c² + a² + b² = 1): one Newton step
-        // toward length 1 keeps it there without a square root or a division.
-        let p = n * c + e1 * a + e2 * b;
-        let proposal = p * (1.5 - 0.5 * p.length_squared());
-        if self.lobe.is_uniform() {
-            return proposal;
-        }
-        let ratio = (self.lobe.kappa * f64::from(proposal.y - n.y)).exp();
-        if rng.next_f64() < ratio { proposal } else { n }
-    }
+    pub(crate) sin_rotation: f32,
+    pub(crate) lobe: Lobe,
 }
 
 /// Every facet of the full system (brute force).
@@ -616,33 +577,65 @@ impl SparkleSim {
                 let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
                 let count = rng.binomial(len, mean_q);
                 let mut out = Glints::default();
-                'candidate: for _ in 0..count {
-                    let drawn = match &regions {
-                        Some(r) => r.draw(&to.geo, &mut rng),
-                        None => table.draw(space, &self.lobe, &to.geo, &mut rng),
-                    };
-                    let Some((x1, n0)) = drawn else { continue };
-                    let n1 = motion.map_or(n0, |m| m.rotate(n0, &mut rng));
-                    let Some(c) = to.test(x1, n1, space) else { continue };
-                    // Walk back through the remembered frames: seen in any of them means
-                    // the facet is held already. Going back, the position undoes each
-                    // frame's displacement (uniform positions make x_{t+1} and the own
-                    // step independent) and the normal takes the same Metropolis step
-                    // (reversible, so its reverse kernel is itself).
-                    let (mut x, mut nrm, mut into) = (x1, n0, motion);
+                let mut left = count;
+                while left > 0 {
+                    let batch = left.min(CANDIDATE_BATCH);
+                    left -= batch;
+                    let (mut x1, mut n0) =
+                        (Vec::with_capacity(batch as usize), Vec::with_capacity(batch as usize));
+                    for _ in 0..batch {
+                        let drawn = match &regions {
+                            Some(r) => r.draw(&to.geo, &mut rng),
+                            None => table.draw(space, &self.lobe, &to.geo, &mut rng),
+                        };
+                        if let Some((x, n)) = drawn {
+                            x1.push(x);
+                            n0.push(n);
+                        }
+                    }
+                    let mut n1 = n0.clone();
+                    if let Some(m) = &motion {
+                        m.turn(&mut n1, &mut rng);
+                    }
+                    let mut c2 = vec![0.0; x1.len()];
+                    to.test_all(space, &x1, &n1, &mut c2);
+                    // Walk the ones seen at t+1 back through the remembered frames: seen
+                    // in any of them means the facet is held already. Going back, the
+                    // position undoes each frame's displacement (uniform positions make
+                    // x_{t+1} and the own step independent) and the normal takes the same
+                    // Metropolis step (reversible, so its reverse kernel is itself).
+                    let mut alive: Vec<usize> = (0..x1.len()).filter(|&i| c2[i] >= 0.0).collect();
+                    let mut x: Vec<Vec3> = alive.iter().map(|&i| x1[i]).collect();
+                    let mut nrm: Vec<Vec3> = alive.iter().map(|&i| n0[i]).collect();
+                    let mut seen_then = Vec::new();
+                    let mut into = motion;
                     for (k, (seen, m)) in history.iter().enumerate() {
+                        if alive.is_empty() {
+                            break;
+                        }
                         if let Some(mi) = into {
-                            x = space.wrap(x - mi.shared_m - mi.jitter(&mut rng));
+                            mi.displace(space, &mut x, -1.0, &mut rng);
                             if k > 0 {
-                                nrm = mi.rotate(nrm, &mut rng);
+                                mi.turn(&mut nrm, &mut rng);
                             }
                         }
-                        if seen.test(x, nrm, space).is_some() {
-                            continue 'candidate;
+                        seen_then.resize(x.len(), 0.0);
+                        seen.test_all(space, &x, &nrm, &mut seen_then);
+                        let mut w = 0;
+                        for r in 0..alive.len() {
+                            if seen_then[r] < 0.0 {
+                                (alive[w], x[w], nrm[w]) = (alive[r], x[r], nrm[r]);
+                                w += 1;
+                            }
                         }
+                        alive.truncate(w);
+                        x.truncate(w);
+                        nrm.truncate(w);
                         into = *m;
                     }
-                    out.push(x1, n1, lut.get(c), frame);
+                    for i in alive {
+                        out.push(x1[i], n1[i], lut.get(c2[i]), frame);
+                    }
                 }
                 (out, count)
             })
@@ -686,21 +679,24 @@ impl SparkleSim {
                 let mut kept = Glints::with_capacity(range.len());
                 let mut dead = Glints::default();
                 let mut lifetimes = Vec::new();
-                for i in range {
-                    let (mut x, mut nrm) = (g.position_m[i], g.normal[i]);
-                    if let Some(m) = &motion {
-                        x = space.wrap(x + m.shared_m + m.jitter(&mut rng));
-                        nrm = m.rotate(nrm, &mut rng);
-                    }
-                    match to.test(x, nrm, &space) {
-                        Some(c) => kept.push(x, nrm, lut.get(c), g.birth_frame[i]),
-                        None => {
-                            if g.birth_frame[i] > 0 {
-                                lifetimes.push(next - g.birth_frame[i]);
-                            }
-                            if memory > 0 {
-                                dead.push(x, nrm, 0.0, next - 1);
-                            }
+                let mut xs = g.position_m[range.clone()].to_vec();
+                let mut ns = g.normal[range.clone()].to_vec();
+                if let Some(m) = &motion {
+                    m.displace(&space, &mut xs, 1.0, &mut rng);
+                    m.turn(&mut ns, &mut rng);
+                }
+                let mut c2 = vec![0.0; xs.len()];
+                to.test_all(&space, &xs, &ns, &mut c2);
+                for (j, i) in range.enumerate() {
+                    let (x, nrm) = (xs[j], ns[j]);
+                    if c2[j] >= 0.0 {
+                        kept.push(x, nrm, lut.get(c2[j]), g.birth_frame[i]);
+                    } else {
+                        if g.birth_frame[i] > 0 {
+                            lifetimes.push(next - g.birth_frame[i]);
+                        }
+                        if memory > 0 {
+                            dead.push(x, nrm, 0.0, next - 1);
                         }
                     }
                 }
@@ -718,20 +714,22 @@ impl SparkleSim {
                 let mut back = Glints::default();
                 let mut still = Glints::with_capacity(range.len());
                 let mut gaps = Vec::new();
-                for i in range {
-                    let (mut x, mut nrm) = (gh.position_m[i], gh.normal[i]);
-                    if let Some(m) = &motion {
-                        x = space.wrap(x + m.shared_m + m.jitter(&mut rng));
-                        nrm = m.rotate(nrm, &mut rng);
-                    }
+                let mut xs = gh.position_m[range.clone()].to_vec();
+                let mut ns = gh.normal[range.clone()].to_vec();
+                if let Some(m) = &motion {
+                    m.displace(&space, &mut xs, 1.0, &mut rng);
+                    m.turn(&mut ns, &mut rng);
+                }
+                let mut c2 = vec![0.0; xs.len()];
+                to.test_all(&space, &xs, &ns, &mut c2);
+                for (j, i) in range.enumerate() {
+                    let (x, nrm) = (xs[j], ns[j]);
                     let last = gh.birth_frame[i];
-                    match to.test(x, nrm, &space) {
-                        Some(c) => {
-                            back.push(x, nrm, lut.get(c), next);
-                            gaps.push(next - last - 1);
-                        }
-                        None if next - last <= memory => still.push(x, nrm, 0.0, last),
-                        None => {}
+                    if c2[j] >= 0.0 {
+                        back.push(x, nrm, lut.get(c2[j]), next);
+                        gaps.push(next - last - 1);
+                    } else if next - last <= memory {
+                        still.push(x, nrm, 0.0, last);
                     }
                 }
                 (back, still, gaps)
@@ -783,33 +781,30 @@ impl SparkleSim {
                 let mut lifetimes = Vec::new();
                 let mut gaps = Vec::new();
                 let mut deaths = 0;
-                for (((x, nrm), s), l) in
-                    xs.iter_mut().zip(ns.iter_mut()).zip(since.iter_mut()).zip(last.iter_mut())
+                if let Some(m) = &motion {
+                    m.displace(&space, xs, 1.0, &mut rng);
+                    m.turn(ns, &mut rng);
+                }
+                let mut c2 = vec![0.0; xs.len()];
+                to.test_all(&space, xs, ns, &mut c2);
+                for ((((x, nrm), s), l), &c) in
+                    xs.iter().zip(ns.iter()).zip(since.iter_mut()).zip(last.iter_mut()).zip(&c2)
                 {
-                    if let Some(m) = &motion {
-                        *x = space.wrap(*x + m.shared_m + m.jitter(&mut rng));
-                        *nrm = m.rotate(*nrm, &mut rng);
-                    }
-                    match to.test(*x, *nrm, &space) {
-                        Some(c) => {
-                            if *s == u32::MAX {
-                                *s = next;
-                                let gap =
-                                    if *l == u32::MAX { memory + 1 } else { (next - *l - 1).min(memory + 1) };
-                                gaps.push(gap);
-                            }
-                            *l = next;
-                            g.push(*x, *nrm, lut.get(c), *s);
+                    if c >= 0.0 {
+                        if *s == u32::MAX {
+                            *s = next;
+                            let gap =
+                                if *l == u32::MAX { memory + 1 } else { (next - *l - 1).min(memory + 1) };
+                            gaps.push(gap);
                         }
-                        None => {
-                            if *s != u32::MAX {
-                                deaths += 1;
-                                if *s > 0 {
-                                    lifetimes.push(next - *s);
-                                }
-                                *s = u32::MAX;
-                            }
+                        *l = next;
+                        g.push(*x, *nrm, lut.get(c), *s);
+                    } else if *s != u32::MAX {
+                        deaths += 1;
+                        if *s > 0 {
+                            lifetimes.push(next - *s);
                         }
+                        *s = u32::MAX;
                     }
                 }
                 (g, lifetimes, gaps, deaths)

@@ -1,0 +1,353 @@
+//! The facet motion and visibility test of `sim`, eight facets at a time in `f32x8`
+//! lanes (SSE2 pairs on baseline x86-64, IEEE operations only: no approximate
+//! reciprocals, no fused multiply-add unless the whole build targets it).
+//!
+//! Every facet update of both methods goes through here, so the stochastic model and
+//! brute force share one dynamics. Random numbers stay scalar (one [`Stream`] per chunk,
+//! drawn in lane order), so results depend only on the chunking, never on threads.
+//!
+//! Per facet and step: one 64-bit word gives the own displacement (three 21-bit
+//! uniforms), one the rotation (two 32-bit uniforms: radius² and angle in the tangent
+//! disc), and for a lobe one more the Metropolis coin.
+
+use glam::Vec3;
+use phenomena_core::rng::Stream;
+use wide::f32x8;
+
+use crate::config::LightAt;
+use crate::model::{Eye, Space};
+use crate::sim::{Motion, Seen};
+
+/// Facets per batch.
+pub(crate) const LANES: usize = 8;
+
+/// Three coordinates of eight facets.
+#[derive(Clone, Copy, Debug)]
+struct V8 {
+    x: f32x8,
+    y: f32x8,
+    z: f32x8,
+}
+
+impl V8 {
+    #[inline]
+    fn splat(v: Vec3) -> Self {
+        Self { x: f32x8::splat(v.x), y: f32x8::splat(v.y), z: f32x8::splat(v.z) }
+    }
+
+    /// Lanes `0..src.len()` from `src` (at most [`LANES`]); the rest repeat the first.
+    #[inline]
+    fn load(src: &[Vec3]) -> Self {
+        let (mut x, mut y, mut z) = ([src[0].x; LANES], [src[0].y; LANES], [src[0].z; LANES]);
+        for (i, v) in src.iter().enumerate() {
+            x[i] = v.x;
+            y[i] = v.y;
+            z[i] = v.z;
+        }
+        Self { x: x.into(), y: y.into(), z: z.into() }
+    }
+
+    #[inline]
+    fn store(&self, dst: &mut [Vec3]) {
+        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+        for (i, v) in dst.iter_mut().enumerate() {
+            *v = Vec3::new(x[i], y[i], z[i]);
+        }
+    }
+
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        Self { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+
+    #[inline]
+    fn scale(self, s: f32x8) -> Self {
+        Self { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+
+    /// Same operation order as glam's `Vec3::dot`.
+    #[inline]
+    fn dot(self, o: Self) -> f32x8 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// `d * (1 / sqrt(|d|²))`, as `Seen::test` writes it.
+    #[inline]
+    fn unit(self) -> Self {
+        self.scale(f32x8::ONE / self.dot(self).sqrt())
+    }
+}
+
+/// The 21-bit fields of a word as uniforms in [0, 1).
+#[inline]
+fn fields21(w: u64) -> [f32; 3] {
+    const S: f32 = 1.0 / (1u32 << 21) as f32;
+    let m = (1u64 << 21) - 1;
+    [(w & m) as f32 * S, ((w >> 21) & m) as f32 * S, ((w >> 42) & m) as f32 * S]
+}
+
+impl Motion {
+    /// Move `xs` by the shared displacement times `sign` (1 forward, -1 to undo a frame)
+    /// plus each facet's own displacement (uniform in the cube of half-side `jitter_m`:
+    /// symmetric, so undoing draws a fresh one), wrapped into the box.
+    pub(crate) fn displace(&self, space: &Space, xs: &mut [Vec3], sign: f32, rng: &mut Stream) {
+        let shared = V8::splat(self.shared_m * sign);
+        for xc in xs.chunks_mut(LANES) {
+            let mut x = V8::load(xc).add(shared);
+            if self.jitter_m != 0.0 {
+                let (mut jx, mut jy, mut jz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+                for i in 0..LANES {
+                    [jx[i], jy[i], jz[i]] = fields21(rng.next_u64());
+                }
+                let (two, h) = (f32x8::splat(2.0), f32x8::splat(self.jitter_m));
+                let j = |u: [f32; LANES]| (f32x8::from(u) * two - f32x8::ONE) * h;
+                x = x.add(V8 { x: j(jx), y: j(jy), z: j(jz) });
+            }
+            wrap(space, &mut x, xc);
+        }
+    }
+
+    /// Turn every normal by the random rotation of [`Motion::rotate_lanes`], kept by the
+    /// Metropolis rule against the plate lobe around +y (always, for uniform normals).
+    pub(crate) fn turn(&self, ns: &mut [Vec3], rng: &mut Stream) {
+        if self.rotation_rad == 0.0 {
+            return;
+        }
+        for nc in ns.chunks_mut(LANES) {
+            let n = V8::load(nc);
+            let p = self.rotate_lanes(n, rng);
+            if self.lobe.is_uniform() {
+                p.store(nc);
+                continue;
+            }
+            let (py, ny) = (p.y.to_array(), n.y.to_array());
+            let mut out = [Vec3::ZERO; LANES];
+            p.store(&mut out);
+            for (i, v) in out.iter().enumerate() {
+                // Every lane draws its coin, used or not: the stream does not depend
+                // on how full the last batch is.
+                let ratio = (self.lobe.kappa * f64::from(py[i] - ny[i])).exp();
+                if rng.next_f64() < ratio && i < nc.len() {
+                    nc[i] = *v;
+                }
+            }
+        }
+    }
+
+    /// Eight proposals, each a random rotation of at most δ: N' = N cos ψ + t sin ψ with
+    /// the tangent step t sin ψ uniform over the tangent disc of radius sin δ (radius
+    /// √u sin δ, angle 2πv), so N' is spread evenly around N, ψ ≤ δ. The proposal's
+    /// density depends only on the angle between N and N', so it is symmetric, and the
+    /// Metropolis rule of [`Motion::turn`] keeps the lobe. The tangent frame is glam's
+    /// `any_orthonormal_pair` written in lanes; the result takes one Newton step toward
+    /// length 1 (unit up to rounding already) instead of a square root and a division.
+    #[inline]
+    fn rotate_lanes(&self, n: V8, rng: &mut Stream) -> V8 {
+        const S: f32 = 1.0 / 4_294_967_296.0;
+        let (mut r2, mut phi) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for i in 0..LANES {
+            let w = rng.next_u64();
+            // 24 bits of each half: exactly representable, so u < 1.
+            r2[i] = ((w >> 40) << 8) as f32 * S;
+            phi[i] = (((w >> 8) & 0xff_ffff) << 8) as f32 * S;
+        }
+        let rad = f32x8::from(r2).sqrt() * f32x8::splat(self.sin_rotation);
+        let (s, c) = (f32x8::from(phi) * f32x8::splat(std::f32::consts::TAU)).sin_cos();
+        let (a, b) = (rad * c, rad * s);
+        let cz = (f32x8::ONE - (a * a + b * b)).max(f32x8::ZERO).sqrt();
+        let sign = n.z.is_sign_negative().select(-f32x8::ONE, f32x8::ONE);
+        let k = -f32x8::ONE / (sign + n.z);
+        let m = n.x * n.y * k;
+        let e1 = V8 { x: f32x8::ONE + sign * n.x * n.x * k, y: sign * m, z: -sign * n.x };
+        let e2 = V8 { x: m, y: sign + n.y * n.y * k, z: -n.y };
+        let p = n.scale(cz).add(e1.scale(a)).add(e2.scale(b));
+        p.scale(f32x8::splat(1.5) - f32x8::splat(0.5) * p.dot(p))
+    }
+}
+
+/// Wrap into the periodic box (one wrap per axis in lanes; anything further, which a
+/// step smaller than the box never needs, by `Space::wrap`), and store into `dst`.
+#[inline]
+fn wrap(space: &Space, x: &mut V8, dst: &mut [Vec3]) {
+    let Space::Box { min, size } = *space else {
+        x.store(dst);
+        return;
+    };
+    let mut ok = true;
+    for (v, lo, s) in [(&mut x.x, min.x, size.x), (&mut x.y, min.y, size.y), (&mut x.z, min.z, size.z)] {
+        let (s8, zero) = (f32x8::splat(s), f32x8::ZERO);
+        let mut r = *v - f32x8::splat(lo);
+        r = r.simd_lt(zero).select(r + s8, r);
+        r = r.simd_ge(s8).select(r - s8, r);
+        ok &= (r.simd_ge(zero) & r.simd_lt(s8)).all();
+        *v = r + f32x8::splat(lo);
+    }
+    x.store(dst);
+    if !ok {
+        for v in dst.iter_mut() {
+            *v = space.wrap(*v);
+        }
+    }
+}
+
+impl Seen {
+    /// `Seen::test` for every facet: `c2[i]` = (N·H)² when facet i is seen, else -1.
+    /// Lane for lane the same operations as the scalar test, so the same answers.
+    pub(crate) fn test_all(&self, space: &Space, xs: &[Vec3], ns: &[Vec3], c2: &mut [f32]) {
+        debug_assert!(xs.len() == ns.len() && ns.len() == c2.len());
+        let cos2 = f32x8::splat(self.cos2_theta);
+        for ((xc, nc), out) in xs.chunks(LANES).zip(ns.chunks(LANES)).zip(c2.chunks_mut(LANES)) {
+            let (x, n) = (V8::load(xc), V8::load(nc));
+            let v = match self.geo.eye {
+                Eye::Point(e) => V8::splat(e).sub(x).unit(),
+                Eye::Direction(d) => V8::splat(d),
+            };
+            let l = match self.geo.light {
+                LightAt::Direction(d) => V8::splat(d),
+                LightAt::Position(p) => V8::splat(p).sub(x).unit(),
+            };
+            let u = l.add(v);
+            let u2 = u.dot(u);
+            let dot = n.dot(u);
+            let mut seen = u2.simd_gt(f32x8::splat(1e-12)) & (dot * dot).simd_ge(cos2 * u2);
+            if !self.two_sided {
+                seen &= dot.simd_ge(f32x8::ZERO);
+            }
+            if self.dome
+                && let Space::Dome { centre, .. } = *space
+            {
+                let a = x.sub(V8::splat(centre));
+                let len2 = a.dot(a);
+                let a = a.unit();
+                let fine = len2.simd_gt(f32x8::ZERO);
+                let (av, al) = (a.dot(v), a.dot(l));
+                // `normalize_or(Vec3::Y)` at the centre itself: the axis is +y.
+                let (av, al) = (fine.select(av, v.y), fine.select(al, l.y));
+                seen &= av.simd_gt(f32x8::ZERO) & al.simd_gt(f32x8::ZERO);
+            }
+            let c = seen.select(dot * dot / u2, -f32x8::ONE).to_array();
+            out.copy_from_slice(&c[..out.len()]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Geometry;
+    use phenomena_core::rng::Purpose;
+
+    const P: Purpose = Purpose::named("test.sparkle.batch");
+
+    fn random_facets(k: usize, rng: &mut Stream) -> (Vec<Vec3>, Vec<Vec3>) {
+        let xs = (0..k)
+            .map(|_| Vec3::new(rng.uniform(-20.0, 20.0), rng.uniform(0.0, 30.0), rng.uniform(-60.0, -1.0)))
+            .collect();
+        let ns = (0..k).map(|_| rng.on_unit_sphere()).collect();
+        (xs, ns)
+    }
+
+    #[test]
+    fn lanes_test_as_the_scalar_test_does() {
+        // Wide cones so that both answers occur often, over every eye/light/side/dome case.
+        let mut rng = Stream::new(1, P, 0);
+        let (xs, ns) = random_facets(1003, &mut rng);
+        let spaces = [
+            Space::Box { min: Vec3::new(-20.0, 0.0, -60.0), size: Vec3::new(40.0, 30.0, 59.0) },
+            Space::Dome { centre: Vec3::new(0.0, 0.0, -30.0), radius: 10.0 },
+        ];
+        let mut total = 0;
+        for eye in [Eye::Point(Vec3::new(0.0, 2.0, 5.0)), Eye::Direction(Vec3::new(0.0, 0.6, 0.8))] {
+            for light in
+                [LightAt::Direction(Vec3::new(0.6, 0.8, 0.0)), LightAt::Position(Vec3::new(3.0, 8.0, -10.0))]
+            {
+                for two_sided in [false, true] {
+                    for space in spaces {
+                        let seen = Seen {
+                            geo: Geometry { eye, light },
+                            cos2_theta: 0.3,
+                            two_sided,
+                            dome: matches!(space, Space::Dome { .. }),
+                        };
+                        let mut c2 = vec![0.0; xs.len()];
+                        seen.test_all(&space, &xs, &ns, &mut c2);
+                        let mut hits = 0;
+                        for i in 0..xs.len() {
+                            let scalar = seen.test(xs[i], ns[i], &space).unwrap_or(-1.0);
+                            assert_eq!(c2[i].to_bits(), scalar.to_bits(), "facet {i}");
+                            hits += usize::from(scalar >= 0.0);
+                        }
+                        // Both answers in every case (a wrong mask would show).
+                        assert!(hits > 0 && hits < xs.len(), "{hits}");
+                        total += hits;
+                    }
+                }
+            }
+        }
+        assert!(total > 2000, "{total}");
+    }
+
+    #[test]
+    fn rotations_are_unit_within_the_largest_angle_and_spread_evenly() {
+        let mut sim_rng = Stream::new(2, P, 0);
+        let (_, ns) = random_facets(40_000, &mut sim_rng);
+        let delta = 3f32.to_radians();
+        let m = Motion {
+            shared_m: Vec3::ZERO,
+            jitter_m: 0.0,
+            rotation_rad: delta,
+            sin_rotation: delta.sin(),
+            lobe: crate::model::Lobe::new(0.0),
+        };
+        let mut turned = ns.clone();
+        m.turn(&mut turned, &mut sim_rng);
+        // The tangent step's length sin ψ is √u sin δ: (sin ψ / sin δ)² is uniform on
+        // [0, 1] (mean 1/2, sd 1/√12; tolerance 5 standard errors).
+        let mut mean = 0.0;
+        for (a, b) in ns.iter().zip(&turned) {
+            assert!((b.length() - 1.0).abs() < 1e-5);
+            let sin_psi = a.cross(*b).length();
+            assert!(sin_psi <= delta.sin() * (1.0 + 1e-4) + 1e-6, "{sin_psi}");
+            mean += f64::from((sin_psi / delta.sin()).powi(2));
+        }
+        mean /= ns.len() as f64;
+        assert!((mean - 0.5).abs() < 5.0 / (12.0 * ns.len() as f64).sqrt(), "{mean}");
+    }
+
+    #[test]
+    fn wrapping_in_lanes_keeps_facets_in_the_box() {
+        let space = Space::Box { min: Vec3::new(-1.0, 0.0, -2.0), size: Vec3::new(2.0, 1.0, 2.0) };
+        let m = Motion {
+            shared_m: Vec3::new(0.3, -0.2, 0.05),
+            jitter_m: 0.1,
+            rotation_rad: 0.0,
+            sin_rotation: 0.0,
+            lobe: crate::model::Lobe::new(0.0),
+        };
+        let mut rng = Stream::new(3, P, 0);
+        let mut xs: Vec<Vec3> = (0..1001)
+            .map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(0.0, 1.0), rng.uniform(-2.0, 0.0)))
+            .collect();
+        // Far steps too (the scalar fallback), forward and back.
+        for (sign, big) in [(1.0, false), (-1.0, false), (1.0, true)] {
+            let mut mm = m;
+            if big {
+                mm.shared_m = Vec3::new(7.3, -4.1, 5.0);
+            }
+            for _ in 0..20 {
+                mm.displace(&space, &mut xs, sign, &mut rng);
+                for x in &xs {
+                    assert!(
+                        x.cmpge(Vec3::new(-1.0, 0.0, -2.0)).all() && x.cmplt(Vec3::new(1.0, 1.0, 0.0)).all(),
+                        "{x}"
+                    );
+                }
+            }
+        }
+    }
+}
