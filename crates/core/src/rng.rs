@@ -122,6 +122,12 @@ impl Stream {
         }
     }
 
+    /// A draw from any `rand_distr` distribution (e.g. `weighted::WeightedAliasIndex`).
+    #[inline]
+    pub fn sample<T, D: rand_distr::Distribution<T>>(&mut self, distribution: &D) -> T {
+        distribution.sample(&mut self.rng)
+    }
+
     /// A direction uniformly distributed on the unit sphere.
     pub fn on_unit_sphere(&mut self) -> glam::Vec3 {
         let z = 2.0 * self.next_f32() - 1.0;

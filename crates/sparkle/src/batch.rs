@@ -15,7 +15,7 @@ use phenomena_core::rng::Stream;
 use wide::f32x8;
 
 use crate::config::LightAt;
-use crate::model::{Eye, Space};
+use crate::model::{Eye, Geometry, Space};
 use crate::sim::{Motion, Seen};
 
 /// Facets per batch.
@@ -76,6 +76,26 @@ impl V8 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// glam's `any_orthonormal_pair` (Duff et al. 2017) in lanes: two unit vectors
+    /// completing the unit `self` to an orthonormal frame.
+    #[inline]
+    fn tangents(self) -> (Self, Self) {
+        let n = self;
+        let sign = n.z.is_sign_negative().select(-f32x8::ONE, f32x8::ONE);
+        let k = -f32x8::ONE / (sign + n.z);
+        let m = n.x * n.y * k;
+        let e1 = V8 { x: f32x8::ONE + sign * n.x * n.x * k, y: sign * m, z: -sign * n.x };
+        let e2 = V8 { x: m, y: sign + n.y * n.y * k, z: -n.y };
+        (e1, e2)
+    }
+
+    /// One Newton step toward length 1, for vectors that are unit up to rounding
+    /// (no square root, no division).
+    #[inline]
+    fn newton_unit(self) -> Self {
+        self.scale(f32x8::splat(1.5) - f32x8::splat(0.5) * self.dot(self))
+    }
+
     /// `d * (1 / sqrt(|d|²))`, as `Seen::test` writes it.
     #[inline]
     fn unit(self) -> Self {
@@ -85,7 +105,7 @@ impl V8 {
 
 /// The 21-bit fields of a word as uniforms in [0, 1).
 #[inline]
-fn fields21(w: u64) -> [f32; 3] {
+pub(crate) fn fields21(w: u64) -> [f32; 3] {
     const S: f32 = 1.0 / (1u32 << 21) as f32;
     let m = (1u64 << 21) - 1;
     [(w & m) as f32 * S, ((w >> 21) & m) as f32 * S, ((w >> 42) & m) as f32 * S]
@@ -160,13 +180,52 @@ impl Motion {
         let (s, c) = (f32x8::from(phi) * f32x8::splat(std::f32::consts::TAU)).sin_cos();
         let (a, b) = (rad * c, rad * s);
         let cz = (f32x8::ONE - (a * a + b * b)).max(f32x8::ZERO).sqrt();
-        let sign = n.z.is_sign_negative().select(-f32x8::ONE, f32x8::ONE);
-        let k = -f32x8::ONE / (sign + n.z);
-        let m = n.x * n.y * k;
-        let e1 = V8 { x: f32x8::ONE + sign * n.x * n.x * k, y: sign * m, z: -sign * n.x };
-        let e2 = V8 { x: m, y: sign + n.y * n.y * k, z: -n.y };
-        let p = n.scale(cz).add(e1.scale(a)).add(e2.scale(b));
-        p.scale(f32x8::splat(1.5) - f32x8::splat(0.5) * p.dot(p))
+        let (e1, e2) = n.tangents();
+        n.scale(cz).add(e1.scale(a)).add(e2.scale(b)).newton_unit()
+    }
+}
+
+impl Geometry {
+    /// Birth candidates' normals: for each position `xs[i]`, a unit vector at
+    /// 1 - cos = `omc[i]` from `side[i]`·H(xs[i]) (side ±1), at the azimuth 2π `turn[i]`
+    /// about it (`turn` uniform on [0, 1) gives a uniform azimuth); NaN where H does not
+    /// exist (L + V vanishes, or the facet sits on the eye or the lamp).
+    pub(crate) fn around_half_vectors(
+        &self,
+        xs: &[Vec3],
+        side: &[f32],
+        omc: &[f32],
+        turn: &[f32],
+        out: &mut [Vec3],
+    ) {
+        let chunks = xs.chunks(LANES).zip(side.chunks(LANES)).zip(omc.chunks(LANES)).zip(turn.chunks(LANES));
+        for ((((xc, sc), oc), tc), dst) in chunks.zip(out.chunks_mut(LANES)) {
+            let x = V8::load(xc);
+            let lanes = |v: &[f32]| {
+                let mut a = [v[0]; LANES];
+                a[..v.len()].copy_from_slice(v);
+                f32x8::from(a)
+            };
+            let v = match self.eye {
+                Eye::Point(e) => V8::splat(e).sub(x).unit(),
+                Eye::Direction(d) => V8::splat(d),
+            };
+            let l = match self.light {
+                LightAt::Direction(d) => V8::splat(d),
+                LightAt::Position(p) => V8::splat(p).sub(x).unit(),
+            };
+            let u = l.add(v);
+            let len2 = u.dot(u);
+            let fine = len2.simd_gt(f32x8::splat(1e-12)) & len2.is_finite();
+            let axis = u.scale(lanes(sc) / len2.sqrt());
+            let o = lanes(oc);
+            let (w, s) = (f32x8::ONE - o, (o * (f32x8::splat(2.0) - o)).sqrt());
+            let (sn, cs) = (lanes(tc) * f32x8::splat(std::f32::consts::TAU)).sin_cos();
+            let (e1, e2) = axis.tangents();
+            let p = axis.scale(w).add(e1.scale(cs * s)).add(e2.scale(sn * s)).newton_unit();
+            let nan = f32x8::splat(f32::NAN);
+            V8 { x: fine.select(p.x, nan), y: fine.select(p.y, nan), z: fine.select(p.z, nan) }.store(dst);
+        }
     }
 }
 
@@ -239,7 +298,6 @@ impl Seen {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Geometry;
     use phenomena_core::rng::Purpose;
 
     const P: Purpose = Purpose::named("test.sparkle.batch");
@@ -317,6 +375,48 @@ mod tests {
         }
         mean /= ns.len() as f64;
         assert!((mean - 0.5).abs() < 5.0 / (12.0 * ns.len() as f64).sqrt(), "{mean}");
+    }
+
+    #[test]
+    fn candidate_normals_sit_at_the_asked_angle_from_the_half_vector_at_a_uniform_azimuth() {
+        let geo = Geometry {
+            eye: Eye::Point(Vec3::new(0.0, 2.0, 5.0)),
+            light: LightAt::Position(Vec3::new(3.0, 8.0, -10.0)),
+        };
+        let mut rng = Stream::new(4, P, 0);
+        let (xs, _) = random_facets(20_003, &mut rng);
+        let side: Vec<f32> = (0..xs.len()).map(|i| if i % 3 == 0 { -1.0 } else { 1.0 }).collect();
+        let omc: Vec<f32> = (0..xs.len()).map(|_| rng.uniform(0.0, 1e-3)).collect();
+        let turn: Vec<f32> = (0..xs.len()).map(|_| rng.next_f32()).collect();
+        let mut out = vec![Vec3::ZERO; xs.len()];
+        geo.around_half_vectors(&xs, &side, &omc, &turn, &mut out);
+        let (mut c1, mut s1) = (0.0f64, 0.0f64);
+        for i in 0..xs.len() {
+            let h = geo.half_vector(xs[i]).expect("exists here") * side[i];
+            let n = out[i];
+            assert!((n.length() - 1.0).abs() < 1e-6, "{i}: {}", n.length());
+            // 1 - cos to within f32 rounding of unit vectors (a few 1e-7).
+            assert!((1.0 - n.dot(h) - omc[i]).abs() < 1e-6, "{i}: {} vs {}", 1.0 - n.dot(h), omc[i]);
+            // The azimuth about H in H's own tangent frame is 2π turn.
+            let (e1, e2) = h.any_orthonormal_pair();
+            let t = (n - h * n.dot(h)).normalize();
+            let phi = f64::from(t.dot(e2)).atan2(f64::from(t.dot(e1)));
+            let want = std::f64::consts::TAU * f64::from(turn[i]);
+            let d = (phi - want).rem_euclid(std::f64::consts::TAU);
+            // Rounding of ~1e-7 in n over a tangent of length √(2 omc) ≥ 4.5e-3 (omc ≥ 1e-5)
+            // turns the azimuth by < 1e-4 rad; below that the azimuth is not measurable.
+            assert!(d.min(std::f64::consts::TAU - d) < 1e-3 || omc[i] < 1e-5, "{i}: {phi} vs {want}");
+            c1 += f64::from(t.dot(e1));
+            s1 += f64::from(t.dot(e2));
+        }
+        // Uniform azimuth: mean of cos and sin 0 within 5 standard errors (sd 1/√2).
+        let k = xs.len() as f64;
+        assert!(c1.abs() / k < 5.0 / (2.0 * k).sqrt() && s1.abs() / k < 5.0 / (2.0 * k).sqrt(), "{c1} {s1}");
+        // No half vector: the light exactly behind the facet as seen from the eye.
+        let opposed = Geometry { eye: Eye::Direction(Vec3::Z), light: LightAt::Direction(-Vec3::Z) };
+        let mut one = [Vec3::ZERO];
+        opposed.around_half_vectors(&[Vec3::ZERO], &[1.0], &[1e-4], &[0.5], &mut one);
+        assert!(!one[0].is_finite());
     }
 
     #[test]

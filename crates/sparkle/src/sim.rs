@@ -37,6 +37,7 @@
 use glam::Vec3;
 use phenomena_core::camera::Projection;
 use phenomena_core::rng::{Purpose, Stream};
+use rand_distr::weighted::WeightedAliasIndex;
 use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
@@ -583,14 +584,15 @@ impl SparkleSim {
                     left -= batch;
                     let (mut x1, mut n0) =
                         (Vec::with_capacity(batch as usize), Vec::with_capacity(batch as usize));
-                    for _ in 0..batch {
-                        let drawn = match &regions {
-                            Some(r) => r.draw(&to.geo, &mut rng),
-                            None => table.draw(space, &self.lobe, &to.geo, &mut rng),
-                        };
-                        if let Some((x, n)) = drawn {
-                            x1.push(x);
-                            n0.push(n);
+                    match &regions {
+                        Some(r) => r.draw_batch(&to.geo, batch as usize, &mut rng, &mut x1, &mut n0),
+                        None => {
+                            for _ in 0..batch {
+                                if let Some((x, n)) = table.draw(space, &self.lobe, &to.geo, &mut rng) {
+                                    x1.push(x);
+                                    n0.push(n);
+                                }
+                            }
                         }
                     }
                     let mut n1 = n0.clone();
@@ -840,7 +842,9 @@ impl SparkleSim {
 struct Regions {
     /// (corner, size, 1 - cos β) per region.
     boxes: Vec<(Vec3, Vec3, f64)>,
-    cumulative: Vec<f64>,
+    /// Regions by their candidate mass (Walker's alias method: O(1) per draw); `None`
+    /// when no region holds any.
+    pick: Option<WeightedAliasIndex<f64>>,
     mean_q: f64,
     one_minus_cos_alpha: f64,
     two_sided: bool,
@@ -924,30 +928,55 @@ impl Regions {
         }
         let volume = f64::from(size.x) * f64::from(size.y) * f64::from(size.z);
         let sides = if two_sided { 2.0 } else { 1.0 };
-        let mut total = 0.0;
-        let cumulative: Vec<f64> = boxes
+        let mass: Vec<f64> = boxes
             .iter()
             .map(|(_, s, omc_inner)| {
                 let w = f64::from(s.x) * f64::from(s.y) * f64::from(s.z) / volume;
-                total += w * sides * 0.5 * (omc_alpha - omc_inner);
-                total
+                w * sides * 0.5 * (omc_alpha - omc_inner)
             })
             .collect();
-        Some(Self { boxes, cumulative, mean_q: total.min(1.0), one_minus_cos_alpha: omc_alpha, two_sided })
+        let total: f64 = mass.iter().sum();
+        let pick = WeightedAliasIndex::new(mass).ok();
+        Some(Self { boxes, pick, mean_q: total.min(1.0), one_minus_cos_alpha: omc_alpha, two_sided })
     }
 
-    /// One candidate: x_{t+1} uniform in a region chosen by its candidate mass, and N_t
-    /// uniform in that region's annulus around ±H_{t+1}(x_{t+1}).
-    #[inline]
-    fn draw(&self, geo: &Geometry, rng: &mut Stream) -> Option<(Vec3, Vec3)> {
-        let u = rng.next_f64() * self.cumulative[self.cumulative.len() - 1];
-        let r = self.cumulative.partition_point(|&v| v <= u).min(self.boxes.len() - 1);
-        let (corner, size, omc_inner) = self.boxes[r];
-        let x = corner + size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let h = geo.half_vector(x)?;
-        let side = if self.two_sided && rng.next_f32() >= 0.5 { -1.0 } else { 1.0 };
-        let omw = omc_inner + rng.next_f64() * (self.one_minus_cos_alpha - omc_inner);
-        Some((x, crate::model::around(h * side, 1.0 - omw, rng)))
+    /// `count` candidates into `x1`, `n0` (cleared first): x_{t+1} uniform in a region
+    /// chosen by its candidate mass, and N_t uniform in that region's annulus around
+    /// ±H_{t+1}(x_{t+1}) (1 - cos uniform between the annulus' bounds, azimuth uniform).
+    /// Positions are drawn here, normals eight at a time (`Geometry::around_half_vectors`);
+    /// the rare candidate without a half vector is dropped, as a facet there is never seen.
+    fn draw_batch(
+        &self,
+        geo: &Geometry,
+        count: usize,
+        rng: &mut Stream,
+        x1: &mut Vec<Vec3>,
+        n0: &mut Vec<Vec3>,
+    ) {
+        x1.clear();
+        n0.clear();
+        let Some(pick) = &self.pick else { return };
+        let (mut side, mut omc, mut turn) =
+            (Vec::with_capacity(count), Vec::with_capacity(count), Vec::with_capacity(count));
+        for _ in 0..count {
+            let (corner, size, omc_inner) = self.boxes[rng.sample(pick)];
+            let [u, v, w] = crate::batch::fields21(rng.next_u64());
+            x1.push(corner + size * Vec3::new(u, v, w));
+            // One word: the side (top bit), 1 - cos (32 bits), the azimuth (24 bits).
+            let bits = rng.next_u64();
+            side.push(if self.two_sided && bits >> 63 == 1 { -1.0 } else { 1.0 });
+            let t = ((bits >> 24) & 0xffff_ffff) as f64 / 4_294_967_296.0;
+            omc.push((omc_inner + t * (self.one_minus_cos_alpha - omc_inner)) as f32);
+            turn.push((bits & 0xff_ffff) as f32 / 16_777_216.0);
+        }
+        n0.resize(count, Vec3::ZERO);
+        geo.around_half_vectors(x1, &side, &omc, &turn, n0);
+        if n0.iter().any(|n| !n.is_finite()) {
+            let keep: Vec<bool> = n0.iter().map(|n| n.is_finite()).collect();
+            let mut k = keep.iter();
+            x1.retain(|_| *k.next().unwrap_or(&false));
+            n0.retain(|n| n.is_finite());
+        }
     }
 }
 
