@@ -12,7 +12,7 @@
 
 use glam::Vec3;
 use phenomena_core::rng::Stream;
-use wide::f32x8;
+use wide::{f32x8, i32x8, u32x8};
 
 use crate::config::LightAt;
 use crate::model::{Eye, Geometry, Space};
@@ -103,6 +103,54 @@ impl V8 {
     }
 }
 
+/// Eight xoshiro128++ generators (Blackman and Vigna), one per lane, seeded from a
+/// scalar stream: random numbers made in lanes, without a scalar loop per lane.
+#[derive(Clone, Debug)]
+pub(crate) struct LaneRng {
+    s: [u32x8; 4],
+}
+
+impl LaneRng {
+    /// Seeded from 16 words of `rng` (a lane whose four words are all zero, which
+    /// xoshiro cannot leave, gets a one).
+    pub(crate) fn new(rng: &mut Stream) -> Self {
+        let mut s = [[0u32; LANES]; 4];
+        for lane in 0..LANES {
+            let (a, b) = (rng.next_u64(), rng.next_u64());
+            let words = [a as u32, (a >> 32) as u32, b as u32, (b >> 32) as u32];
+            for (w, v) in s.iter_mut().zip(words) {
+                w[lane] = v;
+            }
+            if words == [0; 4] {
+                s[0][lane] = 1;
+            }
+        }
+        Self { s: s.map(u32x8::from) }
+    }
+
+    #[inline]
+    fn next(&mut self) -> u32x8 {
+        let rotl = |x: u32x8, k: u32| (x << k) | (x >> (32 - k));
+        let [s0, s1, s2, s3] = &mut self.s;
+        let result = rotl(*s0 + *s3, 7) + *s0;
+        let t = *s1 << 9;
+        *s2 ^= *s0;
+        *s3 ^= *s1;
+        *s1 ^= *s2;
+        *s0 ^= *s3;
+        *s2 ^= t;
+        *s3 = rotl(*s3, 11);
+        result
+    }
+
+    /// Uniform in [0, 1) with 24 bits, per lane.
+    #[inline]
+    pub(crate) fn unit(&mut self) -> f32x8 {
+        let bits: i32x8 = wide::bytemuck::cast(self.next() >> 8);
+        f32x8::from_i32x8(bits) * f32x8::splat(1.0 / 16_777_216.0)
+    }
+}
+
 /// The 21-bit fields of a word as uniforms in [0, 1).
 #[inline]
 pub(crate) fn fields21(w: u64) -> [f32; 3] {
@@ -115,18 +163,14 @@ impl Motion {
     /// Move `xs` by the shared displacement times `sign` (1 forward, -1 to undo a frame)
     /// plus each facet's own displacement (uniform in the cube of half-side `jitter_m`:
     /// symmetric, so undoing draws a fresh one), wrapped into the box.
-    pub(crate) fn displace(&self, space: &Space, xs: &mut [Vec3], sign: f32, rng: &mut Stream) {
+    pub(crate) fn displace(&self, space: &Space, xs: &mut [Vec3], sign: f32, rng: &mut LaneRng) {
         let shared = V8::splat(self.shared_m * sign);
+        let (two, h) = (f32x8::splat(2.0), f32x8::splat(self.jitter_m));
         for xc in xs.chunks_mut(LANES) {
             let mut x = V8::load(xc).add(shared);
             if self.jitter_m != 0.0 {
-                let (mut jx, mut jy, mut jz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-                for i in 0..LANES {
-                    [jx[i], jy[i], jz[i]] = fields21(rng.next_u64());
-                }
-                let (two, h) = (f32x8::splat(2.0), f32x8::splat(self.jitter_m));
-                let j = |u: [f32; LANES]| (f32x8::from(u) * two - f32x8::ONE) * h;
-                x = x.add(V8 { x: j(jx), y: j(jy), z: j(jz) });
+                let mut j = || (rng.unit() * two - f32x8::ONE) * h;
+                x = x.add(V8 { x: j(), y: j(), z: j() });
             }
             wrap(space, &mut x, xc);
         }
@@ -134,7 +178,7 @@ impl Motion {
 
     /// Turn every normal by the random rotation of [`Motion::rotate_lanes`], kept by the
     /// Metropolis rule against the plate lobe around +y (always, for uniform normals).
-    pub(crate) fn turn(&self, ns: &mut [Vec3], rng: &mut Stream) {
+    pub(crate) fn turn(&self, ns: &mut [Vec3], rng: &mut LaneRng) {
         if self.rotation_rad == 0.0 {
             return;
         }
@@ -145,17 +189,11 @@ impl Motion {
                 p.store(nc);
                 continue;
             }
-            let (py, ny) = (p.y.to_array(), n.y.to_array());
-            let mut out = [Vec3::ZERO; LANES];
-            p.store(&mut out);
-            for (i, v) in out.iter().enumerate() {
-                // Every lane draws its coin, used or not: the stream does not depend
-                // on how full the last batch is.
-                let ratio = (self.lobe.kappa * f64::from(py[i] - ny[i])).exp();
-                if rng.next_f64() < ratio && i < nc.len() {
-                    nc[i] = *v;
-                }
-            }
+            // exp(κ (N'·y - N·y)) ≥ u: kept; κ (N'·y - N·y) in f32 has the rounding of
+            // the difference of two f32 components, as a scalar computation would.
+            let ratio = (f32x8::splat(self.lobe.kappa as f32) * (p.y - n.y)).exp();
+            let keep = rng.unit().simd_lt(ratio);
+            V8 { x: keep.select(p.x, n.x), y: keep.select(p.y, n.y), z: keep.select(p.z, n.z) }.store(nc);
         }
     }
 
@@ -167,17 +205,9 @@ impl Motion {
     /// `any_orthonormal_pair` written in lanes; the result takes one Newton step toward
     /// length 1 (unit up to rounding already) instead of a square root and a division.
     #[inline]
-    fn rotate_lanes(&self, n: V8, rng: &mut Stream) -> V8 {
-        const S: f32 = 1.0 / 4_294_967_296.0;
-        let (mut r2, mut phi) = ([0.0f32; LANES], [0.0f32; LANES]);
-        for i in 0..LANES {
-            let w = rng.next_u64();
-            // 24 bits of each half: exactly representable, so u < 1.
-            r2[i] = ((w >> 40) << 8) as f32 * S;
-            phi[i] = (((w >> 8) & 0xff_ffff) << 8) as f32 * S;
-        }
-        let rad = f32x8::from(r2).sqrt() * f32x8::splat(self.sin_rotation);
-        let (s, c) = (f32x8::from(phi) * f32x8::splat(std::f32::consts::TAU)).sin_cos();
+    fn rotate_lanes(&self, n: V8, rng: &mut LaneRng) -> V8 {
+        let rad = rng.unit().sqrt() * f32x8::splat(self.sin_rotation);
+        let (s, c) = (rng.unit() * f32x8::splat(std::f32::consts::TAU)).sin_cos();
         let (a, b) = (rad * c, rad * s);
         let cz = (f32x8::ONE - (a * a + b * b)).max(f32x8::ZERO).sqrt();
         let (e1, e2) = n.tangents();
@@ -363,7 +393,7 @@ mod tests {
             lobe: crate::model::Lobe::new(0.0),
         };
         let mut turned = ns.clone();
-        m.turn(&mut turned, &mut sim_rng);
+        m.turn(&mut turned, &mut LaneRng::new(&mut sim_rng));
         // The tangent step's length sin ψ is √u sin δ: (sin ψ / sin δ)² is uniform on
         // [0, 1] (mean 1/2, sd 1/√12; tolerance 5 standard errors).
         let mut mean = 0.0;
@@ -420,6 +450,62 @@ mod tests {
     }
 
     #[test]
+    fn lane_generators_are_uniform_and_independent() {
+        // 2¹⁸ draws per lane into 64 bins: Pearson χ² with 63 degrees of freedom stays
+        // below 120 (p ≈ 2·10⁻⁵) per lane; neighbouring lanes' draws are uncorrelated
+        // (|r| < 5/√n, five standard errors).
+        let mut lanes = LaneRng::new(&mut Stream::new(5, P, 0));
+        let n = 1usize << 18;
+        let mut bins = vec![[0u32; 64]; LANES];
+        let mut prod = [0.0f64; LANES];
+        for _ in 0..n {
+            let u = lanes.unit().to_array();
+            for l in 0..LANES {
+                assert!((0.0..1.0).contains(&u[l]));
+                bins[l][(u[l] * 64.0) as usize] += 1;
+                prod[l] += (f64::from(u[l]) - 0.5) * (f64::from(u[(l + 1) % LANES]) - 0.5);
+            }
+        }
+        let e = n as f64 / 64.0;
+        for l in 0..LANES {
+            let chi2: f64 = bins[l].iter().map(|&b| (f64::from(b) - e).powi(2) / e).sum();
+            assert!(chi2 < 120.0, "lane {l}: χ² {chi2}");
+            let r = prod[l] / n as f64 * 12.0;
+            assert!(r.abs() < 5.0 / (n as f64).sqrt(), "lanes {l}, {}: r {r}", (l + 1) % LANES);
+        }
+    }
+
+    #[test]
+    fn turning_keeps_the_plate_lobe() {
+        // Normals drawn from the lobe stay distributed by it under many Metropolis steps
+        // (mean N·y = coth κ - 1/κ; tolerance 5 standard errors of the start sample's
+        // spread, steps being correlated only within a normal's own chain).
+        let lobe = crate::model::Lobe::from_spread_deg(3.0);
+        let mut rng = Stream::new(6, P, 0);
+        let mut ns: Vec<Vec3> = (0..20_000).map(|_| lobe.sample(Vec3::Y, &mut rng)).collect();
+        let delta = 1f32.to_radians();
+        let m = Motion {
+            shared_m: Vec3::ZERO,
+            jitter_m: 0.0,
+            rotation_rad: delta,
+            sin_rotation: delta.sin(),
+            lobe,
+        };
+        let mut lanes = LaneRng::new(&mut rng);
+        for _ in 0..300 {
+            m.turn(&mut ns, &mut lanes);
+        }
+        let k = lobe.kappa;
+        let want = 1.0 / k.tanh() - 1.0 / k;
+        let ys: Vec<f64> = ns.iter().map(|n| f64::from(n.y)).collect();
+        let mean = ys.iter().sum::<f64>() / ys.len() as f64;
+        // The spread of N·y under the lobe: var = 1/κ² - 1/sinh²κ ≈ 1/κ².
+        let sd = 1.0 / k;
+        assert!((mean - want).abs() < 5.0 * sd / (ys.len() as f64).sqrt(), "{mean} vs {want}");
+        assert!(ns.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
     fn wrapping_in_lanes_keeps_facets_in_the_box() {
         let space = Space::Box { min: Vec3::new(-1.0, 0.0, -2.0), size: Vec3::new(2.0, 1.0, 2.0) };
         let m = Motion {
@@ -430,6 +516,7 @@ mod tests {
             lobe: crate::model::Lobe::new(0.0),
         };
         let mut rng = Stream::new(3, P, 0);
+        let mut lanes = LaneRng::new(&mut rng);
         let mut xs: Vec<Vec3> = (0..1001)
             .map(|_| Vec3::new(rng.uniform(-1.0, 1.0), rng.uniform(0.0, 1.0), rng.uniform(-2.0, 0.0)))
             .collect();
@@ -440,7 +527,7 @@ mod tests {
                 mm.shared_m = Vec3::new(7.3, -4.1, 5.0);
             }
             for _ in 0..20 {
-                mm.displace(&space, &mut xs, sign, &mut rng);
+                mm.displace(&space, &mut xs, sign, &mut lanes);
                 for x in &xs {
                     assert!(
                         x.cmpge(Vec3::new(-1.0, 0.0, -2.0)).all() && x.cmplt(Vec3::new(1.0, 1.0, 0.0)).all(),

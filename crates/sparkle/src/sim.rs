@@ -42,6 +42,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
+use crate::batch::LaneRng;
 use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
 use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
 use phenomena_core::validate::Issue;
@@ -577,6 +578,7 @@ impl SparkleSim {
                 let len = n / chunks + u64::from(k < n % chunks);
                 let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
                 let count = rng.binomial(len, mean_q);
+                let mut lanes = LaneRng::new(&mut rng);
                 let mut out = Glints::default();
                 let mut left = count;
                 while left > 0 {
@@ -597,7 +599,7 @@ impl SparkleSim {
                     }
                     let mut n1 = n0.clone();
                     if let Some(m) = &motion {
-                        m.turn(&mut n1, &mut rng);
+                        m.turn(&mut n1, &mut lanes);
                     }
                     let mut c2 = vec![0.0; x1.len()];
                     to.test_all(space, &x1, &n1, &mut c2);
@@ -616,9 +618,9 @@ impl SparkleSim {
                             break;
                         }
                         if let Some(mi) = into {
-                            mi.displace(space, &mut x, -1.0, &mut rng);
+                            mi.displace(space, &mut x, -1.0, &mut lanes);
                             if k > 0 {
-                                mi.turn(&mut nrm, &mut rng);
+                                mi.turn(&mut nrm, &mut lanes);
                             }
                         }
                         seen_then.resize(x.len(), 0.0);
@@ -676,7 +678,7 @@ impl SparkleSim {
         let parts: Vec<(Glints, Glints, Vec<u32>)> = (0..g.len().div_ceil(CHUNK))
             .into_par_iter()
             .map(|k| {
-                let mut rng = Stream::new(seed, TRACK, (u64::from(next) << 32) | k as u64);
+                let mut rng = LaneRng::new(&mut Stream::new(seed, TRACK, (u64::from(next) << 32) | k as u64));
                 let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
                 let mut kept = Glints::with_capacity(range.len());
                 let mut dead = Glints::default();
@@ -711,7 +713,7 @@ impl SparkleSim {
         let ghost_parts: Vec<(Glints, Glints, Vec<u32>)> = (0..gh.len().div_ceil(CHUNK))
             .into_par_iter()
             .map(|k| {
-                let mut rng = Stream::new(seed, GHOST, (u64::from(next) << 32) | k as u64);
+                let mut rng = LaneRng::new(&mut Stream::new(seed, GHOST, (u64::from(next) << 32) | k as u64));
                 let range = k * CHUNK..((k + 1) * CHUNK).min(gh.len());
                 let mut back = Glints::default();
                 let mut still = Glints::with_capacity(range.len());
@@ -778,7 +780,7 @@ impl SparkleSim {
             .zip(all.last_seen.par_chunks_mut(CHUNK))
             .enumerate()
             .map(|(k, (((xs, ns), since), last))| {
-                let mut rng = Stream::new(seed, BRUTE, (u64::from(next) << 32) | k as u64);
+                let mut rng = LaneRng::new(&mut Stream::new(seed, BRUTE, (u64::from(next) << 32) | k as u64));
                 let mut g = Glints::default();
                 let mut lifetimes = Vec::new();
                 let mut gaps = Vec::new();
