@@ -62,5 +62,21 @@ fn blackbody(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, grid, blur, blackbody);
+fn srgb(c: &mut Criterion) {
+    // One 640×360 RGB frame of values spread over the encoder's range (the studio's
+    // per-frame tone map): the direct encoder against the table one.
+    let values: Vec<f32> = (0..640 * 360 * 3).map(|i| ((i * 7919) % 100_003) as f32 / 90_000.0).collect();
+    let mut g = c.benchmark_group("srgb_encode_u8_640x360x3");
+    g.bench_function("direct", |b| {
+        b.iter(|| values.iter().map(|&v| u32::from(phenomena_core::color::srgb_encode_u8(v))).sum::<u32>())
+    });
+    g.bench_function("fast", |b| {
+        b.iter(|| {
+            values.iter().map(|&v| u32::from(phenomena_core::color::srgb_encode_u8_fast(v))).sum::<u32>()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, grid, blur, blackbody, srgb);
 criterion_main!(benches);
