@@ -41,7 +41,7 @@ const MAX_PREVIEW_FPS: f64 = 30.0;
 /// The aurora's sky preview emits for about this many particles per frame (every k-th
 /// particle, k times the weight, the phase turning each frame: an unbiased thinning,
 /// see `SkyRenderer::set_particle_subset`); final renders use all of them.
-const AURORA_PREVIEW_PARTICLES: usize = 25_000;
+const AURORA_PREVIEW_PARTICLES: usize = 15_000;
 
 /// Largest preview, pixels per side.
 const MAX_PREVIEW_SIDE: u32 = 1920;
