@@ -378,16 +378,36 @@ impl Session {
                 Some(inbox.recv().map_err(|_| Closed)?)
             };
             match command {
-                Some(Command::Close) => return Err(Closed),
-                Some(Command::SnowGlb(reply)) => {
-                    let _ = reply.send(self.snow_glb());
-                }
-                Some(Command::Page(m)) => self.handle(*m)?,
+                Some(c) => self.command(c)?,
                 None => {
                     self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
-                    self.advance()?;
+                    let generation = self.generation;
+                    let Some((step_ms, counters)) = self.step()? else { continue };
+                    // What came in during the step goes first: a change makes this
+                    // frame stale, and the change's own frame is then the next shown.
+                    loop {
+                        match inbox.try_recv() {
+                            Ok(c) => self.command(c)?,
+                            Err(TryRecvError::Empty) => break,
+                            Err(TryRecvError::Disconnected) => return Err(Closed),
+                        }
+                    }
+                    if self.generation == generation {
+                        self.render_and_send(step_ms, counters)?;
+                    }
                 }
             }
+        }
+    }
+
+    fn command(&mut self, command: Command) -> Result<(), Closed> {
+        match command {
+            Command::Close => Err(Closed),
+            Command::SnowGlb(reply) => {
+                let _ = reply.send(self.snow_glb());
+                Ok(())
+            }
+            Command::Page(m) => self.handle(*m),
         }
     }
 
@@ -550,18 +570,29 @@ impl Session {
 
     /// One frame: step, render, send.
     fn advance(&mut self) -> Result<(), Closed> {
-        let Some(runner) = &mut self.runner else { return Ok(()) };
+        match self.step()? {
+            Some((step_ms, counters)) => self.render_and_send(step_ms, counters),
+            None => Ok(()),
+        }
+    }
+
+    /// One step: its time (ms) and counters; `None` without a simulation or when it
+    /// stopped (the page is told).
+    fn step(&mut self) -> Result<Option<(f64, Value)>, Closed> {
+        let Some(runner) = &mut self.runner else { return Ok(None) };
         let t = Instant::now();
-        let counters = match runner.step() {
-            Ok(c) => c,
+        match runner.step() {
+            Ok(counters) => {
+                self.frame += 1;
+                Ok(Some((t.elapsed().as_secs_f64() * 1e3, counters)))
+            }
             Err(e) => {
                 self.playing = false;
                 self.runner = None;
-                return self.error(format!("the simulation stopped at frame {}: {e:#}", self.frame + 1));
+                self.error(format!("the simulation stopped at frame {}: {e:#}", self.frame + 1))?;
+                Ok(None)
             }
-        };
-        self.frame += 1;
-        self.render_and_send(t.elapsed().as_secs_f64() * 1e3, counters)
+        }
     }
 
     fn render_and_send(&mut self, step_ms: f64, counters: Value) -> Result<(), Closed> {
