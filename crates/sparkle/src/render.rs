@@ -198,186 +198,184 @@ impl SparkleRenderer {
             self.cached = Some((light, bg));
         }
         if let Some((_, bg)) = &self.cached {
-            self.frame.clone_from(bg);
+            splat(&self.settings, &mut self.frame, bg, sim, &view);
         }
-        self.splat(sim, &view);
         &self.frame
     }
+}
 
-    /// Glints (and glare) added to the frame. Glints are projected in parallel, bucketed
-    /// by bands of [`BAND_ROWS`] rows that their footprint touches, and each band adds its
-    /// glints in glint order: every pixel sums in the same order for any thread count.
-    fn splat(&mut self, sim: &SparkleSim, view: &CameraView) {
-        let s = &self.settings;
-        let g = sim.glints();
-        let peak = sim.config().phong.specular_k_s * sim.config().phong.light_intensity;
-        let colour = Vec3::from(s.light_rgb) * s.glint_gain;
-        let rays: &[(f32, f32)] = match s.glare {
-            GlareShape::None => &[],
-            GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
-            GlareShape::Star => &[
-                (1.0, 0.0),
-                (0.5, 0.866_025_4),
-                (-0.5, 0.866_025_4),
-                (-1.0, 0.0),
-                (-0.5, -0.866_025_4),
-                (0.5, -0.866_025_4),
-            ],
-        };
-        let (wu, hu) = (self.frame.width(), self.frame.height());
-        let (w, h) = (wu as f32, hu as f32);
-        let (glare_length, glare_threshold) = (s.glare_length_px, s.glare_threshold);
-        let glare = !rays.is_empty();
-        let eye = sim.config().camera.position;
-        let falloff2 = s.falloff_from_m * s.falloff_from_m;
-        // Glints are projected chunk by chunk in parallel; each chunk files its dots on
-        // screen by band (a dot whose footprint spans two bands in both), keeping glint
-        // order. A band then reads its run from every chunk in chunk order: glint order.
-        let bands = hu.div_ceil(BAND_ROWS);
-        let band_range = |y: f32, len: f32| {
-            let lo = ((y - len - 1.0).max(0.0) as usize / BAND_ROWS).min(bands - 1);
-            let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as usize / BAND_ROWS).min(bands - 1);
-            lo..=hi
-        };
-        let chunks: Vec<(Vec<Dot>, Vec<u32>)> = g
-            .position_m
-            .par_chunks(PROJECT_CHUNK)
-            .zip(g.intensity.par_chunks(PROJECT_CHUNK))
-            .map(|(xs, is)| {
-                let mut dots = Vec::with_capacity(xs.len());
-                let mut start = vec![0u32; bands + 1];
-                for (x, &intensity) in xs.iter().zip(is) {
-                    let Some(p) = view.project(*x) else { continue };
-                    let intensity = if falloff2 > 0.0 {
-                        intensity * (falloff2 / (*x - eye).length_squared()).min(1.0)
-                    } else {
-                        intensity
-                    };
-                    let rel = intensity / peak;
-                    let len = if glare && rel >= glare_threshold {
-                        (glare_length * rel.sqrt()).max(1.0)
-                    } else {
-                        0.0
-                    };
-                    let m = len + 1.0;
-                    if p.x_px > -m && p.y_px > -m && p.x_px < w + m && p.y_px < h + m {
-                        for b in band_range(p.y_px, len) {
-                            start[b + 1] += 1;
-                        }
-                        dots.push(Dot { x: p.x_px, y: p.y_px, value: intensity, len });
-                    }
-                }
-                for b in 0..bands {
-                    start[b + 1] += start[b];
-                }
-                let mut fill = start.clone();
-                let mut filed = vec![Dot::default(); start[bands] as usize];
-                for d in &dots {
-                    for b in band_range(d.y, d.len) {
-                        filed[fill[b] as usize] = *d;
-                        fill[b] += 1;
-                    }
-                }
-                (filed, start)
-            })
-            .collect();
-        let glare_strength = s.glare_strength;
-        let axis_rays = rays.iter().all(|&(dx, dy)| dx.fract() == 0.0 && dy.fract() == 0.0);
-        let [c0, c1, c2] = self.frame.planes_mut();
-        let stride = BAND_ROWS * wu;
-        c0.data_mut()
-            .par_chunks_mut(stride)
-            .zip(c1.data_mut().par_chunks_mut(stride))
-            .zip(c2.data_mut().par_chunks_mut(stride))
-            .enumerate()
-            .for_each(|(b, ((r, gr), bl))| {
-                // Every glint has the light's colour: the band sums brightness in one
-                // plane, coloured once at the end.
-                let row0 = (b * BAND_ROWS) as i64;
-                let rows = (r.len() / wu) as i64;
-                let mut sum = vec![0.0f32; r.len()];
-                let mut fall = [0.0f32; 257];
-                let add = |sum: &mut [f32], i: i64, j: i64, v: f32| {
-                    let jj = j - row0;
-                    if i >= 0 && (i as usize) < wu && jj >= 0 && jj < rows {
-                        sum[jj as usize * wu + i as usize] += v;
-                    }
+/// The background plus the glints (and glare), into `frame`. Glints are projected in
+/// parallel, bucketed by bands of [`BAND_ROWS`] rows that their footprint touches, and
+/// each band adds its glints in glint order: every pixel sums in the same order for any
+/// thread count. Each band writes its rows of the frame once (background + glints).
+fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, view: &CameraView) {
+    let g = sim.glints();
+    let peak = sim.config().phong.specular_k_s * sim.config().phong.light_intensity;
+    let colour = Vec3::from(s.light_rgb) * s.glint_gain;
+    let rays: &[(f32, f32)] = match s.glare {
+        GlareShape::None => &[],
+        GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
+        GlareShape::Star => &[
+            (1.0, 0.0),
+            (0.5, 0.866_025_4),
+            (-0.5, 0.866_025_4),
+            (-1.0, 0.0),
+            (-0.5, -0.866_025_4),
+            (0.5, -0.866_025_4),
+        ],
+    };
+    let (wu, hu) = (frame.width(), frame.height());
+    let (w, h) = (wu as f32, hu as f32);
+    let (glare_length, glare_threshold) = (s.glare_length_px, s.glare_threshold);
+    let glare = !rays.is_empty();
+    let eye = sim.config().camera.position;
+    let falloff2 = s.falloff_from_m * s.falloff_from_m;
+    // Glints are projected chunk by chunk in parallel; each chunk files its dots on
+    // screen by band (a dot whose footprint spans two bands in both), keeping glint
+    // order. A band then reads its run from every chunk in chunk order: glint order.
+    let bands = hu.div_ceil(BAND_ROWS);
+    let band_range = |y: f32, len: f32| {
+        let lo = ((y - len - 1.0).max(0.0) as usize / BAND_ROWS).min(bands - 1);
+        let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as usize / BAND_ROWS).min(bands - 1);
+        lo..=hi
+    };
+    let chunks: Vec<(Vec<Dot>, Vec<u32>)> = g
+        .position_m
+        .par_chunks(PROJECT_CHUNK)
+        .zip(g.intensity.par_chunks(PROJECT_CHUNK))
+        .map(|(xs, is)| {
+            let mut dots = Vec::with_capacity(xs.len());
+            let mut start = vec![0u32; bands + 1];
+            for (x, &intensity) in xs.iter().zip(is) {
+                let Some(p) = view.project(*x) else { continue };
+                let intensity = if falloff2 > 0.0 {
+                    intensity * (falloff2 / (*x - eye).length_squared()).min(1.0)
+                } else {
+                    intensity
                 };
-                for (filed, start) in &chunks {
-                    for d in &filed[start[b] as usize..start[b + 1] as usize] {
-                        let (x, y, v, len) = (d.x, d.y, d.value, d.len);
-                        // Bilinear share among the four pixels around the point (as
-                        // `Plane::deposit_bilinear`: pixel centres at +0.5).
-                        let (fx, fy) = (x - 0.5, y - 0.5);
-                        if fx >= -1.0 && fy >= -1.0 {
-                            // floor without a libm call: the values are above -1.
-                            let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
-                            let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
-                            add(&mut sum, i0, j0, v * ((1.0 - tx) * (1.0 - ty)));
-                            add(&mut sum, i0 + 1, j0, v * (tx * (1.0 - ty)));
-                            add(&mut sum, i0, j0 + 1, v * ((1.0 - tx) * ty));
-                            add(&mut sum, i0 + 1, j0 + 1, v * (tx * ty));
+                let rel = intensity / peak;
+                let len =
+                    if glare && rel >= glare_threshold { (glare_length * rel.sqrt()).max(1.0) } else { 0.0 };
+                let m = len + 1.0;
+                if p.x_px > -m && p.y_px > -m && p.x_px < w + m && p.y_px < h + m {
+                    for b in band_range(p.y_px, len) {
+                        start[b + 1] += 1;
+                    }
+                    dots.push(Dot { x: p.x_px, y: p.y_px, value: intensity, len });
+                }
+            }
+            for b in 0..bands {
+                start[b + 1] += start[b];
+            }
+            let mut fill = start.clone();
+            let mut filed = vec![Dot::default(); start[bands] as usize];
+            for d in &dots {
+                for b in band_range(d.y, d.len) {
+                    filed[fill[b] as usize] = *d;
+                    fill[b] += 1;
+                }
+            }
+            (filed, start)
+        })
+        .collect();
+    let glare_strength = s.glare_strength;
+    let axis_rays = rays.iter().all(|&(dx, dy)| dx.fract() == 0.0 && dy.fract() == 0.0);
+    let [c0, c1, c2] = frame.planes_mut();
+    let stride = BAND_ROWS * wu;
+    let (b0, b1, b2) = (bg.c0.data(), bg.c1.data(), bg.c2.data());
+    c0.data_mut()
+        .par_chunks_mut(stride)
+        .zip(c1.data_mut().par_chunks_mut(stride))
+        .zip(c2.data_mut().par_chunks_mut(stride))
+        .enumerate()
+        .for_each(|(b, ((r, gr), bl))| {
+            // Every glint has the light's colour: the band sums brightness in one
+            // plane, coloured once at the end.
+            let row0 = (b * BAND_ROWS) as i64;
+            let rows = (r.len() / wu) as i64;
+            let mut sum = vec![0.0f32; r.len()];
+            let mut fall = [0.0f32; 257];
+            let add = |sum: &mut [f32], i: i64, j: i64, v: f32| {
+                let jj = j - row0;
+                if i >= 0 && (i as usize) < wu && jj >= 0 && jj < rows {
+                    sum[jj as usize * wu + i as usize] += v;
+                }
+            };
+            for (filed, start) in &chunks {
+                for d in &filed[start[b] as usize..start[b + 1] as usize] {
+                    let (x, y, v, len) = (d.x, d.y, d.value, d.len);
+                    // Bilinear share among the four pixels around the point (as
+                    // `Plane::deposit_bilinear`: pixel centres at +0.5).
+                    let (fx, fy) = (x - 0.5, y - 0.5);
+                    if fx >= -1.0 && fy >= -1.0 {
+                        // floor without a libm call: the values are above -1.
+                        let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
+                        let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
+                        add(&mut sum, i0, j0, v * ((1.0 - tx) * (1.0 - ty)));
+                        add(&mut sum, i0 + 1, j0, v * (tx * (1.0 - ty)));
+                        add(&mut sum, i0, j0 + 1, v * ((1.0 - tx) * ty));
+                        add(&mut sum, i0 + 1, j0 + 1, v * (tx * ty));
+                    }
+                    if len == 0.0 {
+                        continue;
+                    }
+                    // Ray pixels at `step` px along each ray, step = 1..=len, falling
+                    // off as (1 - step/len)²; the weights are the same on every ray.
+                    let steps = (len.ceil() as usize).min(fall.len());
+                    let inv = 1.0 / len;
+                    let mut n = 0;
+                    for (step, f) in fall.iter_mut().enumerate().take(steps) {
+                        let t = (step + 1) as f32 * inv;
+                        if t > 1.0 {
+                            break;
                         }
-                        if len == 0.0 {
-                            continue;
-                        }
-                        // Ray pixels at `step` px along each ray, step = 1..=len, falling
-                        // off as (1 - step/len)²; the weights are the same on every ray.
-                        let steps = (len.ceil() as usize).min(fall.len());
-                        let inv = 1.0 / len;
-                        let mut n = 0;
-                        for (step, f) in fall.iter_mut().enumerate().take(steps) {
-                            let t = (step + 1) as f32 * inv;
-                            if t > 1.0 {
-                                break;
-                            }
-                            *f = v * (1.0 - t) * (1.0 - t) * glare_strength * inv;
-                            n += 1;
-                        }
-                        if axis_rays {
-                            // Whole-pixel offsets from the glint's own pixel, clipped to
-                            // the band and the image once per ray.
-                            let (xi, yi) = (floor_i64(x), floor_i64(y));
-                            for &(dx, dy) in rays {
-                                let (dx, dy) = (dx as i64, dy as i64);
-                                let (mut lo, mut hi) = (1i64, n as i64);
-                                for (p, d, limit_lo, limit_hi) in
-                                    [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)]
-                                {
-                                    // limit_lo ≤ p + d·step ≤ limit_hi
-                                    match d {
-                                        0 if p < limit_lo || p > limit_hi => hi = 0,
-                                        1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
-                                        -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
-                                        _ => {}
-                                    }
+                        *f = v * (1.0 - t) * (1.0 - t) * glare_strength * inv;
+                        n += 1;
+                    }
+                    if axis_rays {
+                        // Whole-pixel offsets from the glint's own pixel, clipped to
+                        // the band and the image once per ray.
+                        let (xi, yi) = (floor_i64(x), floor_i64(y));
+                        for &(dx, dy) in rays {
+                            let (dx, dy) = (dx as i64, dy as i64);
+                            let (mut lo, mut hi) = (1i64, n as i64);
+                            for (p, d, limit_lo, limit_hi) in
+                                [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)]
+                            {
+                                // limit_lo ≤ p + d·step ≤ limit_hi
+                                match d {
+                                    0 if p < limit_lo || p > limit_hi => hi = 0,
+                                    1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
+                                    -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
+                                    _ => {}
                                 }
-                                for step in lo..=hi {
-                                    let at =
-                                        (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
-                                    sum[at] += fall[step as usize - 1];
-                                }
                             }
-                        } else {
-                            for &(dx, dy) in rays {
-                                for (step, f) in fall.iter().enumerate().take(n) {
-                                    let step = (step + 1) as f32;
-                                    let (qx, qy) = (x + dx * step, y + dy * step);
-                                    if qx >= 0.0 && qy >= 0.0 {
-                                        add(&mut sum, qx as i64, qy as i64, *f);
-                                    }
+                            for step in lo..=hi {
+                                let at = (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
+                                sum[at] += fall[step as usize - 1];
+                            }
+                        }
+                    } else {
+                        for &(dx, dy) in rays {
+                            for (step, f) in fall.iter().enumerate().take(n) {
+                                let step = (step + 1) as f32;
+                                let (qx, qy) = (x + dx * step, y + dy * step);
+                                if qx >= 0.0 && qy >= 0.0 {
+                                    add(&mut sum, qx as i64, qy as i64, *f);
                                 }
                             }
                         }
                     }
                 }
-                for (k, v) in sum.iter().enumerate() {
-                    r[k] += colour.x * v;
-                    gr[k] += colour.y * v;
-                    bl[k] += colour.z * v;
-                }
-            });
-    }
+            }
+            let at = b * stride;
+            let (b0, b1, b2) = (&b0[at..at + r.len()], &b1[at..at + r.len()], &b2[at..at + r.len()]);
+            for (k, v) in sum.iter().enumerate() {
+                r[k] = b0[k] + colour.x * v;
+                gr[k] = b1[k] + colour.y * v;
+                bl[k] = b2[k] + colour.z * v;
+            }
+        });
 }
 
 /// ⌊x⌋ for |x| < 2⁶³ without a libm call (baseline x86-64 has no rounding instruction).
