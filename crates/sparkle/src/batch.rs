@@ -3,12 +3,14 @@
 //! reciprocals, no fused multiply-add unless the whole build targets it).
 //!
 //! Every facet update of both methods goes through here, so the stochastic model and
-//! brute force share one dynamics. Random numbers stay scalar (one [`Stream`] per chunk,
-//! drawn in lane order), so results depend only on the chunking, never on threads.
+//! brute force share one dynamics. Random numbers come from eight generators in lanes
+//! ([`LaneRng`]) seeded from each chunk's own [`Stream`], so results depend only on the
+//! chunking, never on threads.
 //!
-//! Per facet and step: one 64-bit word gives the own displacement (three 21-bit
-//! uniforms), one the rotation (two 32-bit uniforms: radius² and angle in the tangent
-//! disc), and for a lobe one more the Metropolis coin.
+//! Per facet and step: three 24-bit uniforms give the own displacement, two the rotation
+//! (radius² and angle in the tangent disc), and for a lobe one more the Metropolis coin.
+//! Birth candidates' positions are drawn scalar (an alias table picks the region), their
+//! normals in lanes ([`Geometry::around_half_vectors`]).
 
 use glam::Vec3;
 use phenomena_core::rng::Stream;
@@ -217,7 +219,7 @@ impl Motion {
 
 impl Geometry {
     /// Birth candidates' normals: for each position `xs[i]`, a unit vector at
-    /// 1 - cos = `omc[i]` from `side[i]`·H(xs[i]) (side ±1), at the azimuth 2π `turn[i]`
+    /// 1 - cos = `omc[i]` from `side[i]`·H(`xs[i]`) (side ±1), at the azimuth 2π `turn[i]`
     /// about it (`turn` uniform on [0, 1) gives a uniform azimuth); NaN where H does not
     /// exist (L + V vanishes, or the facet sits on the eye or the lamp).
     pub(crate) fn around_half_vectors(
