@@ -286,6 +286,25 @@ fn wrap(space: &Space, x: &mut V8, dst: &mut [Vec3]) {
     }
 }
 
+/// One frame forward for every facet (moved and turned by `motion`, if the facets move)
+/// and then tested by `to`: returns (N·H)² per facet when seen, else -1.
+pub(crate) fn forward_and_test(
+    motion: Option<&Motion>,
+    to: &Seen,
+    space: &Space,
+    xs: &mut [Vec3],
+    ns: &mut [Vec3],
+    rng: &mut LaneRng,
+) -> Vec<f32> {
+    if let Some(m) = motion {
+        m.displace(space, xs, 1.0, rng);
+        m.turn(ns, rng);
+    }
+    let mut c2 = vec![0.0; xs.len()];
+    to.test_all(space, xs, ns, &mut c2);
+    c2
+}
+
 impl Seen {
     /// `Seen::test` for every facet: `c2[i]` = (N·H)² when facet i is seen, else -1.
     /// Lane for lane the same operations as the scalar test, so the same answers.
@@ -333,6 +352,11 @@ mod tests {
     use phenomena_core::rng::Purpose;
 
     const P: Purpose = Purpose::named("test.sparkle.batch");
+
+    /// A motion that only turns normals, by at most `delta`.
+    fn turning(delta: f32, lobe: crate::model::Lobe) -> Motion {
+        Motion { shared_m: Vec3::ZERO, jitter_m: 0.0, rotation_rad: delta, sin_rotation: delta.sin(), lobe }
+    }
 
     fn random_facets(k: usize, rng: &mut Stream) -> (Vec<Vec3>, Vec<Vec3>) {
         let xs = (0..k)
@@ -387,13 +411,7 @@ mod tests {
         let mut sim_rng = Stream::new(2, P, 0);
         let (_, ns) = random_facets(40_000, &mut sim_rng);
         let delta = 3f32.to_radians();
-        let m = Motion {
-            shared_m: Vec3::ZERO,
-            jitter_m: 0.0,
-            rotation_rad: delta,
-            sin_rotation: delta.sin(),
-            lobe: crate::model::Lobe::new(0.0),
-        };
+        let m = turning(delta, crate::model::Lobe::new(0.0));
         let mut turned = ns.clone();
         m.turn(&mut turned, &mut LaneRng::new(&mut sim_rng));
         // The tangent step's length sin ψ is √u sin δ: (sin ψ / sin δ)² is uniform on
@@ -486,13 +504,7 @@ mod tests {
         let mut rng = Stream::new(6, P, 0);
         let mut ns: Vec<Vec3> = (0..20_000).map(|_| lobe.sample(Vec3::Y, &mut rng)).collect();
         let delta = 1f32.to_radians();
-        let m = Motion {
-            shared_m: Vec3::ZERO,
-            jitter_m: 0.0,
-            rotation_rad: delta,
-            sin_rotation: delta.sin(),
-            lobe,
-        };
+        let m = turning(delta, lobe);
         let mut lanes = LaneRng::new(&mut rng);
         for _ in 0..300 {
             m.turn(&mut ns, &mut lanes);

@@ -50,6 +50,24 @@ pub enum GlareShape {
     Star,
 }
 
+impl GlareShape {
+    /// Unit directions of the rays, in pixels (y down).
+    fn rays(self) -> &'static [(f32, f32)] {
+        match self {
+            GlareShape::None => &[],
+            GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
+            GlareShape::Star => &[
+                (1.0, 0.0),
+                (0.5, 0.866_025_4),
+                (-0.5, 0.866_025_4),
+                (-1.0, 0.0),
+                (-0.5, -0.866_025_4),
+                (0.5, -0.866_025_4),
+            ],
+        }
+    }
+}
+
 /// The `[render]` table of a sparkle scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -212,18 +230,7 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
     let g = sim.glints();
     let peak = sim.config().phong.specular_k_s * sim.config().phong.light_intensity;
     let colour = Vec3::from(s.light_rgb) * s.glint_gain;
-    let rays: &[(f32, f32)] = match s.glare {
-        GlareShape::None => &[],
-        GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
-        GlareShape::Star => &[
-            (1.0, 0.0),
-            (0.5, 0.866_025_4),
-            (-0.5, 0.866_025_4),
-            (-1.0, 0.0),
-            (-0.5, -0.866_025_4),
-            (0.5, -0.866_025_4),
-        ],
-    };
+    let rays = s.glare.rays();
     let (wu, hu) = (frame.width(), frame.height());
     let (w, h) = (wu as f32, hu as f32);
     let (glare_length, glare_threshold) = (s.glare_length_px, s.glare_threshold);
@@ -555,17 +562,7 @@ mod tests {
                     want[j as usize * w + i as usize] += f64::from(v);
                 }
             };
-            let rays: &[(f32, f32)] = match glare {
-                GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
-                _ => &[
-                    (1.0, 0.0),
-                    (0.5, 0.866_025_4),
-                    (-0.5, 0.866_025_4),
-                    (-1.0, 0.0),
-                    (-0.5, -0.866_025_4),
-                    (0.5, -0.866_025_4),
-                ],
-            };
+            let rays = glare.rays();
             let mut glared = 0;
             for (x, &v) in sim.glints().position_m.iter().zip(&sim.glints().intensity) {
                 let Some(p) = view.project(*x) else { continue };

@@ -42,7 +42,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::batch::LaneRng;
+use crate::batch::{LaneRng, forward_and_test};
 use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
 use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
 use phenomena_core::validate::Issue;
@@ -690,12 +690,7 @@ impl SparkleSim {
                 let mut lifetimes = Vec::new();
                 let mut xs = g.position_m[range.clone()].to_vec();
                 let mut ns = g.normal[range.clone()].to_vec();
-                if let Some(m) = &motion {
-                    m.displace(&space, &mut xs, 1.0, &mut rng);
-                    m.turn(&mut ns, &mut rng);
-                }
-                let mut c2 = vec![0.0; xs.len()];
-                to.test_all(&space, &xs, &ns, &mut c2);
+                let c2 = forward_and_test(motion.as_ref(), &to, &space, &mut xs, &mut ns, &mut rng);
                 for (j, i) in range.enumerate() {
                     let (x, nrm) = (xs[j], ns[j]);
                     if c2[j] >= 0.0 {
@@ -725,12 +720,7 @@ impl SparkleSim {
                 let mut gaps = Vec::new();
                 let mut xs = gh.position_m[range.clone()].to_vec();
                 let mut ns = gh.normal[range.clone()].to_vec();
-                if let Some(m) = &motion {
-                    m.displace(&space, &mut xs, 1.0, &mut rng);
-                    m.turn(&mut ns, &mut rng);
-                }
-                let mut c2 = vec![0.0; xs.len()];
-                to.test_all(&space, &xs, &ns, &mut c2);
+                let c2 = forward_and_test(motion.as_ref(), &to, &space, &mut xs, &mut ns, &mut rng);
                 for (j, i) in range.enumerate() {
                     let (x, nrm) = (xs[j], ns[j]);
                     let last = gh.birth_frame[i];
@@ -790,12 +780,7 @@ impl SparkleSim {
                 let mut lifetimes = Vec::new();
                 let mut gaps = Vec::new();
                 let mut deaths = 0;
-                if let Some(m) = &motion {
-                    m.displace(&space, xs, 1.0, &mut rng);
-                    m.turn(ns, &mut rng);
-                }
-                let mut c2 = vec![0.0; xs.len()];
-                to.test_all(&space, xs, ns, &mut c2);
+                let c2 = forward_and_test(motion.as_ref(), &to, &space, xs, ns, &mut rng);
                 for ((((x, nrm), s), l), &c) in
                     xs.iter().zip(ns.iter()).zip(since.iter_mut()).zip(last.iter_mut()).zip(&c2)
                 {
