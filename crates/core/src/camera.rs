@@ -276,6 +276,19 @@ impl CameraView {
         }
     }
 
+    /// An orthographic view's projection as three affine maps of the world point p:
+    /// `x_px`, `y_px` and `depth` are each `w.xyz · p + w.w` for the rows `[x, y, depth]`
+    /// returned (what [`CameraView::project`] computes, rearranged: equal up to f32
+    /// rounding). `None` for the other projections, which are not affine.
+    pub fn orthographic_affine(&self) -> Option<[glam::Vec4; 3]> {
+        if self.kind != Kind::Orthographic {
+            return None;
+        }
+        let (cx, cy, s) = (0.5 * self.width, 0.5 * self.height, self.scale);
+        let (r, u, f) = (self.right * s, -self.up * s, self.forward);
+        Some([r.extend(cx - self.eye.dot(r)), u.extend(cy - self.eye.dot(u)), f.extend(-self.eye.dot(f))])
+    }
+
     /// The primary ray through continuous pixel position `(x_px, y_px)`: origin and unit
     /// direction. For a fisheye, positions outside its circle give directions past the
     /// field of view.
@@ -358,6 +371,28 @@ impl CameraView {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_orthographic_affine_maps_project_like_project() {
+        let view = cam(Projection::Orthographic { height_m: 7.0 }).view(320, 200).unwrap();
+        let [x, y, d] = view.orthographic_affine().unwrap();
+        for k in 0..200 {
+            let t = k as f32 * 0.37;
+            let p = Vec3::new(4.0 * t.sin(), 3.0 * (1.3 * t).cos(), 5.0 * (0.7 * t).sin());
+            let q = view.project(p).unwrap();
+            let f = |r: glam::Vec4| r.truncate().dot(p) + r.w;
+            // The same sums in another order: a few f32 ulps of the largest term (~200).
+            assert!((f(x) - q.x_px).abs() < 1e-4 && (f(y) - q.y_px).abs() < 1e-4, "{p}");
+            assert!((f(d) - q.depth).abs() < 1e-5, "{p}");
+        }
+        assert!(
+            cam(Projection::Perspective { fov_y_deg: 50.0 })
+                .view(32, 32)
+                .unwrap()
+                .orthographic_affine()
+                .is_none()
+        );
+    }
 
     fn cam(projection: Projection) -> Camera {
         Camera {

@@ -77,6 +77,36 @@ impl Mesh {
         out
     }
 
+    /// For each object (by id, up to the largest id used), whether its triangles form
+    /// closed solids with outward faces: every directed edge (a, b) (vertices compared
+    /// bit for bit) is matched by exactly one (b, a) and none repeats, and the enclosed
+    /// signed volume is positive. Seen from outside, the nearest surface of such an
+    /// object along any line is a face turned towards the viewer, so its back faces can
+    /// be skipped when only the nearest depth matters.
+    pub fn closed_objects(&self) -> Vec<bool> {
+        use std::collections::HashMap;
+        let objects = self.object.iter().max().map_or(0, |&o| o as usize + 1);
+        type Vertex = [u32; 3];
+        let key = |p: Vec3| -> Vertex { [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()] };
+        let mut edges: Vec<HashMap<(Vertex, Vertex), u32>> = vec![HashMap::new(); objects];
+        let mut volume = vec![0.0f64; objects];
+        for (tri, &o) in self.triangles.iter().zip(&self.object) {
+            let o = o as usize;
+            for k in 0..3 {
+                *edges[o].entry((key(tri[k]), key(tri[(k + 1) % 3]))).or_insert(0) += 1;
+            }
+            let [a, b, c] = tri.map(|p| p.as_dvec3());
+            volume[o] += a.dot(b.cross(c)) / 6.0;
+        }
+        edges
+            .iter()
+            .zip(volume)
+            .map(|(e, v)| {
+                !e.is_empty() && v > 0.0 && e.iter().all(|(&(a, b), &n)| n == 1 && e.get(&(b, a)) == Some(&1))
+            })
+            .collect()
+    }
+
     /// Axis-aligned bounds (min, max) of all vertices; `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut it = self.triangles.iter().flatten();
@@ -117,9 +147,14 @@ pub fn cuboid(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
 /// rings, outward facing.
 pub fn sphere(centre: Vec3, radius: f32, segments: usize) -> Vec<[Vec3; 3]> {
     let (n, m) = (segments.max(3), (segments / 2).max(2));
+    // The seam (i = n) and the poles (j = 0, m) reuse the same vertices bit for bit, so
+    // the sphere is closed (`Mesh::closed_objects`).
     let at = |i: usize, j: usize| {
+        if j == 0 || j == m {
+            return centre + Vec3::Y * if j == 0 { radius } else { -radius };
+        }
         let (theta, phi) =
-            (j as f32 / m as f32 * std::f32::consts::PI, i as f32 / n as f32 * std::f32::consts::TAU);
+            (j as f32 / m as f32 * std::f32::consts::PI, (i % n) as f32 / n as f32 * std::f32::consts::TAU);
         centre + Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * radius
     };
     let mut out = Vec::new();
@@ -143,7 +178,7 @@ pub fn cone(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[Vec3;
     let n = segments.max(3);
     let apex = base + Vec3::Y * height;
     let rim = |i: usize| {
-        let phi = i as f32 / n as f32 * std::f32::consts::TAU;
+        let phi = (i % n) as f32 / n as f32 * std::f32::consts::TAU;
         base + Vec3::new(phi.cos(), 0.0, phi.sin()) * radius
     };
     let mut out = Vec::new();
@@ -184,7 +219,7 @@ pub fn cylinder(base: Vec3, radius: f32, height: f32, segments: usize) -> Vec<[V
     let n = segments.max(3);
     let top = base + Vec3::Y * height;
     let rim = |c: Vec3, i: usize| {
-        let phi = i as f32 / n as f32 * std::f32::consts::TAU;
+        let phi = (i % n) as f32 / n as f32 * std::f32::consts::TAU;
         c + Vec3::new(phi.cos(), 0.0, phi.sin()) * radius
     };
     let mut out = Vec::new();
@@ -302,6 +337,27 @@ mod tests {
     /// Closed and outward facing: the divergence theorem gives the volume, positive.
     fn volume(tris: &[[Vec3; 3]]) -> f32 {
         tris.iter().map(|[a, b, c]| a.dot(b.cross(*c)) / 6.0).sum()
+    }
+
+    #[test]
+    fn the_primitives_are_closed_solids_and_open_or_inside_out_ones_are_not() {
+        let mut mesh = Mesh::default();
+        let c = Vec3::new(0.3, 0.2, -1.7);
+        mesh.push_object(&sphere(c, 0.7, 20), 0);
+        mesh.push_object(&cone(c, 0.5, 1.0, 64), 1);
+        mesh.push_object(&cylinder(c, 0.15, 1.0, 16), 2);
+        mesh.push_object(&house(c, Vec3::new(3.0, 2.0, 2.5), 1.0, 0.3), 3);
+        mesh.push_object(&ground_square(2.0), 4);
+        let inside_out: Vec<[Vec3; 3]> =
+            cuboid(Vec3::ZERO, Vec3::ONE).iter().map(|t| [t[0], t[2], t[1]]).collect();
+        mesh.push_object(&inside_out, 5);
+        let mut holed = cuboid(Vec3::ZERO, Vec3::ONE);
+        holed.pop();
+        mesh.push_object(&holed, 6);
+        assert_eq!(mesh.closed_objects(), vec![true, true, true, true, false, false, false]);
+        // Every object of the village but its ground.
+        let closed = village_scene().closed_objects();
+        assert!(!closed[0] && closed[1..].iter().all(|&c| c), "{closed:?}");
     }
 
     #[test]

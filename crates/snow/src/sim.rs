@@ -5,11 +5,12 @@
 
 use glam::{Vec2, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
-use phenomena_core::raster::{Cull, RasterError, rasterize};
+use phenomena_core::raster::{Cull, RasterError, Rasterizer, rasterize};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use wide::{f32x8, i32x8};
 
 use crate::groups::{Groups, auto_groups, groups_by_object};
 use crate::mesh::Mesh;
@@ -194,6 +195,10 @@ pub struct SnowSim {
     footprint: Footprint,
     maps: Vec<SnowMap>,
     directions: Vec<Vec3>,
+    /// The scene's triangles for the direction depth maps: those of closed objects
+    /// (`Mesh::closed_objects`) first, whose back faces are skipped there.
+    casters: Mesh,
+    closed_triangles: usize,
     fallen_off_m3: f64,
     time_h: f64,
     steps: u64,
@@ -239,6 +244,13 @@ impl SnowSim {
             maps.push(SnowMap { ground_m, snow_m: vec![0.0; n * n], probability: vec![0.0; n * n] });
         }
         let directions = snowfall_directions(&params, seed);
+        let closed = mesh.closed_objects();
+        let is_closed = |t: usize| closed[mesh.object[t] as usize];
+        let mut casters = Mesh::default();
+        for t in (0..mesh.len()).filter(|&t| is_closed(t)).chain((0..mesh.len()).filter(|&t| !is_closed(t))) {
+            casters.push_object(&[mesh.triangles[t]], mesh.object[t]);
+        }
+        let closed_triangles = (0..mesh.len()).filter(|&t| is_closed(t)).count();
         let mut sim = Self {
             params,
             mesh,
@@ -246,6 +258,8 @@ impl SnowSim {
             footprint,
             maps,
             directions,
+            casters,
+            closed_triangles,
             fallen_off_m3: 0.0,
             time_h: 0.0,
             steps: 0,
@@ -302,8 +316,16 @@ impl SnowSim {
     /// (within a bias of two depth-map pixels); P_a is the share of exposed directions.
     pub fn update_probability(&mut self) -> Result<(), SnowError> {
         let occluders = self.occluders();
-        let (exposed, _) =
-            probability(&occluders, &self.maps, &self.footprint, &self.directions, &self.params, false)?;
+        let cull = Cull::BackAmongFirst(self.closed_triangles);
+        let (exposed, _) = probability(
+            &occluders,
+            cull,
+            &self.maps,
+            &self.footprint,
+            &self.directions,
+            &self.params,
+            false,
+        )?;
         for (map, p) in self.maps.iter_mut().zip(exposed) {
             map.probability = p;
         }
@@ -316,19 +338,24 @@ impl SnowSim {
     /// those directions the shadow-map test depends on where inside a pixel the outline
     /// runs, which a ray cast resolves exactly.
     pub fn silhouette_directions(&self) -> Result<Vec<Vec<u16>>, SnowError> {
-        Ok(probability(&self.occluders(), &self.maps, &self.footprint, &self.directions, &self.params, true)?
+        let cull = Cull::BackAmongFirst(self.closed_triangles);
+        let occluders = self.occluders();
+        Ok(probability(&occluders, cull, &self.maps, &self.footprint, &self.directions, &self.params, true)?
             .1)
     }
 
-    /// The scene's triangles plus those of the snow on it (so snow can occlude); the
-    /// scene itself, borrowed, while no snow lies anywhere.
+    /// The scene's triangles plus those of the snow on it (so snow can occlude): first
+    /// the triangles of closed objects, then the other objects', then the snow's; the
+    /// scene's alone, borrowed, while no snow lies anywhere.
     pub fn occluders(&self) -> std::borrow::Cow<'_, Mesh> {
         let min = crate::export::MIN_DEPTH_M;
-        if !self.maps.iter().any(|m| m.snow_m.iter().any(|&s| s > min)) {
-            return std::borrow::Cow::Borrowed(&self.mesh);
+        // (Blocks without an early exit inside, so the comparisons run in vector lanes.)
+        let snowy = |m: &SnowMap| m.snow_m.chunks(256).any(|b| b.iter().fold(false, |a, &s| a | (s > min)));
+        if !self.maps.iter().any(snowy) {
+            return std::borrow::Cow::Borrowed(&self.casters);
         }
         let snow = crate::export::snow_mesh(self);
-        let mut all = self.mesh.clone();
+        let mut all = self.casters.clone();
         let tris: Vec<[Vec3; 3]> =
             snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])).collect();
         all.push_object(&tris, u32::MAX);
@@ -584,6 +611,7 @@ type Exposure = (Vec<Vec<f32>>, Vec<Vec<u16>>);
 
 fn probability(
     mesh: &Mesh,
+    cull: Cull,
     maps: &[SnowMap],
     fp: &Footprint,
     directions: &[Vec3],
@@ -597,20 +625,38 @@ fn probability(
     let px_m = 2.0 * radius / res as f32;
     let bias = 2.0 * px_m;
     let n = fp.n;
-    // Every snow-possible texel of every map as one list: (map, texel, surface point).
-    let points: Vec<(u32, u32, Vec3)> = maps
-        .iter()
-        .enumerate()
-        .flat_map(|(m, map)| {
-            (0..n * n).filter(|&k| map.possible(k)).map(move |k| {
-                let xz = fp.centre(k % n, k / n);
-                (m as u32, k as u32, Vec3::new(xz.x, map.surface(k), xz.y))
-            })
-        })
-        .collect();
-    const CHUNK: usize = 4096;
-    let mut exposed = vec![0u32; points.len()];
-    let mut near_outline = vec![0u16; if silhouettes { points.len() } else { 0 }];
+    // Every snow-possible texel of every map as one list: (map, texel), and its surface
+    // point (ground + snow) in separate coordinate arrays.
+    // Counted first, then written in place: (map, texel) of each, and the surface
+    // points (ground + snow) in groups of eight, [x, y, z] lanes, padded with points off
+    // every depth map (counted, then dropped).
+    let counts: Vec<usize> = maps.iter().map(|m| m.ground_m.iter().filter(|g| !g.is_nan()).count()).collect();
+    let total: usize = counts.iter().sum();
+    let padded = total.next_multiple_of(8);
+    let mut texel = vec![0u32; total];
+    let mut lanes = vec![[[f32::NAN; 8]; 3]; padded / 8];
+    let mut i = 0;
+    for map in maps {
+        for (j, (ground, snow)) in map.ground_m.chunks_exact(n).zip(map.snow_m.chunks_exact(n)).enumerate() {
+            for (t, (&g, &s)) in ground.iter().zip(snow).enumerate() {
+                if !g.is_nan() {
+                    let xz = fp.centre(t, j);
+                    texel[i] = (j * n + t) as u32;
+                    let group = &mut lanes[i / 8];
+                    (group[0][i % 8], group[1][i % 8], group[2][i % 8]) = (xz.x, g + s, xz.y);
+                    i += 1;
+                }
+            }
+        }
+    }
+    let point = |i: usize| Vec3::from_array(lanes[i / 8].map(|l| l[i % 8]));
+    let points: Vec<[f32x8; 3]> = lanes.iter().map(|g| g.map(f32x8::from)).collect();
+    // Groups of eight points per parallel task.
+    const CHUNK: usize = 512;
+    let (zero, limit, last) = (f32x8::ZERO, f32x8::splat(res as f32), f32x8::splat(res as f32 - 1.0));
+    let mut exposed = vec![f32x8::ZERO; padded / 8];
+    let mut near_outline = vec![0u16; if silhouettes { padded } else { 0 }];
+    let mut raster = Rasterizer::default();
     for d in directions {
         // Looking down the snowfall direction from above the scene.
         let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
@@ -622,48 +668,62 @@ fn probability(
         }
         .view(res, res)
         .expect("a valid direction camera");
-        let (buf, _) = rasterize(&view, &mesh.triangles, None, Cull::None)?;
-        let limit = res as f32;
+        let [ax, ay, az] = view.orthographic_affine().expect("an orthographic view");
+        let (buf, _) = raster.draw(&view, &mesh.triangles, None, cull)?;
+        let depth = buf.depth();
         exposed.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(counts, pts)| {
-            for (c, &(_, _, p)) in counts.iter_mut().zip(pts) {
-                let Some(q) = view.project(p) else { continue };
-                // Outside the scene's depth map nothing is in the way. (For coordinates
-                // in [0, res) the conversion to an integer is the floor.)
-                let inside = q.x_px >= 0.0 && q.y_px >= 0.0 && q.x_px < limit && q.y_px < limit;
-                if !inside || q.depth <= buf.depth_at(q.x_px as usize, q.y_px as usize) + bias {
-                    *c += 1;
-                }
+            let [ax, ay, az] = [ax, ay, az].map(|r| r.to_array().map(f32x8::splat));
+            let width = i32x8::splat(res as i32);
+            // Eight points at a time; exposures are counted in f32 lanes (exact up to 2²⁴).
+            for (c, &[x, y, z]) in counts.iter_mut().zip(pts) {
+                let qx = x * ax[0] + y * ax[1] + z * ax[2] + ax[3];
+                let qy = x * ay[0] + y * ay[1] + z * ay[2] + ay[3];
+                let qd = x * az[0] + y * az[1] + z * az[2] + az[3];
+                // Outside the scene's depth map nothing is in the way.
+                let inside = qx.simd_ge(zero) & qy.simd_ge(zero) & qx.simd_lt(limit) & qy.simd_lt(limit);
+                // Pixel indices, clamped (NaN → 0) so that every lane reads a real pixel;
+                // for coordinates in [0, res) truncation is the floor.
+                let ix = qx.max(zero).min(last).trunc_int();
+                let iy = qy.max(zero).min(last).trunc_int();
+                let d = f32x8::from((iy * width + ix).to_array().map(|k| depth[k as usize]));
+                *c += (!inside | qd.simd_le(d + bias)) & f32x8::ONE;
             }
         });
         if silhouettes {
-            near_outline.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(marks, pts)| {
-                for (e, &(_, _, p)) in marks.iter_mut().zip(pts) {
-                    let Some(q) = view.project(p) else { continue };
-                    let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-                    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                    for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
-                        let (px, py) = (x + dx, y + dy);
-                        if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
-                            let d = buf.depth_at(px as usize, py as usize);
-                            // Empty pixels (no surface) count as very far.
-                            let d = if d.is_finite() { d } else { 1e9 };
-                            lo = lo.min(d);
-                            hi = hi.max(d);
-                        }
+            near_outline.par_iter_mut().enumerate().for_each(|(i, e)| {
+                let Some(q) = view.project(point(i)) else { return };
+                let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    let (px, py) = (x + dx, y + dy);
+                    if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
+                        let d = buf.depth_at(px as usize, py as usize);
+                        // Empty pixels (no surface) count as very far.
+                        let d = if d.is_finite() { d } else { 1e9 };
+                        lo = lo.min(d);
+                        hi = hi.max(d);
                     }
-                    *e += u16::from(hi - lo > 10.0 * px_m);
                 }
+                *e += u16::from(hi - lo > 10.0 * px_m);
             });
         }
     }
-    let mut counts: Vec<Vec<u32>> = maps.iter().map(|_| vec![0u32; n * n]).collect();
-    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
-    for (i, &(m, k, _)) in points.iter().enumerate() {
-        counts[m as usize][k as usize] = exposed[i];
-        if silhouettes {
-            edge[m as usize][k as usize] = near_outline[i];
-        }
-    }
     let k = directions.len().max(1) as f32;
-    Ok((counts.into_iter().map(|c| c.into_iter().map(|v| v as f32 / k).collect()).collect(), edge))
+    let exposed: Vec<f32> = exposed.iter().flat_map(|v| v.to_array()).collect();
+    let mut share: Vec<Vec<f32>> = maps.iter().map(|_| vec![0.0; n * n]).collect();
+    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
+    let mut at = 0;
+    for ((share, edge), count) in share.iter_mut().zip(&mut edge).zip(counts) {
+        let range = at..at + count;
+        for (&t, &e) in texel[range.clone()].iter().zip(&exposed[range.clone()]) {
+            share[t as usize] = e / k;
+        }
+        if silhouettes {
+            for (&t, &e) in texel[range.clone()].iter().zip(&near_outline[range]) {
+                edge[t as usize] = e;
+            }
+        }
+        at += count;
+    }
+    Ok((share, edge))
 }

@@ -1,7 +1,7 @@
 //! The shadow-map snow probability against the BVH ray-cast reference with the same
 //! directions (issue 5: mean |ΔP| ≤ 0.01 and 99th percentile ≤ 0.10 off silhouettes).
 
-use phenomena_snow::mesh::{primitives_scene, table_scene};
+use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene};
 use phenomena_snow::reference::ray_cast_probability;
 use phenomena_snow::{SnowParams, SnowSim};
 
@@ -44,7 +44,7 @@ fn differences(sim: &SnowSim) -> (Vec<f32>, usize) {
     (out, skipped)
 }
 
-fn check(name: &str, sim: &SnowSim) {
+fn check(name: &str, sim: &SnowSim, min_kept: f64) {
     let (mut d, skipped) = differences(sim);
     d.sort_by(f32::total_cmp);
     let mean = d.iter().map(|&v| f64::from(v)).sum::<f64>() / d.len() as f64;
@@ -53,7 +53,7 @@ fn check(name: &str, sim: &SnowSim) {
     // 10,016 texels, mean 0.0010, p99 0.031; primitives 81 % of 17,408, mean 0.0062,
     // p99 0.063).
     let kept = d.len() as f64 / (d.len() + skipped) as f64;
-    assert!(kept >= 0.75, "{name}: only {kept} of the texels compared");
+    assert!(kept >= min_kept, "{name}: only {kept} of the texels compared");
     assert!(mean <= 0.01, "{name}: mean |ΔP| {mean}");
     assert!(p99 <= 0.10, "{name}: 99th percentile |ΔP| {p99}");
 }
@@ -62,7 +62,7 @@ fn check(name: &str, sim: &SnowSim) {
 fn the_table_scene_matches_ray_casting() {
     let params =
         SnowParams { map_resolution: 100, directions: 32, spread_deg: 10.0, ..SnowParams::default() };
-    check("table", &SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 5).unwrap());
+    check("table", &SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 5).unwrap(), 0.75);
 }
 
 #[test]
@@ -74,5 +74,23 @@ fn the_primitives_scene_matches_ray_casting() {
         object_groups: Some(vec![0, 1, 2, 3, 4]),
         ..SnowParams::default()
     };
-    check("primitives", &SnowSim::new(primitives_scene(), params, 5).unwrap());
+    check("primitives", &SnowSim::new(primitives_scene(), params, 5).unwrap(), 0.75);
+}
+
+/// The village: 13,000 triangles of closed solids, whose back faces the depth maps skip
+/// (`Cull::BackAmongFirst`), and the ground. Its benches, trunks and eaves are 0.05-0.3 m
+/// across, so the depth maps need pixels of that order: at 1024² (0.06 m) measured mean
+/// |ΔP| 0.0023, p99 0.031 on 74 % of the texels (the many small objects put more texels
+/// within 2 of a region edge, rule (a), hence the lower floor on the share compared); at
+/// 256² (0.23 m pixels, a 0.46 m bias) the same comparison gives mean 0.016 and p99 0.38.
+#[test]
+fn the_village_matches_ray_casting() {
+    let params = SnowParams {
+        map_resolution: 256,
+        directions: 32,
+        shadow_resolution: 1024,
+        spread_deg: 10.0,
+        ..SnowParams::default()
+    };
+    check("village", &SnowSim::new(village_scene(), params, 5).unwrap(), 0.70);
 }
