@@ -191,9 +191,16 @@ pub fn rasterize(
 #[derive(Clone, Debug, Default)]
 pub struct Rasterizer {
     parts: Vec<DepthBuffer>,
+    serial: bool,
 }
 
 impl Rasterizer {
+    /// A rasteriser that draws on the calling thread only (same buffers as the parallel
+    /// one): for callers that already run one rasterisation per thread.
+    pub fn serial() -> Self {
+        Self { parts: Vec::new(), serial: true }
+    }
+
     /// Rasterise into the kept buffer and borrow it; see [`rasterize`].
     pub fn draw(
         &mut self,
@@ -214,7 +221,8 @@ impl Rasterizer {
         let perspective = view.is_perspective();
         let projector = Projector::new(view);
         // A part per thread, but no more than there are runs of triangles to share.
-        let parts = rayon::current_num_threads().min(triangles.len().div_ceil(RUN)).clamp(1, 16);
+        let threads = if self.serial { 1 } else { rayon::current_num_threads() };
+        let parts = threads.min(triangles.len().div_ceil(RUN)).clamp(1, 16);
         self.parts.truncate(parts);
         while self.parts.len() < parts {
             self.parts.push(DepthBuffer { width: 0, height: 0, depth: Vec::new(), id: Vec::new() });
@@ -303,7 +311,11 @@ impl Rasterizer {
             );
         }
         // Large triangles: bin by bands of rows, then draw the bands in parallel.
-        if !large.is_empty() {
+        if self.serial {
+            for s in &large {
+                draw(s, s.rows.0..s.rows.1 + 1, 0, w, perspective, &mut first.depth, &mut first.id);
+            }
+        } else if !large.is_empty() {
             let bands = h.div_ceil(BAND_ROWS);
             let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
             for (k, s) in large.iter().enumerate() {
@@ -362,20 +374,23 @@ enum Skip {
 /// multiply-adds per vertex), any other planar view through [`CameraView::project`].
 #[derive(Clone, Copy)]
 enum Projector<'a> {
-    Affine([[f32; 4]; 3]),
+    /// Rows for x px, y px and depth; the view direction and pixels per metre.
+    Affine([[f32; 4]; 3], Vec3, f32),
     View(&'a CameraView),
 }
 
 impl<'a> Projector<'a> {
     fn new(view: &'a CameraView) -> Self {
-        view.orthographic_affine().map_or(Self::View(view), |rows| Self::Affine(rows.map(|r| r.to_array())))
+        view.orthographic_affine().map_or(Self::View(view), |[x, y, d]| {
+            Self::Affine([x, y, d].map(|r| r.to_array()), d.truncate(), x.truncate().length())
+        })
     }
 
     /// (x px, y px, depth); `None` behind a perspective camera.
     #[inline(always)]
     fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
         match self {
-            Self::Affine(r) => {
+            Self::Affine(r, ..) => {
                 let row = |r: &[f32; 4]| r[0] * p.x + r[1] * p.y + r[2] * p.z + r[3];
                 Some((row(&r[0]), row(&r[1]), row(&r[2])))
             }
@@ -395,15 +410,13 @@ impl<'a> Projector<'a> {
     /// [`setup`] would draw: the buffer is the same with or without it (tested).
     #[inline(always)]
     fn surely_culled(&self, tri: &[Vec3; 3], cull: Cull) -> bool {
-        let Self::Affine(r) = self else { return false };
+        let &Self::Affine(_, forward, s) = self else { return false };
         let want = match cull {
             Cull::Back => 1.0,
             Cull::Front => -1.0,
             _ => return false,
         };
         let (e1, e2) = (tri[1] - tri[0], tri[2] - tri[0]);
-        let forward = Vec3::new(r[2][0], r[2][1], r[2][2]);
-        let s = Vec3::new(r[0][0], r[0][1], r[0][2]).length();
         let facing = want * e1.cross(e2).dot(forward);
         let (l1, l2) = (e1.abs().element_sum(), e2.abs().element_sum());
         let margin = s * s * 1e-5 * l1 * l2 + s * (l1 + l2) / 128.0 + 1e-3;
@@ -687,6 +700,7 @@ mod tests {
         let one = run(1);
         assert_eq!(one, run(2));
         assert_eq!(one, run(3));
+        assert_eq!(&one, Rasterizer::serial().draw(&view, &tris, None, Cull::None).unwrap().0);
         assert!(one.ids().iter().filter(|&&i| i != NO_ID).count() > 5000);
     }
 

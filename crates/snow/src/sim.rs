@@ -199,6 +199,8 @@ pub struct SnowSim {
     /// (`Mesh::closed_objects`) first, whose back faces are skipped there.
     casters: Mesh,
     closed_triangles: usize,
+    /// Buffers of [`SnowSim::update_probability`], kept between calls.
+    exposure: Exposure,
     fallen_off_m3: f64,
     time_h: f64,
     steps: u64,
@@ -260,6 +262,7 @@ impl SnowSim {
             directions,
             casters,
             closed_triangles,
+            exposure: Exposure::default(),
             fallen_off_m3: 0.0,
             time_h: 0.0,
             steps: 0,
@@ -297,6 +300,8 @@ impl SnowSim {
     /// The snow maps, to change (e.g. to start from lying snow); call
     /// [`SnowSim::update_probability`] afterwards if the change should shade.
     pub fn maps_mut(&mut self) -> &mut [SnowMap] {
+        // The grounds may change: find the snow-possible texels again.
+        self.exposure.laid_out = false;
         &mut self.maps
     }
 
@@ -315,21 +320,33 @@ impl SnowSim {
     /// texel is exposed when its surface point (ground + snow) is not behind that depth
     /// (within a bias of two depth-map pixels); P_a is the share of exposed directions.
     pub fn update_probability(&mut self) -> Result<(), SnowError> {
-        let occluders = self.occluders();
+        let mut exposure = std::mem::take(&mut self.exposure);
         let cull = Cull::BackAmongFirst(self.closed_triangles);
-        let (exposed, _) = probability(
-            &occluders,
+        let counted = exposure.count(
+            &self.occluders(),
             cull,
             &self.maps,
             &self.footprint,
             &self.directions,
             &self.params,
             false,
-        )?;
-        for (map, p) in self.maps.iter_mut().zip(exposed) {
-            map.probability = p;
+        );
+        if counted.is_ok() {
+            let k = self.directions.len().max(1) as f32;
+            let n = self.footprint.n;
+            let mut out: Vec<&mut [f32]> = self
+                .maps
+                .iter_mut()
+                .map(|m| {
+                    m.probability.clear();
+                    m.probability.resize(n * n, 0.0);
+                    m.probability.as_mut_slice()
+                })
+                .collect();
+            exposure.scatter(&mut out, |i| exposure.exposed(i) / k);
         }
-        Ok(())
+        self.exposure = exposure;
+        counted
     }
 
     /// For every texel, in how many directions its depth-map sample lies next to a
@@ -339,9 +356,21 @@ impl SnowSim {
     /// runs, which a ray cast resolves exactly.
     pub fn silhouette_directions(&self) -> Result<Vec<Vec<u16>>, SnowError> {
         let cull = Cull::BackAmongFirst(self.closed_triangles);
-        let occluders = self.occluders();
-        Ok(probability(&occluders, cull, &self.maps, &self.footprint, &self.directions, &self.params, true)?
-            .1)
+        let mut exposure = Exposure::default();
+        exposure.count(
+            &self.occluders(),
+            cull,
+            &self.maps,
+            &self.footprint,
+            &self.directions,
+            &self.params,
+            true,
+        )?;
+        let n = self.footprint.n;
+        let mut edges: Vec<Vec<u16>> = self.maps.iter().map(|_| vec![0; n * n]).collect();
+        let mut out: Vec<&mut [u16]> = edges.iter_mut().map(|e| e.as_mut_slice()).collect();
+        exposure.scatter(&mut out, |i| exposure.workers[0].near_outline[i]);
+        Ok(edges)
     }
 
     /// The scene's triangles plus those of the snow on it (so snow can occlude): first
@@ -605,125 +634,195 @@ pub fn snowfall_directions(params: &SnowParams, seed: u64) -> Vec<Vec3> {
         .collect()
 }
 
-/// The exposed share of `directions` for every texel of every map, and (when
-/// `silhouettes`) which texels sample next to a silhouette in some direction.
-type Exposure = (Vec<Vec<f32>>, Vec<Vec<u16>>);
+/// Buffers of the probability computation, kept between calls (no allocation, no fresh
+/// pages, after the first), and which texels can hold snow: the grounds do not change
+/// after [`SnowSim::new`] except through [`SnowSim::maps_mut`], which clears `laid_out`.
+#[derive(Clone, Debug, Default)]
+struct Exposure {
+    /// Whether `counts`, `texel` and the points' x and z describe the maps.
+    laid_out: bool,
+    /// Snow-possible texels per map, in map order.
+    counts: Vec<usize>,
+    /// The texel index of each point (maps one after another).
+    texel: Vec<u32>,
+    /// Surface points (ground + snow), eight per group as [x, y, z] lanes; the last
+    /// group padded with NaN points (off every depth map: counted, then dropped).
+    points: Vec<[f32x8; 3]>,
+    /// One per thread, each over its share of the directions; the first holds the sums.
+    workers: Vec<Worker>,
+}
 
-fn probability(
-    mesh: &Mesh,
-    cull: Cull,
-    maps: &[SnowMap],
-    fp: &Footprint,
-    directions: &[Vec3],
-    params: &SnowParams,
-    silhouettes: bool,
-) -> Result<Exposure, SnowError> {
-    let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
-    let centre = 0.5 * (lo + hi);
-    let radius = 0.5 * (hi - lo).length() + 1.0;
-    let res = params.shadow_resolution as usize;
-    let px_m = 2.0 * radius / res as f32;
-    let bias = 2.0 * px_m;
-    let n = fp.n;
-    // Every snow-possible texel of every map as one list: (map, texel), and its surface
-    // point (ground + snow) in separate coordinate arrays.
-    // Counted first, then written in place: (map, texel) of each, and the surface
-    // points (ground + snow) in groups of eight, [x, y, z] lanes, padded with points off
-    // every depth map (counted, then dropped).
-    let counts: Vec<usize> = maps.iter().map(|m| m.ground_m.iter().filter(|g| !g.is_nan()).count()).collect();
-    let total: usize = counts.iter().sum();
-    let padded = total.next_multiple_of(8);
-    let mut texel = vec![0u32; total];
-    let mut lanes = vec![[[f32::NAN; 8]; 3]; padded / 8];
-    let mut i = 0;
-    for map in maps {
-        for (j, (ground, snow)) in map.ground_m.chunks_exact(n).zip(map.snow_m.chunks_exact(n)).enumerate() {
-            for (t, (&g, &s)) in ground.iter().zip(snow).enumerate() {
-                if !g.is_nan() {
-                    let xz = fp.centre(t, j);
-                    texel[i] = (j * n + t) as u32;
-                    let group = &mut lanes[i / 8];
-                    (group[0][i % 8], group[1][i % 8], group[2][i % 8]) = (xz.x, g + s, xz.y);
-                    i += 1;
-                }
-            }
-        }
-    }
-    let point = |i: usize| Vec3::from_array(lanes[i / 8].map(|l| l[i % 8]));
-    let points: Vec<[f32x8; 3]> = lanes.iter().map(|g| g.map(f32x8::from)).collect();
-    // Groups of eight points per parallel task.
-    const CHUNK: usize = 512;
-    let (zero, limit, last) = (f32x8::ZERO, f32x8::splat(res as f32), f32x8::splat(res as f32 - 1.0));
-    let mut exposed = vec![f32x8::ZERO; padded / 8];
-    let mut near_outline = vec![0u16; if silhouettes { padded } else { 0 }];
-    let mut raster = Rasterizer::default();
-    for d in directions {
-        // Looking down the snowfall direction from above the scene.
-        let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
-        let view = Camera {
-            position: centre - *d * (2.0 * radius),
-            look_at: centre,
-            up,
-            projection: Projection::Orthographic { height_m: 2.0 * radius },
-        }
-        .view(res, res)
-        .expect("a valid direction camera");
-        let [ax, ay, az] = view.orthographic_affine().expect("an orthographic view");
-        let (buf, _) = raster.draw(&view, &mesh.triangles, None, cull)?;
-        let depth = buf.depth();
-        exposed.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(counts, pts)| {
-            let [ax, ay, az] = [ax, ay, az].map(|r| r.to_array().map(f32x8::splat));
-            let width = i32x8::splat(res as i32);
-            // Eight points at a time; exposures are counted in f32 lanes (exact up to 2²⁴).
-            for (c, &[x, y, z]) in counts.iter_mut().zip(pts) {
-                let qx = x * ax[0] + y * ax[1] + z * ax[2] + ax[3];
-                let qy = x * ay[0] + y * ay[1] + z * ay[2] + ay[3];
-                let qd = x * az[0] + y * az[1] + z * az[2] + az[3];
-                // Outside the scene's depth map nothing is in the way.
-                let inside = qx.simd_ge(zero) & qy.simd_ge(zero) & qx.simd_lt(limit) & qy.simd_lt(limit);
-                // Pixel indices, clamped (NaN → 0) so that every lane reads a real pixel;
-                // for coordinates in [0, res) truncation is the floor.
-                let ix = qx.max(zero).min(last).trunc_int();
-                let iy = qy.max(zero).min(last).trunc_int();
-                let d = f32x8::from((iy * width + ix).to_array().map(|k| depth[k as usize]));
-                *c += (!inside | qd.simd_le(d + bias)) & f32x8::ONE;
-            }
-        });
-        if silhouettes {
-            near_outline.par_iter_mut().enumerate().for_each(|(i, e)| {
-                let Some(q) = view.project(point(i)) else { return };
-                let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
-                    let (px, py) = (x + dx, y + dy);
-                    if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
-                        let d = buf.depth_at(px as usize, py as usize);
-                        // Empty pixels (no surface) count as very far.
-                        let d = if d.is_finite() { d } else { 1e9 };
-                        lo = lo.min(d);
-                        hi = hi.max(d);
+/// One thread's rasteriser and counts.
+#[derive(Clone, Debug, Default)]
+struct Worker {
+    raster: Rasterizer,
+    /// Directions in which each point is exposed (f32 lanes: exact up to 2²⁴).
+    exposed: Vec<f32x8>,
+    /// Directions in which each point samples next to a silhouette (when asked).
+    near_outline: Vec<u16>,
+}
+
+impl Exposure {
+    /// Count, for every snow-possible texel of every map, the `directions` in which its
+    /// surface point is exposed (and, when `silhouettes`, those in which it samples next
+    /// to a silhouette).
+    #[allow(clippy::too_many_arguments)]
+    fn count(
+        &mut self,
+        mesh: &Mesh,
+        cull: Cull,
+        maps: &[SnowMap],
+        fp: &Footprint,
+        directions: &[Vec3],
+        params: &SnowParams,
+        silhouettes: bool,
+    ) -> Result<(), SnowError> {
+        let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
+        let centre = 0.5 * (lo + hi);
+        let radius = 0.5 * (hi - lo).length() + 1.0;
+        let res = params.shadow_resolution as usize;
+        let px_m = 2.0 * radius / res as f32;
+        let bias = 2.0 * px_m;
+        let n = fp.n;
+        if !self.laid_out {
+            // Counted first, then written in place; the heights follow below.
+            self.counts.clear();
+            self.counts.extend(maps.iter().map(|m| m.ground_m.iter().filter(|g| !g.is_nan()).count()));
+            let total: usize = self.counts.iter().sum();
+            self.texel.resize(total, 0);
+            self.points.clear();
+            self.points.resize(total.div_ceil(8), [f32x8::splat(f32::NAN); 3]);
+            let mut i = 0;
+            for map in maps {
+                for (j, ground) in map.ground_m.chunks_exact(n).enumerate() {
+                    for (t, g) in ground.iter().enumerate() {
+                        if !g.is_nan() {
+                            let xz = fp.centre(t, j);
+                            self.texel[i] = (j * n + t) as u32;
+                            let [x, _, z] = &mut self.points[i / 8];
+                            x.as_mut_array()[i % 8] = xz.x;
+                            z.as_mut_array()[i % 8] = xz.y;
+                            i += 1;
+                        }
                     }
                 }
-                *e += u16::from(hi - lo > 10.0 * px_m);
+            }
+            self.laid_out = true;
+        }
+        let total = self.texel.len();
+        let groups = self.points.len();
+        // Surface heights, ground + snow.
+        let mut at = 0;
+        for (map, &count) in maps.iter().zip(&self.counts) {
+            for (i, &t) in (at..at + count).zip(&self.texel[at..at + count]) {
+                let t = t as usize;
+                self.points[i / 8][1].as_mut_array()[i % 8] = map.ground_m[t] + map.snow_m[t];
+            }
+            at += count;
+        }
+        let (zero, limit, last) = (f32x8::ZERO, f32x8::splat(res as f32), f32x8::splat(res as f32 - 1.0));
+        // The directions in contiguous shares, one per thread, each drawn and tested on
+        // its thread into its own counts; the counts are whole numbers, so their sum does
+        // not depend on how the directions were shared.
+        let threads = rayon::current_num_threads().clamp(1, directions.len().max(1));
+        self.workers.resize_with(threads, || Worker { raster: Rasterizer::serial(), ..Worker::default() });
+        let share = directions.len().div_ceil(threads).max(1);
+        let points = &self.points;
+        self.workers.par_iter_mut().zip(directions.par_chunks(share)).try_for_each(
+            |(worker, directions)| {
+                let Worker { raster, exposed, near_outline } = worker;
+                exposed.clear();
+                exposed.resize(groups, f32x8::ZERO);
+                near_outline.clear();
+                near_outline.resize(if silhouettes { total } else { 0 }, 0);
+                for d in directions {
+                    // Looking down the snowfall direction from above the scene.
+                    let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
+                    let view = Camera {
+                        position: centre - *d * (2.0 * radius),
+                        look_at: centre,
+                        up,
+                        projection: Projection::Orthographic { height_m: 2.0 * radius },
+                    }
+                    .view(res, res)
+                    .expect("a valid direction camera");
+                    let [ax, ay, az] = view
+                        .orthographic_affine()
+                        .expect("an orthographic view")
+                        .map(|r| r.to_array().map(f32x8::splat));
+                    let (buf, _) = raster.draw(&view, &mesh.triangles, None, cull)?;
+                    let depth = buf.depth();
+                    let width = i32x8::splat(res as i32);
+                    // Eight points at a time.
+                    for (c, &[x, y, z]) in exposed.iter_mut().zip(points) {
+                        let qx = x * ax[0] + y * ax[1] + z * ax[2] + ax[3];
+                        let qy = x * ay[0] + y * ay[1] + z * ay[2] + ay[3];
+                        let qd = x * az[0] + y * az[1] + z * az[2] + az[3];
+                        // Outside the scene's depth map nothing is in the way.
+                        let inside =
+                            qx.simd_ge(zero) & qy.simd_ge(zero) & qx.simd_lt(limit) & qy.simd_lt(limit);
+                        // Pixel indices, clamped (NaN → 0) so that every lane reads a real
+                        // pixel; for coordinates in [0, res) truncation is the floor.
+                        let ix = qx.max(zero).min(last).trunc_int();
+                        let iy = qy.max(zero).min(last).trunc_int();
+                        let d = f32x8::from((iy * width + ix).to_array().map(|k| depth[k as usize]));
+                        *c += (!inside | qd.simd_le(d + bias)) & f32x8::ONE;
+                    }
+                    for (i, e) in near_outline.iter_mut().enumerate() {
+                        let p = Vec3::from_array(points[i / 8].map(|l| l.as_array()[i % 8]));
+                        let Some(q) = view.project(p) else { continue };
+                        let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
+                            let (px, py) = (x + dx, y + dy);
+                            if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
+                                let d = buf.depth_at(px as usize, py as usize);
+                                // Empty pixels (no surface) count as very far.
+                                let d = if d.is_finite() { d } else { 1e9 };
+                                lo = lo.min(d);
+                                hi = hi.max(d);
+                            }
+                        }
+                        *e += u16::from(hi - lo > 10.0 * px_m);
+                    }
+                }
+                Ok::<(), SnowError>(())
+            },
+        )?;
+        // Sum the shares into the first worker's counts.
+        let (first, rest) = self.workers.split_first_mut().expect("a worker");
+        if !rest.is_empty() {
+            const CHUNK: usize = 1024;
+            first.exposed.par_chunks_mut(CHUNK).enumerate().for_each(|(c, sum)| {
+                for other in rest.iter() {
+                    for (s, o) in sum.iter_mut().zip(&other.exposed[c * CHUNK..]) {
+                        *s += *o;
+                    }
+                }
             });
-        }
-    }
-    let k = directions.len().max(1) as f32;
-    let exposed: Vec<f32> = exposed.iter().flat_map(|v| v.to_array()).collect();
-    let mut share: Vec<Vec<f32>> = maps.iter().map(|_| vec![0.0; n * n]).collect();
-    let mut edge: Vec<Vec<u16>> = maps.iter().map(|_| vec![0; if silhouettes { n * n } else { 0 }]).collect();
-    let mut at = 0;
-    for ((share, edge), count) in share.iter_mut().zip(&mut edge).zip(counts) {
-        let range = at..at + count;
-        for (&t, &e) in texel[range.clone()].iter().zip(&exposed[range.clone()]) {
-            share[t as usize] = e / k;
-        }
-        if silhouettes {
-            for (&t, &e) in texel[range.clone()].iter().zip(&near_outline[range]) {
-                edge[t as usize] = e;
+            for other in rest.iter() {
+                for (s, o) in first.near_outline.iter_mut().zip(&other.near_outline) {
+                    *s += o;
+                }
             }
         }
-        at += count;
+        Ok(())
     }
-    Ok((share, edge))
+
+    /// Write `f(point)` into each map's texels (`out[m][texel]`); other texels keep
+    /// their values.
+    fn scatter<T>(&self, out: &mut [&mut [T]], f: impl Fn(usize) -> T) {
+        let mut at = 0;
+        for (out, &count) in out.iter_mut().zip(&self.counts) {
+            for (i, &t) in (at..at + count).zip(&self.texel[at..at + count]) {
+                out[t as usize] = f(i);
+            }
+            at += count;
+        }
+    }
+
+    /// Exposed directions of point `i`.
+    fn exposed(&self, i: usize) -> f32 {
+        self.workers[0].exposed[i / 8].as_array()[i % 8]
+    }
 }

@@ -154,6 +154,7 @@ fn any_thread_count_gives_the_same_snow() {
     };
     let one = run(1);
     assert!(one == run(2), "1 vs 2 threads");
+    assert!(one == run(3), "1 vs 3 threads");
 }
 
 #[test]
@@ -185,4 +186,23 @@ fn lying_snow_shades_like_any_occluder() {
     }
     s.update_probability().unwrap();
     assert!(band.iter().all(|&k| s.maps()[g].probability[k] == 0.0), "shaded by the snow on the table");
+}
+
+#[test]
+fn changed_grounds_are_found_again() {
+    // The probability keeps the list of snow-possible texels between calls; a ground
+    // changed through `maps_mut` must be taken into account.
+    let mut s = sim(5.0, 8, 35.0);
+    let g = ground_map(&s);
+    let top = (0..s.maps().len()).find(|&m| m != g).expect("the table top's map");
+    let n = s.footprint().n;
+    let on = (0..n * n).find(|&k| s.maps()[top].possible(k)).unwrap();
+    let off = (0..n * n).find(|&k| !s.maps()[top].possible(k)).unwrap();
+    assert!(s.maps()[top].probability[on] > 0.0 && s.maps()[top].probability[off] == 0.0);
+    // Remove a texel of the top and add one 5 m above the scene (open to every direction).
+    s.maps_mut()[top].ground_m[on] = f32::NAN;
+    s.maps_mut()[top].ground_m[off] = 5.0;
+    s.update_probability().unwrap();
+    assert_eq!(s.maps()[top].probability[on], 0.0);
+    assert_eq!(s.maps()[top].probability[off], 1.0);
 }
