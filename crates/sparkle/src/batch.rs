@@ -287,22 +287,21 @@ fn wrap(space: &Space, x: &mut V8, dst: &mut [Vec3]) {
 }
 
 /// One frame forward for every facet (moved and turned by `motion`, if the facets move)
-/// and then tested by `to`: returns (N·H)² per facet when seen, else -1.
+/// and then tested by `to`: writes (N·H)² per facet when seen, else -1, into `c2`.
 pub(crate) fn forward_and_test(
     motion: Option<&Motion>,
     to: &Seen,
     space: &Space,
     xs: &mut [Vec3],
     ns: &mut [Vec3],
+    c2: &mut [f32],
     rng: &mut LaneRng,
-) -> Vec<f32> {
+) {
     if let Some(m) = motion {
         m.displace(space, xs, 1.0, rng);
         m.turn(ns, rng);
     }
-    let mut c2 = vec![0.0; xs.len()];
-    to.test_all(space, xs, ns, &mut c2);
-    c2
+    to.test_all(space, xs, ns, c2);
 }
 
 impl Seen {

@@ -241,10 +241,12 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
     // screen by band (a dot whose footprint spans two bands in both), keeping glint
     // order. A band then reads its run from every chunk in chunk order: glint order.
     let bands = hu.div_ceil(BAND_ROWS);
+    // (Through u32: converting an f32 to u32 is one instruction, to usize is several.)
+    let last_band = bands as u32 - 1;
     let band_range = |y: f32, len: f32| {
-        let lo = ((y - len - 1.0).max(0.0) as usize / BAND_ROWS).min(bands - 1);
-        let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as usize / BAND_ROWS).min(bands - 1);
-        lo..=hi
+        let lo = ((y - len - 1.0).max(0.0) as u32 / BAND_ROWS as u32).min(last_band);
+        let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as u32 / BAND_ROWS as u32).min(last_band);
+        (lo, hi)
     };
     let chunks: Vec<(Vec<Dot>, Vec<u32>)> = g
         .position_m
@@ -265,10 +267,12 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
                     if glare && rel >= glare_threshold { (glare_length * rel.sqrt()).max(1.0) } else { 0.0 };
                 let m = len + 1.0;
                 if p.x_px > -m && p.y_px > -m && p.x_px < w + m && p.y_px < h + m {
-                    for b in band_range(p.y_px, len) {
-                        start[b + 1] += 1;
+                    // The bands its footprint touches, worked out once.
+                    let (lo, hi) = band_range(p.y_px, len);
+                    for b in lo..=hi {
+                        start[b as usize + 1] += 1;
                     }
-                    dots.push(Dot { x: p.x_px, y: p.y_px, value: intensity, len });
+                    dots.push((Dot { x: p.x_px, y: p.y_px, value: intensity, len }, lo, hi));
                 }
             }
             for b in 0..bands {
@@ -276,10 +280,10 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
             }
             let mut fill = start.clone();
             let mut filed = vec![Dot::default(); start[bands] as usize];
-            for d in &dots {
-                for b in band_range(d.y, d.len) {
-                    filed[fill[b] as usize] = *d;
-                    fill[b] += 1;
+            for &(d, lo, hi) in &dots {
+                for b in lo..=hi {
+                    filed[fill[b as usize] as usize] = d;
+                    fill[b as usize] += 1;
                 }
             }
             (filed, start)
@@ -318,10 +322,25 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
                         // floor without a libm call: the values are above -1.
                         let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
                         let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
-                        add(&mut sum, i0, j0, v * ((1.0 - tx) * (1.0 - ty)));
-                        add(&mut sum, i0 + 1, j0, v * (tx * (1.0 - ty)));
-                        add(&mut sum, i0, j0 + 1, v * ((1.0 - tx) * ty));
-                        add(&mut sum, i0 + 1, j0 + 1, v * (tx * ty));
+                        let shares = [
+                            v * ((1.0 - tx) * (1.0 - ty)),
+                            v * (tx * (1.0 - ty)),
+                            v * ((1.0 - tx) * ty),
+                            v * (tx * ty),
+                        ];
+                        if i0 >= 0 && i0 + 1 < wu as i64 && j0 >= row0 && j0 + 1 < row0 + rows {
+                            // All four pixels in the band (most dots).
+                            let at = (j0 - row0) as usize * wu + i0 as usize;
+                            sum[at] += shares[0];
+                            sum[at + 1] += shares[1];
+                            sum[at + wu] += shares[2];
+                            sum[at + wu + 1] += shares[3];
+                        } else {
+                            add(&mut sum, i0, j0, shares[0]);
+                            add(&mut sum, i0 + 1, j0, shares[1]);
+                            add(&mut sum, i0, j0 + 1, shares[2]);
+                            add(&mut sum, i0 + 1, j0 + 1, shares[3]);
+                        }
                     }
                     if len == 0.0 {
                         continue;

@@ -85,15 +85,6 @@ pub struct Glints {
 }
 
 impl Glints {
-    fn with_capacity(n: usize) -> Self {
-        Self {
-            position_m: Vec::with_capacity(n),
-            normal: Vec::with_capacity(n),
-            intensity: Vec::with_capacity(n),
-            birth_frame: Vec::with_capacity(n),
-        }
-    }
-
     /// Number of glints.
     pub fn len(&self) -> usize {
         self.position_m.len()
@@ -118,12 +109,85 @@ impl Glints {
         self.birth_frame.append(&mut other.birth_frame);
     }
 
+    /// Set the length (new entries zero; kept capacity is reused).
+    fn resize(&mut self, len: usize) {
+        self.position_m.resize(len, Vec3::ZERO);
+        self.normal.resize(len, Vec3::ZERO);
+        self.intensity.resize(len, 0.0);
+        self.birth_frame.resize(len, 0);
+    }
+
     fn bytes(&self) -> u64 {
         (self.position_m.capacity() * 12
             + self.normal.capacity() * 12
             + self.intensity.capacity() * 4
             + self.birth_frame.capacity() * 4) as u64
     }
+}
+
+/// Places in a [`Glints`] to write, split among parallel chunks.
+struct Slots<'a> {
+    x: &'a mut [Vec3],
+    n: &'a mut [Vec3],
+    v: &'a mut [f32],
+    b: &'a mut [u32],
+}
+
+impl<'a> Slots<'a> {
+    fn of(g: &'a mut Glints) -> Self {
+        Self { x: &mut g.position_m, n: &mut g.normal, v: &mut g.intensity, b: &mut g.birth_frame }
+    }
+
+    /// The first `at` places and the rest.
+    fn split(self, at: usize) -> (Self, Self) {
+        let (x0, x1) = self.x.split_at_mut(at);
+        let (n0, n1) = self.n.split_at_mut(at);
+        let (v0, v1) = self.v.split_at_mut(at);
+        let (b0, b1) = self.b.split_at_mut(at);
+        (Self { x: x0, n: n0, v: v0, b: b0 }, Self { x: x1, n: n1, v: v1, b: b1 })
+    }
+
+    /// Consecutive runs of the given lengths.
+    fn chunks(self, lengths: impl Iterator<Item = usize>) -> Vec<Self> {
+        let mut out = Vec::new();
+        let mut rest = self;
+        for len in lengths {
+            let (head, tail) = rest.split(len);
+            out.push(head);
+            rest = tail;
+        }
+        out
+    }
+
+    fn put(&mut self, i: usize, x: Vec3, n: Vec3, v: f32, b: u32) {
+        (self.x[i], self.n[i], self.v[i], self.b[i]) = (x, n, v, b);
+    }
+}
+
+/// Move every facet of `g` one frame in place (chunk k drawing from stream k of
+/// `purpose` for frame `next`) and write (N·H)² where seen, else -1, into `c2`.
+#[allow(clippy::too_many_arguments)]
+fn forward_in_place(
+    g: &mut Glints,
+    c2: &mut Vec<f32>,
+    motion: Option<&Motion>,
+    to: &Seen,
+    space: &Space,
+    seed: u64,
+    purpose: Purpose,
+    next: u32,
+) {
+    c2.clear();
+    c2.resize(g.len(), 0.0);
+    g.position_m
+        .par_chunks_mut(CHUNK)
+        .zip(g.normal.par_chunks_mut(CHUNK))
+        .zip(c2.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(k, ((xs, ns), c2))| {
+            let mut rng = LaneRng::new(&mut Stream::new(seed, purpose, (u64::from(next) << 32) | k as u64));
+            forward_and_test(motion, to, space, xs, ns, c2, &mut rng);
+        });
 }
 
 /// What one frame did (`--stats`).
@@ -303,6 +367,12 @@ pub struct SparkleSim {
     /// Facets seen within the last `memory_frames` frames but not now; `birth_frame`
     /// holds the last frame each was seen.
     ghosts: Glints,
+    /// Last frame's arrays, reused for the next frame's (no allocation per frame).
+    spare_glints: Glints,
+    spare_ghosts: Glints,
+    /// (N·H)² or -1 per held glint and ghost, this frame.
+    c2: Vec<f32>,
+    g2: Vec<f32>,
     everything: Option<Everything>,
     lifetimes: Vec<u32>,
     gaps: Vec<u32>,
@@ -339,6 +409,10 @@ impl SparkleSim {
             gust_phase,
             glints: Glints::default(),
             ghosts: Glints::default(),
+            spare_glints: Glints::default(),
+            spare_ghosts: Glints::default(),
+            c2: Vec::new(),
+            g2: Vec::new(),
             everything: None,
             lifetimes: Vec::new(),
             gaps: Vec::new(),
@@ -436,7 +510,14 @@ impl SparkleSim {
                 (e.position_m.capacity() * 24 + (e.since.capacity() + e.last_seen.capacity()) * 4) as u64
                     + self.glints.bytes()
             }
-            None => self.glints.bytes() + self.ghosts.bytes(),
+            // The held facets, last frame's arrays kept for reuse, and the test results.
+            None => {
+                self.glints.bytes()
+                    + self.ghosts.bytes()
+                    + self.spare_glints.bytes()
+                    + self.spare_ghosts.bytes()
+                    + ((self.c2.capacity() + self.g2.capacity()) * 4) as u64
+            }
         };
         StepStats {
             frame: self.frame,
@@ -675,87 +756,118 @@ impl SparkleSim {
         let to = self.seen_at(next);
         let motion = self.motion_into(next);
         let memory = self.config.memory_frames;
+        let (space, seed) = (self.space, self.seed);
+        // Move and test every held facet in place: chunk k of the seen glints draws its
+        // random numbers from TRACK stream k, of the ghosts from GHOST stream k.
+        let mut c2 = std::mem::take(&mut self.c2);
+        let mut g2 = std::mem::take(&mut self.g2);
+        forward_in_place(&mut self.glints, &mut c2, motion.as_ref(), &to, &space, seed, TRACK, next);
+        forward_in_place(&mut self.ghosts, &mut g2, motion.as_ref(), &to, &space, seed, GHOST, next);
+        let (born, candidates) = self.generate(&to, next);
+        // Seen glints are kept, or die (becoming ghosts last seen at next - 1); ghosts
+        // are seen again (a birth after a short gap), still remembered, or forgotten once
+        // unseen for more than `memory` frames. Counted per chunk first, then written
+        // straight to their places in the next frame's arrays, chunk by chunk in
+        // parallel, in the order of the chunks: kept, back, newborn; dead, still.
+        let (g, gh) = (&self.glints, &self.ghosts);
+        let tracked: Vec<(usize, usize)> = c2
+            .par_chunks(CHUNK)
+            .map(|c| {
+                let kept = c.iter().filter(|&&v| v >= 0.0).count();
+                (kept, if memory > 0 { c.len() - kept } else { 0 })
+            })
+            .collect();
+        let remembered: Vec<(usize, usize)> = g2
+            .par_chunks(CHUNK)
+            .zip(gh.birth_frame.par_chunks(CHUNK))
+            .map(|(c, last)| {
+                let back = c.iter().filter(|&&v| v >= 0.0).count();
+                let still = c.iter().zip(last).filter(|&(&v, &l)| v < 0.0 && next - l <= memory).count();
+                (back, still)
+            })
+            .collect();
+        let kept: usize = tracked.iter().map(|t| t.0).sum();
+        let back: usize = remembered.iter().map(|t| t.0).sum();
+        let dead: usize = tracked.iter().map(|t| t.1).sum();
+        let still: usize = remembered.iter().map(|t| t.1).sum();
+        let mut glints = std::mem::take(&mut self.spare_glints);
+        let mut ghosts = std::mem::take(&mut self.spare_ghosts);
+        glints.resize(kept + back + born.len());
+        ghosts.resize(dead + still);
         let lut = &self.intensity;
-        let space = self.space;
-        let seed = self.seed;
-        // Seen glints: kept, or dead (becoming ghosts last seen at next - 1).
-        let g = &self.glints;
-        let parts: Vec<(Glints, Glints, Vec<u32>)> = (0..g.len().div_ceil(CHUNK))
+        let (to_glints, to_ghosts) = (Slots::of(&mut glints), Slots::of(&mut ghosts));
+        let (kept_slots, rest) = to_glints.split(kept);
+        let (back_slots, mut born_slots) = rest.split(back);
+        let (dead_slots, still_slots) = to_ghosts.split(dead);
+        let lifetimes: Vec<Vec<u32>> = kept_slots
+            .chunks(tracked.iter().map(|t| t.0))
             .into_par_iter()
-            .map(|k| {
-                let mut rng = LaneRng::new(&mut Stream::new(seed, TRACK, (u64::from(next) << 32) | k as u64));
+            .zip(dead_slots.chunks(tracked.iter().map(|t| t.1)))
+            .enumerate()
+            .map(|(k, (mut kept, mut dead))| {
                 let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
-                let mut kept = Glints::with_capacity(range.len());
-                let mut dead = Glints::default();
                 let mut lifetimes = Vec::new();
-                let mut xs = g.position_m[range.clone()].to_vec();
-                let mut ns = g.normal[range.clone()].to_vec();
-                let c2 = forward_and_test(motion.as_ref(), &to, &space, &mut xs, &mut ns, &mut rng);
-                for (j, i) in range.enumerate() {
-                    let (x, nrm) = (xs[j], ns[j]);
-                    if c2[j] >= 0.0 {
-                        kept.push(x, nrm, lut.get(c2[j]), g.birth_frame[i]);
+                let (mut a, mut d) = (0, 0);
+                for i in range {
+                    let (x, nrm, birth) = (g.position_m[i], g.normal[i], g.birth_frame[i]);
+                    if c2[i] >= 0.0 {
+                        kept.put(a, x, nrm, lut.get(c2[i]), birth);
+                        a += 1;
                     } else {
-                        if g.birth_frame[i] > 0 {
-                            lifetimes.push(next - g.birth_frame[i]);
+                        if birth > 0 {
+                            lifetimes.push(next - birth);
                         }
                         if memory > 0 {
-                            dead.push(x, nrm, 0.0, next - 1);
+                            dead.put(d, x, nrm, 0.0, next - 1);
+                            d += 1;
                         }
                     }
                 }
-                (kept, dead, lifetimes)
+                lifetimes
             })
             .collect();
-        // Ghosts: seen again (a birth after a short gap), still remembered, or forgotten
-        // once unseen for more than `memory` frames.
-        let gh = &self.ghosts;
-        let ghost_parts: Vec<(Glints, Glints, Vec<u32>)> = (0..gh.len().div_ceil(CHUNK))
+        let gaps: Vec<Vec<u32>> = back_slots
+            .chunks(remembered.iter().map(|t| t.0))
             .into_par_iter()
-            .map(|k| {
-                let mut rng = LaneRng::new(&mut Stream::new(seed, GHOST, (u64::from(next) << 32) | k as u64));
+            .zip(still_slots.chunks(remembered.iter().map(|t| t.1)))
+            .enumerate()
+            .map(|(k, (mut back, mut still))| {
                 let range = k * CHUNK..((k + 1) * CHUNK).min(gh.len());
-                let mut back = Glints::default();
-                let mut still = Glints::with_capacity(range.len());
                 let mut gaps = Vec::new();
-                let mut xs = gh.position_m[range.clone()].to_vec();
-                let mut ns = gh.normal[range.clone()].to_vec();
-                let c2 = forward_and_test(motion.as_ref(), &to, &space, &mut xs, &mut ns, &mut rng);
-                for (j, i) in range.enumerate() {
-                    let (x, nrm) = (xs[j], ns[j]);
-                    let last = gh.birth_frame[i];
-                    if c2[j] >= 0.0 {
-                        back.push(x, nrm, lut.get(c2[j]), next);
+                let (mut a, mut s) = (0, 0);
+                for i in range {
+                    let (x, nrm, last) = (gh.position_m[i], gh.normal[i], gh.birth_frame[i]);
+                    if g2[i] >= 0.0 {
+                        back.put(a, x, nrm, lut.get(g2[i]), next);
+                        a += 1;
                         gaps.push(next - last - 1);
                     } else if next - last <= memory {
-                        still.push(x, nrm, 0.0, last);
+                        still.put(s, x, nrm, 0.0, last);
+                        s += 1;
                     }
                 }
-                (back, still, gaps)
+                gaps
             })
             .collect();
-        let (mut born, candidates) = self.generate(&to, next);
-        let mut glints = Glints::with_capacity(self.glints.len() + born.len());
-        let mut ghosts = Glints::default();
+        for (i, ((x, n), (v, b))) in born
+            .position_m
+            .iter()
+            .zip(&born.normal)
+            .zip(born.intensity.iter().zip(&born.birth_frame))
+            .enumerate()
+        {
+            born_slots.put(i, *x, *n, *v, *b);
+        }
         self.lifetimes.clear();
-        for (mut kept, mut dead, lifetimes) in parts {
-            glints.append(&mut kept);
-            ghosts.append(&mut dead);
-            self.lifetimes.extend(lifetimes);
-        }
-        let deaths = (self.glints.len() - glints.len()) as u64;
-        let mut births = 0;
-        for (mut back, mut still, gaps) in ghost_parts {
-            births += back.len() as u64;
-            glints.append(&mut back);
-            ghosts.append(&mut still);
-            self.gaps.extend(gaps);
-        }
-        births += born.len() as u64;
+        self.lifetimes.extend(lifetimes.into_iter().flatten());
+        self.gaps.extend(gaps.into_iter().flatten());
         self.gaps.extend(std::iter::repeat_n(memory + 1, born.len()));
-        glints.append(&mut born);
-        self.glints = glints;
-        self.ghosts = ghosts;
+        let deaths = (self.glints.len() - kept) as u64;
+        let births = (back + born.len()) as u64;
+        // The old arrays become next frame's spares.
+        self.spare_glints = std::mem::replace(&mut self.glints, glints);
+        self.spare_ghosts = std::mem::replace(&mut self.ghosts, ghosts);
+        (self.c2, self.g2) = (c2, g2);
         Ok((births, deaths, candidates))
     }
 
@@ -780,7 +892,8 @@ impl SparkleSim {
                 let mut lifetimes = Vec::new();
                 let mut gaps = Vec::new();
                 let mut deaths = 0;
-                let c2 = forward_and_test(motion.as_ref(), &to, &space, xs, ns, &mut rng);
+                let mut c2 = vec![0.0; xs.len()];
+                forward_and_test(motion.as_ref(), &to, &space, xs, ns, &mut c2, &mut rng);
                 for ((((x, nrm), s), l), &c) in
                     xs.iter().zip(ns.iter()).zip(since.iter_mut()).zip(last.iter_mut()).zip(&c2)
                 {
@@ -1156,13 +1269,18 @@ mod tests {
     #[test]
     fn memory_follows_the_visible_set() {
         // 10⁹ virtual crystals, about 3·10⁵ seen: well under 50 MB held.
-        let sim = SparkleSim::new(SparkleConfig::default(), 1).unwrap();
+        let mut sim = SparkleSim::new(SparkleConfig::default(), 1).unwrap();
         let s = sim.stats();
         assert_eq!(s.virtual_count, 1_000_000_000);
         let p = sim.config().phong.uniform_fraction();
         let sd = (1e9 * p * (1.0 - p)).sqrt();
         assert!((s.generated as f64 - 1e9 * p).abs() < 5.0 * sd, "{} vs {}", s.generated, 1e9 * p);
         assert!(s.bytes_held < 50_000_000, "{}", s.bytes_held);
+        // Once stepping, with the ghosts and the arrays kept for reuse.
+        for _ in 0..3 {
+            let s = sim.step().unwrap();
+            assert!(s.ghosts > 0 && s.bytes_held < 50_000_000, "{s:?}");
+        }
     }
 
     #[test]
