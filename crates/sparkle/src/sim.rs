@@ -109,8 +109,17 @@ impl Glints {
         self.birth_frame.append(&mut other.birth_frame);
     }
 
-    /// Set the length (new entries zero; kept capacity is reused).
+    /// Set the length (new entries zero; kept capacity is reused). Growing reserves
+    /// 1/16 more than asked, not the doubling `Vec` would do: these arrays are reused
+    /// frame after frame at about the same length, and their bytes are reported.
     fn resize(&mut self, len: usize) {
+        if len > self.position_m.capacity() {
+            let extra = len + len / 16 - self.len();
+            self.position_m.reserve_exact(extra);
+            self.normal.reserve_exact(extra);
+            self.intensity.reserve_exact(extra);
+            self.birth_frame.reserve_exact(extra);
+        }
         self.position_m.resize(len, Vec3::ZERO);
         self.normal.resize(len, Vec3::ZERO);
         self.intensity.resize(len, 0.0);
@@ -178,6 +187,9 @@ fn forward_in_place(
     next: u32,
 ) {
     c2.clear();
+    if g.len() > c2.capacity() {
+        c2.reserve_exact(g.len() + g.len() / 16);
+    }
     c2.resize(g.len(), 0.0);
     g.position_m
         .par_chunks_mut(CHUNK)
