@@ -79,32 +79,54 @@ impl Mesh {
 
     /// For each object (by id, up to the largest id used), whether its triangles form
     /// closed solids with outward faces: every directed edge (a, b) (vertices compared
-    /// bit for bit) is matched by exactly one (b, a) and none repeats, and the enclosed
-    /// signed volume is positive. Seen from outside, the nearest surface of such an
-    /// object along any line is a face turned towards the viewer, so its back faces can
-    /// be skipped when only the nearest depth matters.
+    /// bit for bit) is matched by exactly one (b, a) and none repeats, and each shell
+    /// (triangles joined through matched edges) encloses a positive signed volume. Seen
+    /// from outside, the nearest surface of such an object along any line is a face
+    /// turned towards the viewer, so its back faces can be skipped when only the nearest
+    /// depth matters.
     pub fn closed_objects(&self) -> Vec<bool> {
         use std::collections::HashMap;
-        let objects = self.object.iter().max().map_or(0, |&o| o as usize + 1);
         type Vertex = [u32; 3];
+        let objects = self.object.iter().max().map_or(0, |&o| o as usize + 1);
         let key = |p: Vec3| -> Vertex { [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()] };
-        let mut edges: Vec<HashMap<(Vertex, Vertex), u32>> = vec![HashMap::new(); objects];
-        let mut volume = vec![0.0f64; objects];
-        for (tri, &o) in self.triangles.iter().zip(&self.object) {
-            let o = o as usize;
+        // Directed edge of an object → (how many times, one triangle with it).
+        let mut edges: HashMap<(u32, Vertex, Vertex), (u32, usize)> = HashMap::new();
+        let mut closed = vec![false; objects];
+        for (t, (tri, &o)) in self.triangles.iter().zip(&self.object).enumerate() {
+            closed[o as usize] = true;
             for k in 0..3 {
-                *edges[o].entry((key(tri[k]), key(tri[(k + 1) % 3]))).or_insert(0) += 1;
+                edges.entry((o, key(tri[k]), key(tri[(k + 1) % 3]))).or_insert((0, t)).0 += 1;
             }
-            let [a, b, c] = tri.map(|p| p.as_dvec3());
-            volume[o] += a.dot(b.cross(c)) / 6.0;
         }
-        edges
-            .iter()
-            .zip(volume)
-            .map(|(e, v)| {
-                !e.is_empty() && v > 0.0 && e.iter().all(|(&(a, b), &n)| n == 1 && e.get(&(b, a)) == Some(&1))
-            })
-            .collect()
+        // Shells: union-find over triangles joined by an edge and its reverse.
+        let mut parent: Vec<usize> = (0..self.len()).collect();
+        fn root(parent: &mut [usize], mut t: usize) -> usize {
+            while parent[t] != t {
+                parent[t] = parent[parent[t]];
+                t = parent[t];
+            }
+            t
+        }
+        for (&(o, a, b), &(n, t)) in &edges {
+            match edges.get(&(o, b, a)) {
+                Some(&(1, u)) if n == 1 => {
+                    let (ra, rb) = (root(&mut parent, t), root(&mut parent, u));
+                    parent[ra] = rb;
+                }
+                _ => closed[o as usize] = false,
+            }
+        }
+        let mut volume = vec![0.0f64; self.len()];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|p| p.as_dvec3());
+            volume[root(&mut parent, t)] += a.dot(b.cross(c)) / 6.0;
+        }
+        for t in 0..self.len() {
+            if root(&mut parent, t) == t && volume[t] <= 0.0 {
+                closed[self.object[t] as usize] = false;
+            }
+        }
+        closed
     }
 
     /// Axis-aligned bounds (min, max) of all vertices; `None` when empty.
@@ -354,7 +376,12 @@ mod tests {
         let mut holed = cuboid(Vec3::ZERO, Vec3::ONE);
         holed.pop();
         mesh.push_object(&holed, 6);
-        assert_eq!(mesh.closed_objects(), vec![true, true, true, true, false, false, false]);
+        // A large outward box with a small inside-out one apart: the total volume is
+        // positive, but one shell faces inwards.
+        let mut mixed = cuboid(Vec3::splat(10.0), Vec3::splat(14.0));
+        mixed.extend(cuboid(Vec3::splat(20.0), Vec3::splat(21.0)).iter().map(|t| [t[0], t[2], t[1]]));
+        mesh.push_object(&mixed, 7);
+        assert_eq!(mesh.closed_objects(), vec![true, true, true, true, false, false, false, false]);
         // Every object of the village but its ground.
         let closed = village_scene().closed_objects();
         assert!(!closed[0] && closed[1..].iter().all(|&c| c), "{closed:?}");

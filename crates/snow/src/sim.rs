@@ -725,16 +725,21 @@ impl Exposure {
         // its thread into its own counts; the counts are whole numbers, so their sum does
         // not depend on how the directions were shared.
         let threads = rayon::current_num_threads().clamp(1, directions.len().max(1));
-        self.workers.resize_with(threads, || Worker { raster: Rasterizer::serial(), ..Worker::default() });
         let share = directions.len().div_ceil(threads).max(1);
+        // As many workers as shares (which can be fewer than threads), every one cleared.
+        let workers = directions.len().div_ceil(share).max(1);
+        self.workers.truncate(workers);
+        self.workers.resize_with(workers, || Worker { raster: Rasterizer::serial(), ..Worker::default() });
+        for Worker { exposed, near_outline, .. } in &mut self.workers {
+            exposed.clear();
+            exposed.resize(groups, f32x8::ZERO);
+            near_outline.clear();
+            near_outline.resize(if silhouettes { total } else { 0 }, 0);
+        }
         let points = &self.points;
         self.workers.par_iter_mut().zip(directions.par_chunks(share)).try_for_each(
             |(worker, directions)| {
                 let Worker { raster, exposed, near_outline } = worker;
-                exposed.clear();
-                exposed.resize(groups, f32x8::ZERO);
-                near_outline.clear();
-                near_outline.resize(if silhouettes { total } else { 0 }, 0);
                 for d in directions {
                     // Looking down the snowfall direction from above the scene.
                     let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };

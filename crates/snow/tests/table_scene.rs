@@ -155,6 +155,15 @@ fn any_thread_count_gives_the_same_snow() {
     let one = run(1);
     assert!(one == run(2), "1 vs 2 threads");
     assert!(one == run(3), "1 vs 3 threads");
+    // 16 directions over 7 threads make 6 shares of 3; and the same simulation moved
+    // from an 8-thread pool to that one keeps no counts from its earlier workers.
+    assert!(one == run(7), "1 vs 7 threads");
+    let pool = |threads: usize| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let mut s = sim(10.0, 16, 35.0);
+    let reference = s.maps().iter().map(|m| m.probability.clone()).collect::<Vec<_>>();
+    pool(8).install(|| s.update_probability().unwrap());
+    pool(7).install(|| s.update_probability().unwrap());
+    assert!(s.maps().iter().zip(&reference).all(|(m, r)| &m.probability == r), "8 then 7 threads");
 }
 
 #[test]

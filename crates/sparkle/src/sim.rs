@@ -113,13 +113,15 @@ impl Glints {
     /// 1/16 more than asked, not the doubling `Vec` would do: these arrays are reused
     /// frame after frame at about the same length, and their bytes are reported.
     fn resize(&mut self, len: usize) {
-        if len > self.position_m.capacity() {
-            let extra = len + len / 16 - self.len();
-            self.position_m.reserve_exact(extra);
-            self.normal.reserve_exact(extra);
-            self.intensity.reserve_exact(extra);
-            self.birth_frame.reserve_exact(extra);
+        fn room<T>(v: &mut Vec<T>, len: usize) {
+            if len > v.capacity() {
+                v.reserve_exact(len + len / 16 - v.len());
+            }
         }
+        room(&mut self.position_m, len);
+        room(&mut self.normal, len);
+        room(&mut self.intensity, len);
+        room(&mut self.birth_frame, len);
         self.position_m.resize(len, Vec3::ZERO);
         self.normal.resize(len, Vec3::ZERO);
         self.intensity.resize(len, 0.0);
