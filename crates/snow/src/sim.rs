@@ -637,7 +637,8 @@ pub fn snowfall_directions(params: &SnowParams, seed: u64) -> Vec<Vec3> {
 /// Buffers of the probability computation, kept between calls (no allocation, no fresh
 /// pages, after the first), and which texels can hold snow: the grounds do not change
 /// after [`SnowSim::new`] except through [`SnowSim::maps_mut`], which clears `laid_out`.
-#[derive(Clone, Debug, Default)]
+/// Only a cache: a cloned simulation starts with empty buffers (cloning stays cheap).
+#[derive(Debug, Default)]
 struct Exposure {
     /// Whether `counts`, `texel` and the points' x and z describe the maps.
     laid_out: bool,
@@ -660,6 +661,12 @@ struct Worker {
     exposed: Vec<f32x8>,
     /// Directions in which each point samples next to a silhouette (when asked).
     near_outline: Vec<u16>,
+}
+
+impl Clone for Exposure {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 impl Exposure {
