@@ -321,16 +321,7 @@ impl SnowSim {
     /// (within a bias of two depth-map pixels); P_a is the share of exposed directions.
     pub fn update_probability(&mut self) -> Result<(), SnowError> {
         let mut exposure = std::mem::take(&mut self.exposure);
-        let cull = Cull::BackAmongFirst(self.closed_triangles);
-        let counted = exposure.count(
-            &self.occluders(),
-            cull,
-            &self.maps,
-            &self.footprint,
-            &self.directions,
-            &self.params,
-            false,
-        );
+        let counted = self.count_exposure(&mut exposure, false);
         if counted.is_ok() {
             let k = self.directions.len().max(1) as f32;
             let n = self.footprint.n;
@@ -349,23 +340,22 @@ impl SnowSim {
         counted
     }
 
+    /// [`Exposure::count`] over this scene's occluders (closed objects' back faces
+    /// skipped), maps and directions.
+    fn count_exposure(&self, exposure: &mut Exposure, silhouettes: bool) -> Result<(), SnowError> {
+        let cull = Cull::BackAmongFirst(self.closed_triangles);
+        let (maps, fp, dirs, params) = (&self.maps, &self.footprint, &self.directions, &self.params);
+        exposure.count(&self.occluders(), cull, maps, fp, dirs, params, silhouettes)
+    }
+
     /// For every texel, in how many directions its depth-map sample lies next to a
     /// silhouette: over the sample's depth-map pixel and its 4 neighbours the depth spans
     /// more than 10 pixel widths (an occluder's outline, or a surface seen edge-on). In
     /// those directions the shadow-map test depends on where inside a pixel the outline
     /// runs, which a ray cast resolves exactly.
     pub fn silhouette_directions(&self) -> Result<Vec<Vec<u16>>, SnowError> {
-        let cull = Cull::BackAmongFirst(self.closed_triangles);
         let mut exposure = Exposure::default();
-        exposure.count(
-            &self.occluders(),
-            cull,
-            &self.maps,
-            &self.footprint,
-            &self.directions,
-            &self.params,
-            true,
-        )?;
+        self.count_exposure(&mut exposure, true)?;
         let n = self.footprint.n;
         let mut edges: Vec<Vec<u16>> = self.maps.iter().map(|_| vec![0; n * n]).collect();
         let mut out: Vec<&mut [u16]> = edges.iter_mut().map(|e| e.as_mut_slice()).collect();
