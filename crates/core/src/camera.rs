@@ -104,6 +104,29 @@ pub struct Projected {
     pub px_per_m: f32,
 }
 
+/// A perspective or orthographic view as numbers ([`CameraView::pinhole`]). With
+/// d = p - eye (component by component) and dot products summed x, y, z in that order:
+/// depth = d·forward; s = scale / depth for a perspective view (a point projects only
+/// when depth > [`NEAR_M`]) or s = scale for an orthographic one; then
+/// x_px = centre_px.0 + (d·right) s and y_px = centre_px.1 - (d·up) s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pinhole {
+    /// Eye position, metres.
+    pub eye: Vec3,
+    /// Unit image-right direction.
+    pub right: Vec3,
+    /// Unit image-up direction.
+    pub up: Vec3,
+    /// Unit view direction.
+    pub forward: Vec3,
+    /// Image centre, pixels.
+    pub centre_px: (f32, f32),
+    /// Focal length in pixels (perspective) or pixels per metre (orthographic).
+    pub scale: f32,
+    /// Whether s divides by depth.
+    pub perspective: bool,
+}
+
 /// A camera prepared for one image size.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraView {
@@ -289,6 +312,27 @@ impl CameraView {
         Some([r.extend(cx - self.eye.dot(r)), u.extend(cy - self.eye.dot(u)), f.extend(-self.eye.dot(f))])
     }
 
+    /// The camera's frame for projecting many points at once (in SIMD lanes, say), for
+    /// perspective and orthographic views; `None` for fisheye and equirectangular ones.
+    /// [`Pinhole`] documents the formula; it is the one [`CameraView::project`] uses,
+    /// operation for operation, so lanes that follow it get the same bits.
+    pub fn pinhole(&self) -> Option<Pinhole> {
+        let perspective = match self.kind {
+            Kind::Perspective => true,
+            Kind::Orthographic => false,
+            _ => return None,
+        };
+        Some(Pinhole {
+            eye: self.eye,
+            right: self.right,
+            up: self.up,
+            forward: self.forward,
+            centre_px: (0.5 * self.width, 0.5 * self.height),
+            scale: self.scale,
+            perspective,
+        })
+    }
+
     /// The primary ray through continuous pixel position `(x_px, y_px)`: origin and unit
     /// direction. For a fisheye, positions outside its circle give directions past the
     /// field of view.
@@ -392,6 +436,40 @@ mod tests {
                 .orthographic_affine()
                 .is_none()
         );
+    }
+
+    #[test]
+    fn the_pinhole_formula_gives_the_bits_project_gives() {
+        for projection in
+            [Projection::Perspective { fov_y_deg: 50.0 }, Projection::Orthographic { height_m: 7.0 }]
+        {
+            let view = cam(projection).view(320, 200).unwrap();
+            let ph = view.pinhole().unwrap();
+            let mut behind = 0;
+            for k in 0..400 {
+                let t = k as f32 * 0.37;
+                let p = Vec3::new(9.0 * t.sin(), 3.0 * (1.3 * t).cos(), 9.0 * (0.7 * t).sin());
+                let d = p - ph.eye;
+                let depth = d.x * ph.forward.x + d.y * ph.forward.y + d.z * ph.forward.z;
+                let s = if ph.perspective { ph.scale / depth } else { ph.scale };
+                let x = ph.centre_px.0 + (d.x * ph.right.x + d.y * ph.right.y + d.z * ph.right.z) * s;
+                let y = ph.centre_px.1 - (d.x * ph.up.x + d.y * ph.up.y + d.z * ph.up.z) * s;
+                match view.project(p) {
+                    Some(q) => {
+                        assert!(!ph.perspective || depth > NEAR_M);
+                        assert_eq!((x.to_bits(), y.to_bits()), (q.x_px.to_bits(), q.y_px.to_bits()), "{p}");
+                    }
+                    None => {
+                        assert!(ph.perspective && !(depth > NEAR_M), "{p}");
+                        behind += 1;
+                    }
+                }
+            }
+            // Points on both sides of a perspective camera were tried.
+            assert!(!ph.perspective || (behind > 20 && behind < 380), "{behind}");
+        }
+        let fisheye = cam(Projection::Fisheye { fov_deg: 180.0 }).view(64, 64).unwrap();
+        assert!(fisheye.pinhole().is_none());
     }
 
     fn cam(projection: Projection) -> Camera {

@@ -7,10 +7,11 @@
 //! ([`LaneRng`]) seeded from each chunk's own [`Stream`], so results depend only on the
 //! chunking, never on threads.
 //!
-//! Per facet and step: three 24-bit uniforms give the own displacement, two the rotation
-//! (radius² and angle in the tangent disc), and for a lobe one more the Metropolis coin.
-//! Birth candidates' positions are drawn scalar (an alias table picks the region), their
-//! normals in lanes ([`Geometry::around_half_vectors`]).
+//! Per facet and step, in this order for each group of eight: three 24-bit uniforms give
+//! the own displacement, two the rotation (radius² and angle in the tangent disc), and
+//! for a lobe one more the Metropolis coin ([`move_and_test`]: each group is loaded
+//! once, moved, turned, tested and stored). Birth candidates of a region are drawn in
+//! lanes too ([`Geometry::candidates_in`]); those of the per-cell table are drawn scalar.
 
 use glam::Vec3;
 use phenomena_core::rng::Stream;
@@ -25,21 +26,29 @@ pub(crate) const LANES: usize = 8;
 
 /// Three coordinates of eight facets.
 #[derive(Clone, Copy, Debug)]
-struct V8 {
-    x: f32x8,
-    y: f32x8,
-    z: f32x8,
+pub(crate) struct V8 {
+    pub(crate) x: f32x8,
+    pub(crate) y: f32x8,
+    pub(crate) z: f32x8,
 }
 
 impl V8 {
     #[inline]
-    fn splat(v: Vec3) -> Self {
+    pub(crate) fn splat(v: Vec3) -> Self {
         Self { x: f32x8::splat(v.x), y: f32x8::splat(v.y), z: f32x8::splat(v.z) }
     }
 
     /// Lanes `0..src.len()` from `src` (at most [`LANES`]); the rest repeat the first.
-    #[inline]
-    fn load(src: &[Vec3]) -> Self {
+    #[inline(always)]
+    pub(crate) fn load(src: &[Vec3]) -> Self {
+        if let Ok(a) = <&[Vec3; LANES]>::try_from(src) {
+            // A whole group: fixed indices, so no loop and no bounds checks.
+            return Self {
+                x: f32x8::from([a[0].x, a[1].x, a[2].x, a[3].x, a[4].x, a[5].x, a[6].x, a[7].x]),
+                y: f32x8::from([a[0].y, a[1].y, a[2].y, a[3].y, a[4].y, a[5].y, a[6].y, a[7].y]),
+                z: f32x8::from([a[0].z, a[1].z, a[2].z, a[3].z, a[4].z, a[5].z, a[6].z, a[7].z]),
+            };
+        }
         let (mut x, mut y, mut z) = ([src[0].x; LANES], [src[0].y; LANES], [src[0].z; LANES]);
         for (i, v) in src.iter().enumerate() {
             x[i] = v.x;
@@ -49,9 +58,15 @@ impl V8 {
         Self { x: x.into(), y: y.into(), z: z.into() }
     }
 
-    #[inline]
+    #[inline(always)]
     fn store(&self, dst: &mut [Vec3]) {
         let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+        if let Ok(a) = <&mut [Vec3; LANES]>::try_from(&mut *dst) {
+            for i in 0..LANES {
+                a[i] = Vec3::new(x[i], y[i], z[i]);
+            }
+            return;
+        }
         for (i, v) in dst.iter_mut().enumerate() {
             *v = Vec3::new(x[i], y[i], z[i]);
         }
@@ -63,7 +78,7 @@ impl V8 {
     }
 
     #[inline]
-    fn sub(self, o: Self) -> Self {
+    pub(crate) fn sub(self, o: Self) -> Self {
         Self { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
     }
 
@@ -74,7 +89,7 @@ impl V8 {
 
     /// Same operation order as glam's `Vec3::dot`.
     #[inline]
-    fn dot(self, o: Self) -> f32x8 {
+    pub(crate) fn dot(self, o: Self) -> f32x8 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
@@ -153,49 +168,56 @@ impl LaneRng {
     }
 }
 
-/// The 21-bit fields of a word as uniforms in [0, 1).
-#[inline]
-pub(crate) fn fields21(w: u64) -> [f32; 3] {
-    const S: f32 = 1.0 / (1u32 << 21) as f32;
-    let m = (1u64 << 21) - 1;
-    [(w & m) as f32 * S, ((w >> 21) & m) as f32 * S, ((w >> 42) & m) as f32 * S]
-}
-
 impl Motion {
-    /// Move `xs` by the shared displacement times `sign` (1 forward, -1 to undo a frame)
-    /// plus each facet's own displacement (uniform in the cube of half-side `jitter_m`:
-    /// symmetric, so undoing draws a fresh one), wrapped into the box.
+    /// Eight positions moved by the shared displacement times `sign` (1 forward, -1 to
+    /// undo a frame) plus each facet's own displacement (uniform in the cube of
+    /// half-side `jitter_m`: symmetric, so undoing draws a fresh one), then wrapped into
+    /// the box in lanes. `false` when some lane needs more than one wrap per axis (a
+    /// step as large as the box): the caller wraps those with `Space::wrap`.
+    #[inline]
+    fn displace_lanes(&self, space: &Space, x: V8, sign: f32, rng: &mut LaneRng) -> (V8, bool) {
+        let mut x = x.add(V8::splat(self.shared_m * sign));
+        if self.jitter_m != 0.0 {
+            let (two, h) = (f32x8::splat(2.0), f32x8::splat(self.jitter_m));
+            let mut j = || (rng.unit() * two - f32x8::ONE) * h;
+            x = x.add(V8 { x: j(), y: j(), z: j() });
+        }
+        let ok = wrap_lanes(space, &mut x);
+        (x, ok)
+    }
+
+    /// Eight normals turned by the random rotation of [`Motion::rotate_lanes`], kept by
+    /// the Metropolis rule against the plate lobe around +y (always, for uniform normals).
+    #[inline]
+    fn turn_lanes(&self, n: V8, rng: &mut LaneRng) -> V8 {
+        if self.rotation_rad == 0.0 {
+            return n;
+        }
+        let p = self.rotate_lanes(n, rng);
+        if self.lobe.is_uniform() {
+            return p;
+        }
+        // exp(κ (N'·y - N·y)) ≥ u: kept; κ (N'·y - N·y) in f32 has the rounding of
+        // the difference of two f32 components, as a scalar computation would.
+        let ratio = (f32x8::splat(self.lobe.kappa as f32) * (p.y - n.y)).exp();
+        let keep = rng.unit().simd_lt(ratio);
+        V8 { x: keep.select(p.x, n.x), y: keep.select(p.y, n.y), z: keep.select(p.z, n.z) }
+    }
+
+    /// Move `xs` one frame (see [`Motion::displace_lanes`]); for tests of the motion alone.
+    #[cfg(test)]
     pub(crate) fn displace(&self, space: &Space, xs: &mut [Vec3], sign: f32, rng: &mut LaneRng) {
-        let shared = V8::splat(self.shared_m * sign);
-        let (two, h) = (f32x8::splat(2.0), f32x8::splat(self.jitter_m));
+        let step = Step { motion: self, shift: sign, turn: false };
         for xc in xs.chunks_mut(LANES) {
-            let mut x = V8::load(xc).add(shared);
-            if self.jitter_m != 0.0 {
-                let mut j = || (rng.unit() * two - f32x8::ONE) * h;
-                x = x.add(V8 { x: j(), y: j(), z: j() });
-            }
-            wrap(space, &mut x, xc);
+            step.apply(space, xc, &mut [], rng);
         }
     }
 
-    /// Turn every normal by the random rotation of [`Motion::rotate_lanes`], kept by the
-    /// Metropolis rule against the plate lobe around +y (always, for uniform normals).
+    /// Turn every normal (see [`Motion::turn_lanes`]); for tests of the motion alone.
+    #[cfg(test)]
     pub(crate) fn turn(&self, ns: &mut [Vec3], rng: &mut LaneRng) {
-        if self.rotation_rad == 0.0 {
-            return;
-        }
         for nc in ns.chunks_mut(LANES) {
-            let n = V8::load(nc);
-            let p = self.rotate_lanes(n, rng);
-            if self.lobe.is_uniform() {
-                p.store(nc);
-                continue;
-            }
-            // exp(κ (N'·y - N·y)) ≥ u: kept; κ (N'·y - N·y) in f32 has the rounding of
-            // the difference of two f32 components, as a scalar computation would.
-            let ratio = (f32x8::splat(self.lobe.kappa as f32) * (p.y - n.y)).exp();
-            let keep = rng.unit().simd_lt(ratio);
-            V8 { x: keep.select(p.x, n.x), y: keep.select(p.y, n.y), z: keep.select(p.z, n.z) }.store(nc);
+            self.turn_lanes(V8::load(nc), rng).store(nc);
         }
     }
 
@@ -222,6 +244,7 @@ impl Geometry {
     /// 1 - cos = `omc[i]` from `side[i]`·H(`xs[i]`) (side ±1), at the azimuth 2π `turn[i]`
     /// about it (`turn` uniform on [0, 1) gives a uniform azimuth); NaN where H does not
     /// exist (L + V vanishes, or the facet sits on the eye or the lamp).
+    #[cfg(test)]
     pub(crate) fn around_half_vectors(
         &self,
         xs: &[Vec3],
@@ -232,42 +255,101 @@ impl Geometry {
     ) {
         let chunks = xs.chunks(LANES).zip(side.chunks(LANES)).zip(omc.chunks(LANES)).zip(turn.chunks(LANES));
         for ((((xc, sc), oc), tc), dst) in chunks.zip(out.chunks_mut(LANES)) {
-            let x = V8::load(xc);
             let lanes = |v: &[f32]| {
                 let mut a = [v[0]; LANES];
                 a[..v.len()].copy_from_slice(v);
                 f32x8::from(a)
             };
-            let v = match self.eye {
-                Eye::Point(e) => V8::splat(e).sub(x).unit(),
-                Eye::Direction(d) => V8::splat(d),
-            };
-            let l = match self.light {
-                LightAt::Direction(d) => V8::splat(d),
-                LightAt::Position(p) => V8::splat(p).sub(x).unit(),
-            };
-            let u = l.add(v);
-            let len2 = u.dot(u);
-            let fine = len2.simd_gt(f32x8::splat(1e-12)) & len2.is_finite();
-            let axis = u.scale(lanes(sc) / len2.sqrt());
-            let o = lanes(oc);
-            let (w, s) = (f32x8::ONE - o, (o * (f32x8::splat(2.0) - o)).sqrt());
-            let (sn, cs) = (lanes(tc) * f32x8::splat(std::f32::consts::TAU)).sin_cos();
-            let (e1, e2) = axis.tangents();
-            let p = axis.scale(w).add(e1.scale(cs * s)).add(e2.scale(sn * s)).newton_unit();
+            let (p, fine) = self.around_half_lanes(V8::load(xc), lanes(sc), lanes(oc), lanes(tc));
             let nan = f32x8::splat(f32::NAN);
-            V8 { x: fine.select(p.x, nan), y: fine.select(p.y, nan), z: fine.select(p.z, nan) }.store(dst);
+            let fine = f32x8::from(std::array::from_fn::<f32, LANES, _>(|i| {
+                if fine & (1 << i) != 0 { 0.0 } else { f32::NAN }
+            }))
+            .is_nan();
+            V8 { x: fine.select(nan, p.x), y: fine.select(nan, p.y), z: fine.select(nan, p.z) }.store(dst);
         }
+    }
+
+    /// Eight normals at 1 - cos = `omc` from `side`·H(x) (side ±1), at the azimuth
+    /// 2π `turn` about it, and the mask of the lanes where H exists.
+    #[inline]
+    fn around_half_lanes(&self, x: V8, side: f32x8, omc: f32x8, turn: f32x8) -> (V8, u32) {
+        let v = match self.eye {
+            Eye::Point(e) => V8::splat(e).sub(x).unit(),
+            Eye::Direction(d) => V8::splat(d),
+        };
+        let l = match self.light {
+            LightAt::Direction(d) => V8::splat(d),
+            LightAt::Position(p) => V8::splat(p).sub(x).unit(),
+        };
+        let u = l.add(v);
+        let len2 = u.dot(u);
+        let fine = len2.simd_gt(f32x8::splat(1e-12)) & len2.is_finite();
+        let axis = u.scale(side / len2.sqrt());
+        let (w, s) = (f32x8::ONE - omc, (omc * (f32x8::splat(2.0) - omc)).sqrt());
+        let (sn, cs) = (turn * f32x8::splat(std::f32::consts::TAU)).sin_cos();
+        let (e1, e2) = axis.tangents();
+        let p = axis.scale(w).add(e1.scale(cs * s)).add(e2.scale(sn * s)).newton_unit();
+        (p, fine.to_bitmask())
+    }
+
+    /// Eight birth candidates in the box `corner + size·[0, 1)³`: positions uniform, and
+    /// normals at 1 - cos uniform in [`omc.0`, `omc.1`) from ±H there (the sign a fair
+    /// coin when `two_sided`, else +), at a uniform azimuth. Returns positions, normals
+    /// and the mask of the lanes where H exists.
+    #[inline]
+    pub(crate) fn candidates_in(
+        &self,
+        corner: Vec3,
+        size: Vec3,
+        omc: (f32, f32),
+        two_sided: bool,
+        rng: &mut LaneRng,
+    ) -> (V8, V8, u32) {
+        let mut at = |c: f32, s: f32| f32x8::splat(c) + f32x8::splat(s) * rng.unit();
+        let x = V8 { x: at(corner.x, size.x), y: at(corner.y, size.y), z: at(corner.z, size.z) };
+        let side = if two_sided {
+            rng.unit().simd_lt(f32x8::splat(0.5)).select(-f32x8::ONE, f32x8::ONE)
+        } else {
+            f32x8::ONE
+        };
+        let o = f32x8::splat(omc.0) + rng.unit() * f32x8::splat(omc.1 - omc.0);
+        let (n, fine) = self.around_half_lanes(x, side, o, rng.unit());
+        (x, n, fine)
     }
 }
 
-/// Wrap into the periodic box (one wrap per axis in lanes; anything further, which a
-/// step smaller than the box never needs, by `Space::wrap`), and store into `dst`.
+/// A birth candidate's first frame: the normal `n0` (at t) turned by `motion` into
+/// t + 1 (unchanged without motion), and (N·H)² at `to` where seen, else -1.
 #[inline]
-fn wrap(space: &Space, x: &mut V8, dst: &mut [Vec3]) {
+pub(crate) fn first_frame(
+    motion: Option<&Motion>,
+    to: &Seen,
+    space: &Space,
+    x1: V8,
+    n0: V8,
+    rng: &mut LaneRng,
+) -> (V8, f32x8) {
+    let n1 = match motion {
+        Some(m) => m.turn_lanes(n0, rng),
+        None => n0,
+    };
+    (n1, to.test_lanes(space, x1, n1))
+}
+
+/// Lane `i` of eight vectors.
+#[inline]
+pub(crate) fn lane(v: &V8, i: usize) -> Vec3 {
+    Vec3::new(v.x.as_array()[i], v.y.as_array()[i], v.z.as_array()[i])
+}
+
+/// Wrap into the periodic box, one wrap per axis in lanes; `false` when some lane is
+/// still outside (anything further, which a step smaller than the box never needs, is
+/// left to `Space::wrap`).
+#[inline]
+fn wrap_lanes(space: &Space, x: &mut V8) -> bool {
     let Space::Box { min, size } = *space else {
-        x.store(dst);
-        return;
+        return true;
     };
     let mut ok = true;
     for (v, lo, s) in [(&mut x.x, min.x, size.x), (&mut x.y, min.y, size.y), (&mut x.z, min.z, size.z)] {
@@ -278,11 +360,69 @@ fn wrap(space: &Space, x: &mut V8, dst: &mut [Vec3]) {
         ok &= (r.simd_ge(zero) & r.simd_lt(s8)).all();
         *v = r + f32x8::splat(lo);
     }
-    x.store(dst);
-    if !ok {
-        for v in dst.iter_mut() {
-            *v = space.wrap(*v);
+    ok
+}
+
+/// What one frame does to a facet: displaced by `motion` times `shift` (1 forward, -1
+/// back, 0 not at all) and, when `turn`, turned by it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Step<'a> {
+    pub(crate) motion: &'a Motion,
+    pub(crate) shift: f32,
+    pub(crate) turn: bool,
+}
+
+impl Step<'_> {
+    /// Apply to one group of at most [`LANES`] facets in place (`nc` may be empty when
+    /// only positions move); returns the moved lanes. Per group the random numbers come
+    /// in a fixed order: the displacement's three, then the rotation's two (and the
+    /// Metropolis coin).
+    #[inline]
+    fn apply(&self, space: &Space, xc: &mut [Vec3], nc: &mut [Vec3], rng: &mut LaneRng) -> (V8, V8) {
+        let mut x = V8::load(xc);
+        if self.shift != 0.0 {
+            let (moved, ok) = self.motion.displace_lanes(space, x, self.shift, rng);
+            moved.store(xc);
+            x = moved;
+            if !ok {
+                for v in xc.iter_mut() {
+                    *v = space.wrap(*v);
+                }
+                x = V8::load(xc);
+            }
         }
+        if nc.is_empty() {
+            return (x, x);
+        }
+        let mut n = V8::load(nc);
+        if self.turn {
+            n = self.motion.turn_lanes(n, rng);
+            n.store(nc);
+        }
+        (x, n)
+    }
+}
+
+/// One frame for every facet (moved by `step`, if any) and then tested by `to`: writes
+/// (N·H)² per facet when seen, else -1, into `c2`. One pass over the facets, eight at a
+/// time: each group is loaded once, moved, turned, tested and stored.
+pub(crate) fn move_and_test(
+    step: Option<Step<'_>>,
+    to: &Seen,
+    space: &Space,
+    xs: &mut [Vec3],
+    ns: &mut [Vec3],
+    c2: &mut [f32],
+    rng: &mut LaneRng,
+) {
+    debug_assert!(xs.len() == ns.len() && ns.len() == c2.len());
+    for ((xc, nc), out) in xs.chunks_mut(LANES).zip(ns.chunks_mut(LANES)).zip(c2.chunks_mut(LANES)) {
+        let (x, n) = match &step {
+            Some(s) => s.apply(space, xc, nc, rng),
+            None => (V8::load(xc), V8::load(nc)),
+        };
+        let c = to.test_lanes(space, x, n).to_array();
+        out.copy_from_slice(&c[..out.len()]);
     }
 }
 
@@ -297,51 +437,54 @@ pub(crate) fn forward_and_test(
     c2: &mut [f32],
     rng: &mut LaneRng,
 ) {
-    if let Some(m) = motion {
-        m.displace(space, xs, 1.0, rng);
-        m.turn(ns, rng);
-    }
-    to.test_all(space, xs, ns, c2);
+    let step = motion.map(|m| Step { motion: m, shift: 1.0, turn: true });
+    move_and_test(step, to, space, xs, ns, c2, rng);
 }
 
 impl Seen {
     /// `Seen::test` for every facet: `c2[i]` = (N·H)² when facet i is seen, else -1.
     /// Lane for lane the same operations as the scalar test, so the same answers.
+    #[cfg(test)]
     pub(crate) fn test_all(&self, space: &Space, xs: &[Vec3], ns: &[Vec3], c2: &mut [f32]) {
         debug_assert!(xs.len() == ns.len() && ns.len() == c2.len());
-        let cos2 = f32x8::splat(self.cos2_theta);
         for ((xc, nc), out) in xs.chunks(LANES).zip(ns.chunks(LANES)).zip(c2.chunks_mut(LANES)) {
-            let (x, n) = (V8::load(xc), V8::load(nc));
-            let v = match self.geo.eye {
-                Eye::Point(e) => V8::splat(e).sub(x).unit(),
-                Eye::Direction(d) => V8::splat(d),
-            };
-            let l = match self.geo.light {
-                LightAt::Direction(d) => V8::splat(d),
-                LightAt::Position(p) => V8::splat(p).sub(x).unit(),
-            };
-            let u = l.add(v);
-            let u2 = u.dot(u);
-            let dot = n.dot(u);
-            let mut seen = u2.simd_gt(f32x8::splat(1e-12)) & (dot * dot).simd_ge(cos2 * u2);
-            if !self.two_sided {
-                seen &= dot.simd_ge(f32x8::ZERO);
-            }
-            if self.dome
-                && let Space::Dome { centre, .. } = *space
-            {
-                let a = x.sub(V8::splat(centre));
-                let len2 = a.dot(a);
-                let a = a.unit();
-                let fine = len2.simd_gt(f32x8::ZERO);
-                let (av, al) = (a.dot(v), a.dot(l));
-                // `normalize_or(Vec3::Y)` at the centre itself: the axis is +y.
-                let (av, al) = (fine.select(av, v.y), fine.select(al, l.y));
-                seen &= av.simd_gt(f32x8::ZERO) & al.simd_gt(f32x8::ZERO);
-            }
-            let c = seen.select(dot * dot / u2, -f32x8::ONE).to_array();
+            let c = self.test_lanes(space, V8::load(xc), V8::load(nc)).to_array();
             out.copy_from_slice(&c[..out.len()]);
         }
+    }
+
+    /// `Seen::test` for eight facets: (N·H)² where seen, else -1.
+    #[inline]
+    fn test_lanes(&self, space: &Space, x: V8, n: V8) -> f32x8 {
+        let v = match self.geo.eye {
+            Eye::Point(e) => V8::splat(e).sub(x).unit(),
+            Eye::Direction(d) => V8::splat(d),
+        };
+        let l = match self.geo.light {
+            LightAt::Direction(d) => V8::splat(d),
+            LightAt::Position(p) => V8::splat(p).sub(x).unit(),
+        };
+        let u = l.add(v);
+        let u2 = u.dot(u);
+        let dot = n.dot(u);
+        let mut seen =
+            u2.simd_gt(f32x8::splat(1e-12)) & (dot * dot).simd_ge(f32x8::splat(self.cos2_theta) * u2);
+        if !self.two_sided {
+            seen &= dot.simd_ge(f32x8::ZERO);
+        }
+        if self.dome
+            && let Space::Dome { centre, .. } = *space
+        {
+            let a = x.sub(V8::splat(centre));
+            let len2 = a.dot(a);
+            let a = a.unit();
+            let fine = len2.simd_gt(f32x8::ZERO);
+            let (av, al) = (a.dot(v), a.dot(l));
+            // `normalize_or(Vec3::Y)` at the centre itself: the axis is +y.
+            let (av, al) = (fine.select(av, v.y), fine.select(al, l.y));
+            seen &= av.simd_gt(f32x8::ZERO) & al.simd_gt(f32x8::ZERO);
+        }
+        seen.select(dot * dot / u2, -f32x8::ONE)
     }
 }
 

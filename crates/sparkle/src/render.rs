@@ -7,7 +7,10 @@
 //! drawn over the tree's ordinary shading), or the user's image.
 
 use glam::Vec3;
-use phenomena_core::camera::CameraView;
+use phenomena_core::camera::{CameraView, NEAR_M, Pinhole};
+use wide::{f32x8, i32x8, u32x8};
+
+use crate::batch::{LANES, V8};
 use phenomena_core::image::Frame;
 use phenomena_core::validate::{Issue, Issues};
 use rayon::prelude::*;
@@ -17,8 +20,12 @@ use thiserror::Error;
 use crate::config::{LightAt, Population};
 use crate::sim::SparkleSim;
 
+/// Longest glare ray drawn, pixels (`glare_length_px` is at most 256).
+const MAX_RAY_PX: usize = 257;
+
 /// Rows per band of the parallel splat.
-pub(crate) const BAND_ROWS: usize = 16;
+pub(crate) const BAND_ROWS: usize = 32;
+const _: () = assert!(BAND_ROWS.is_power_of_two(), "bands are found by a shift");
 
 /// What lies behind the glints.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -241,12 +248,15 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
     // screen by band (a dot whose footprint spans two bands in both), keeping glint
     // order. A band then reads its run from every chunk in chunk order: glint order.
     let bands = hu.div_ceil(BAND_ROWS);
-    // (Through u32: converting an f32 to u32 is one instruction, to usize is several.)
-    let last_band = bands as u32 - 1;
-    let band_range = |y: f32, len: f32| {
-        let lo = ((y - len - 1.0).max(0.0) as u32 / BAND_ROWS as u32).min(last_band);
-        let hi = ((y + len + 1.0).clamp(0.0, h - 1.0) as u32 / BAND_ROWS as u32).min(last_band);
-        (lo, hi)
+    let screen = Screen {
+        pinhole: view.pinhole(),
+        eye,
+        falloff2,
+        peak,
+        glare_length: if glare { glare_length } else { 0.0 },
+        glare_threshold,
+        size: (w, h),
+        last_band: bands as u32 - 1,
     };
     let chunks: Vec<(Vec<Dot>, Vec<u32>)> = g
         .position_m
@@ -255,25 +265,13 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
         .map(|(xs, is)| {
             let mut dots = Vec::with_capacity(xs.len());
             let mut start = vec![0u32; bands + 1];
-            for (x, &intensity) in xs.iter().zip(is) {
-                let Some(p) = view.project(*x) else { continue };
-                let intensity = if falloff2 > 0.0 {
-                    intensity * (falloff2 / (*x - eye).length_squared()).min(1.0)
-                } else {
-                    intensity
-                };
-                let rel = intensity / peak;
-                let len =
-                    if glare && rel >= glare_threshold { (glare_length * rel.sqrt()).max(1.0) } else { 0.0 };
-                let m = len + 1.0;
-                if p.x_px > -m && p.y_px > -m && p.x_px < w + m && p.y_px < h + m {
-                    // The bands its footprint touches, worked out once.
-                    let (lo, hi) = band_range(p.y_px, len);
+            for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
+                screen.place(view, xc, ic, |d, lo, hi| {
                     for b in lo..=hi {
                         start[b as usize + 1] += 1;
                     }
-                    dots.push((Dot { x: p.x_px, y: p.y_px, value: intensity, len }, lo, hi));
-                }
+                    dots.push((d, lo, hi));
+                });
             }
             for b in 0..bands {
                 start[b + 1] += start[b];
@@ -291,6 +289,9 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
         .collect();
     let glare_strength = s.glare_strength;
     let axis_rays = rays.iter().all(|&(dx, dy)| dx.fract() == 0.0 && dy.fract() == 0.0);
+    let whole_rays: Vec<(i64, i64)> = rays.iter().map(|&(dx, dy)| (dx as i64, dy as i64)).collect();
+    let glare8 = f32x8::splat(glare_strength);
+    let first_steps = f32x8::from([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
     let [c0, c1, c2] = frame.planes_mut();
     let stride = BAND_ROWS * wu;
     let (b0, b1, b2) = (bg.c0.data(), bg.c1.data(), bg.c2.data());
@@ -305,7 +306,7 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
             let row0 = (b * BAND_ROWS) as i64;
             let rows = (r.len() / wu) as i64;
             let mut sum = vec![0.0f32; r.len()];
-            let mut fall = [0.0f32; 257];
+            let mut fall = [0.0f32; MAX_RAY_PX.next_multiple_of(LANES)];
             let add = |sum: &mut [f32], i: i64, j: i64, v: f32| {
                 let jj = j - row0;
                 if i >= 0 && (i as usize) < wu && jj >= 0 && jj < rows {
@@ -313,81 +314,77 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
                 }
             };
             for (filed, start) in &chunks {
-                for d in &filed[start[b] as usize..start[b + 1] as usize] {
-                    let (x, y, v, len) = (d.x, d.y, d.value, d.len);
-                    // Bilinear share among the four pixels around the point (as
-                    // `Plane::deposit_bilinear`: pixel centres at +0.5).
-                    let (fx, fy) = (x - 0.5, y - 0.5);
-                    if fx >= -1.0 && fy >= -1.0 {
-                        // floor without a libm call: the values are above -1.
-                        let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
-                        let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
-                        let shares = [
-                            v * ((1.0 - tx) * (1.0 - ty)),
-                            v * (tx * (1.0 - ty)),
-                            v * ((1.0 - tx) * ty),
-                            v * (tx * ty),
-                        ];
-                        if i0 >= 0 && i0 + 1 < wu as i64 && j0 >= row0 && j0 + 1 < row0 + rows {
-                            // All four pixels in the band (most dots).
-                            let at = (j0 - row0) as usize * wu + i0 as usize;
-                            sum[at] += shares[0];
-                            sum[at + 1] += shares[1];
-                            sum[at + wu] += shares[2];
-                            sum[at + wu + 1] += shares[3];
-                        } else {
-                            add(&mut sum, i0, j0, shares[0]);
-                            add(&mut sum, i0 + 1, j0, shares[1]);
-                            add(&mut sum, i0, j0 + 1, shares[2]);
-                            add(&mut sum, i0 + 1, j0 + 1, shares[3]);
+                for group in filed[start[b] as usize..start[b + 1] as usize].chunks(LANES) {
+                    let four = Bilinear::of(group);
+                    for (k, d) in group.iter().enumerate() {
+                        let (x, y, v, len) = (d.x, d.y, d.value, d.len);
+                        if four.inside & (1 << k) != 0 {
+                            let (i0, j0) = (i64::from(four.i0[k]), i64::from(four.j0[k]));
+                            let shares =
+                                [four.share[0][k], four.share[1][k], four.share[2][k], four.share[3][k]];
+                            if i0 >= 0 && i0 + 1 < wu as i64 && j0 >= row0 && j0 + 1 < row0 + rows {
+                                // All four pixels in the band (most dots).
+                                let at = (j0 - row0) as usize * wu + i0 as usize;
+                                sum[at] += shares[0];
+                                sum[at + 1] += shares[1];
+                                sum[at + wu] += shares[2];
+                                sum[at + wu + 1] += shares[3];
+                            } else {
+                                add(&mut sum, i0, j0, shares[0]);
+                                add(&mut sum, i0 + 1, j0, shares[1]);
+                                add(&mut sum, i0, j0 + 1, shares[2]);
+                                add(&mut sum, i0 + 1, j0 + 1, shares[3]);
+                            }
                         }
-                    }
-                    if len == 0.0 {
-                        continue;
-                    }
-                    // Ray pixels at `step` px along each ray, step = 1..=len, falling
-                    // off as (1 - step/len)²; the weights are the same on every ray.
-                    let steps = (len.ceil() as usize).min(fall.len());
-                    let inv = 1.0 / len;
-                    let mut n = 0;
-                    for (step, f) in fall.iter_mut().enumerate().take(steps) {
-                        let t = (step + 1) as f32 * inv;
-                        if t > 1.0 {
-                            break;
+                        if len == 0.0 {
+                            continue;
                         }
-                        *f = v * (1.0 - t) * (1.0 - t) * glare_strength * inv;
-                        n += 1;
-                    }
-                    if axis_rays {
-                        // Whole-pixel offsets from the glint's own pixel, clipped to
-                        // the band and the image once per ray.
-                        let (xi, yi) = (floor_i64(x), floor_i64(y));
-                        for &(dx, dy) in rays {
-                            let (dx, dy) = (dx as i64, dy as i64);
-                            let (mut lo, mut hi) = (1i64, n as i64);
-                            for (p, d, limit_lo, limit_hi) in
-                                [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)]
-                            {
-                                // limit_lo ≤ p + d·step ≤ limit_hi
-                                match d {
-                                    0 if p < limit_lo || p > limit_hi => hi = 0,
-                                    1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
-                                    -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
-                                    _ => {}
+                        // Ray pixels at `step` px along each ray, step = 1..=len, falling
+                        // off as (1 - step/len)²; the weights are the same on every ray.
+                        // Eight steps at a time; the steps past t = 1 are not used.
+                        let steps = (len.ceil() as usize).min(MAX_RAY_PX);
+                        let inv = 1.0 / len;
+                        let (inv8, v8) = (f32x8::splat(inv), f32x8::splat(v));
+                        let mut n = 0;
+                        for (base, f) in (0..steps).step_by(LANES).zip(fall.chunks_exact_mut(LANES)) {
+                            let t = (first_steps + f32x8::splat(base as f32)) * inv8;
+                            let near = f32x8::ONE - t;
+                            f.copy_from_slice(&(v8 * near * near * glare8 * inv8).to_array());
+                            let within = (steps - base).min(LANES);
+                            n += (t.simd_le(f32x8::ONE).to_bitmask() & ((1u32 << within) - 1)).count_ones()
+                                as usize;
+                        }
+                        if axis_rays {
+                            // Whole-pixel offsets from the glint's own pixel, clipped to
+                            // the band and the image once per ray.
+                            let (xi, yi) = (floor_i64(x), floor_i64(y));
+                            for &(dx, dy) in &whole_rays {
+                                let (mut lo, mut hi) = (1i64, n as i64);
+                                for (p, d, limit_lo, limit_hi) in
+                                    [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)]
+                                {
+                                    // limit_lo ≤ p + d·step ≤ limit_hi
+                                    match d {
+                                        0 if p < limit_lo || p > limit_hi => hi = 0,
+                                        1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
+                                        -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
+                                        _ => {}
+                                    }
+                                }
+                                for step in lo..=hi {
+                                    let at =
+                                        (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
+                                    sum[at] += fall[step as usize - 1];
                                 }
                             }
-                            for step in lo..=hi {
-                                let at = (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
-                                sum[at] += fall[step as usize - 1];
-                            }
-                        }
-                    } else {
-                        for &(dx, dy) in rays {
-                            for (step, f) in fall.iter().enumerate().take(n) {
-                                let step = (step + 1) as f32;
-                                let (qx, qy) = (x + dx * step, y + dy * step);
-                                if qx >= 0.0 && qy >= 0.0 {
-                                    add(&mut sum, qx as i64, qy as i64, *f);
+                        } else {
+                            for &(dx, dy) in rays {
+                                for (step, f) in fall.iter().enumerate().take(n) {
+                                    let step = (step + 1) as f32;
+                                    let (qx, qy) = (x + dx * step, y + dy * step);
+                                    if qx >= 0.0 && qy >= 0.0 {
+                                        add(&mut sum, qx as i64, qy as i64, *f);
+                                    }
                                 }
                             }
                         }
@@ -404,6 +401,47 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
         });
 }
 
+/// The bilinear shares of up to [`LANES`] dots among the four pixels around each (as
+/// `Plane::deposit_bilinear`: pixel centres at +0.5), worked out in lanes with the
+/// scalar operations in the scalar order.
+struct Bilinear {
+    /// Bit k: dot k has a pixel at or right of / below column and row -1.
+    inside: u32,
+    /// Column and row of the top-left pixel of the four.
+    i0: [i32; LANES],
+    j0: [i32; LANES],
+    /// Shares of the top-left, top-right, bottom-left and bottom-right pixels.
+    share: [[f32; LANES]; 4],
+}
+
+impl Bilinear {
+    #[inline]
+    fn of(dots: &[Dot]) -> Self {
+        let lanes = |f: fn(&Dot) -> f32| {
+            let mut a = [f(&dots[0]); LANES];
+            for (v, d) in a.iter_mut().zip(dots) {
+                *v = f(d);
+            }
+            f32x8::from(a)
+        };
+        let (x, y, v) = (lanes(|d| d.x), lanes(|d| d.y), lanes(|d| d.value));
+        let (half, one) = (f32x8::splat(0.5), f32x8::ONE);
+        let (fx, fy) = (x - half, y - half);
+        let inside = (fx.simd_ge(-one) & fy.simd_ge(-one)).to_bitmask() & ((1u32 << dots.len()) - 1);
+        // floor without a libm call: truncation of values at or above 0 (other lanes
+        // are not used; dots lie within the image and its glare margin, far below 2³¹).
+        let (i0, j0) = ((fx + one).fast_trunc_int() - i32x8::ONE, (fy + one).fast_trunc_int() - i32x8::ONE);
+        let (tx, ty) = (fx - i0.round_float(), fy - j0.round_float());
+        let (sx, sy) = (one - tx, one - ty);
+        Self {
+            inside,
+            i0: i0.to_array(),
+            j0: j0.to_array(),
+            share: [v * (sx * sy), v * (tx * sy), v * (sx * ty), v * (tx * ty)].map(|s| s.to_array()),
+        }
+    }
+}
+
 /// ⌊x⌋ for |x| < 2⁶³ without a libm call (baseline x86-64 has no rounding instruction).
 #[inline]
 fn floor_i64(x: f32) -> i64 {
@@ -418,6 +456,95 @@ struct Dot {
     y: f32,
     value: f32,
     len: f32,
+}
+
+/// What places glints on screen: the view, the brightness rules and the image's bands.
+struct Screen {
+    /// The view as numbers, when it is perspective or orthographic (projected in lanes).
+    pinhole: Option<Pinhole>,
+    eye: Vec3,
+    /// Square of `falloff_from_m` (0: no falloff).
+    falloff2: f32,
+    /// k_s I_l.
+    peak: f32,
+    /// Glare length of the brightest glint, px (0: no glare).
+    glare_length: f32,
+    glare_threshold: f32,
+    /// Image width and height, px.
+    size: (f32, f32),
+    last_band: u32,
+}
+
+impl Screen {
+    /// Project up to [`LANES`] glints (positions `xc`, brightness `ic`) and hand each one
+    /// whose footprint (its pixel and glare) touches the image to `keep`, with the first
+    /// and last band it touches, in glint order. Eight at a time in lanes: a glint's
+    /// place and brightness take the scalar operations in the scalar order
+    /// ([`CameraView::project`] and the rules of [`RenderSettings`]), so lanes give the
+    /// same bits.
+    #[inline]
+    fn place(&self, view: &CameraView, xc: &[Vec3], ic: &[f32], mut keep: impl FnMut(Dot, u32, u32)) {
+        let x = V8::load(xc);
+        let mut value = [ic[0]; LANES];
+        value[..ic.len()].copy_from_slice(ic);
+        let mut value = f32x8::from(value);
+        let (px, py, ok) = match &self.pinhole {
+            Some(ph) => {
+                let d = x.sub(V8::splat(ph.eye));
+                let depth = d.dot(V8::splat(ph.forward));
+                let scale = f32x8::splat(ph.scale);
+                let (s, ok) = if ph.perspective {
+                    (scale / depth, depth.simd_gt(f32x8::splat(NEAR_M)).to_bitmask())
+                } else {
+                    (scale, u32::MAX)
+                };
+                let px = f32x8::splat(ph.centre_px.0) + d.dot(V8::splat(ph.right)) * s;
+                let py = f32x8::splat(ph.centre_px.1) - d.dot(V8::splat(ph.up)) * s;
+                (px, py, ok)
+            }
+            None => {
+                // Fisheye and equirectangular views: one glint at a time.
+                let (mut px, mut py, mut ok) = ([0.0; LANES], [0.0; LANES], 0u32);
+                for (i, p) in xc.iter().enumerate() {
+                    if let Some(q) = view.project(*p) {
+                        (px[i], py[i]) = (q.x_px, q.y_px);
+                        ok |= 1 << i;
+                    }
+                }
+                (f32x8::from(px), f32x8::from(py), ok)
+            }
+        };
+        if self.falloff2 > 0.0 {
+            let d = x.sub(V8::splat(self.eye));
+            value *= (f32x8::splat(self.falloff2) / d.dot(d)).min(f32x8::ONE);
+        }
+        let one = f32x8::ONE;
+        let len = if self.glare_length > 0.0 {
+            let rel = value / f32x8::splat(self.peak);
+            let long = (f32x8::splat(self.glare_length) * rel.sqrt()).max(one);
+            rel.simd_ge(f32x8::splat(self.glare_threshold)).select(long, f32x8::ZERO)
+        } else {
+            f32x8::ZERO
+        };
+        let m = len + one;
+        let (w, h) = (f32x8::splat(self.size.0), f32x8::splat(self.size.1));
+        let inside = px.simd_gt(-m) & py.simd_gt(-m) & px.simd_lt(w + m) & py.simd_lt(h + m);
+        // Bands of rows its footprint touches (through u32 lanes: the values are
+        // non-negative and below 2³¹ for every glint kept).
+        let band = |v: f32x8| {
+            let rows: u32x8 = wide::bytemuck::cast(v.fast_trunc_int());
+            (rows >> BAND_ROWS.trailing_zeros()).min(u32x8::splat(self.last_band)).to_array()
+        };
+        let lo = band((py - len - one).max(f32x8::ZERO));
+        let hi = band((py + len + one).max(f32x8::ZERO).min(h - one));
+        let mut kept = ok & inside.to_bitmask() & ((1u32 << xc.len()) - 1);
+        let (px, py, value, len) = (px.to_array(), py.to_array(), value.to_array(), len.to_array());
+        while kept != 0 {
+            let i = kept.trailing_zeros() as usize;
+            kept &= kept - 1;
+            keep(Dot { x: px[i], y: py[i], value: value[i], len: len[i] }, lo[i], hi[i]);
+        }
+    }
 }
 
 /// Glints per parallel projection chunk (fixed: the frame does not depend on threads).
@@ -625,6 +752,93 @@ mod tests {
             let worst =
                 got.data().iter().zip(&want).map(|(&g, &r)| (f64::from(g) - r).abs()).fold(0.0, f64::max);
             assert!(top > 0.0 && worst <= 1e-5 * top, "{glare:?}: {worst} of {top}");
+        }
+    }
+
+    #[test]
+    fn glints_are_placed_in_lanes_as_one_at_a_time() {
+        // `Screen::place` against the scalar rules (`CameraView::project`, falloff,
+        // glare length, bands) for glints in front of, beside and behind the camera,
+        // through a pinhole (lanes) and a fisheye (scalar projection): same bits.
+        let mut rng =
+            phenomena_core::rng::Stream::new(1, phenomena_core::rng::Purpose::named("test.place"), 0);
+        let glints: Vec<(Vec3, f32)> = (0..1003)
+            .map(|_| {
+                let x =
+                    Vec3::new(rng.uniform(-30.0, 30.0), rng.uniform(-5.0, 25.0), rng.uniform(-60.0, 20.0));
+                (x, rng.uniform(0.0, 1.0))
+            })
+            .collect();
+        let (w, h) = (320usize, 180usize);
+        for projection in [
+            phenomena_core::camera::Projection::Perspective { fov_y_deg: 60.0 },
+            phenomena_core::camera::Projection::Fisheye { fov_deg: 180.0 },
+        ] {
+            let camera = phenomena_core::camera::Camera { projection, ..SparkleConfig::default().camera };
+            let view = camera.view(w, h).unwrap();
+            let screen = Screen {
+                pinhole: view.pinhole(),
+                eye: camera.position,
+                falloff2: 64.0,
+                peak: 1.0,
+                glare_length: 9.0,
+                glare_threshold: 0.4,
+                size: (w as f32, h as f32),
+                last_band: (h.div_ceil(BAND_ROWS) - 1) as u32,
+            };
+            let mut got = Vec::new();
+            for group in glints.chunks(LANES) {
+                let (xs, is): (Vec<Vec3>, Vec<f32>) = group.iter().copied().unzip();
+                screen.place(&view, &xs, &is, |d, lo, hi| got.push((d.x, d.y, d.value, d.len, lo, hi)));
+            }
+            let mut want = Vec::new();
+            for &(x, v) in &glints {
+                let Some(p) = view.project(x) else { continue };
+                let v = v * (64.0 / (x - camera.position).length_squared()).min(1.0);
+                let len = if v >= 0.4 { (9.0 * v.sqrt()).max(1.0) } else { 0.0 };
+                let m = len + 1.0;
+                if p.x_px > -m && p.y_px > -m && p.x_px < w as f32 + m && p.y_px < h as f32 + m {
+                    let band = |y: f32| (y as u32 / BAND_ROWS as u32).min(screen.last_band);
+                    let (lo, hi) = (
+                        band((p.y_px - len - 1.0).max(0.0)),
+                        band((p.y_px + len + 1.0).clamp(0.0, h as f32 - 1.0)),
+                    );
+                    want.push((p.x_px, p.y_px, v, len, lo, hi));
+                }
+            }
+            assert!(want.len() > 100 && want.len() < glints.len(), "{}", want.len());
+            assert!(want.iter().any(|d| d.3 > 0.0) && want.iter().any(|d| d.4 != d.5));
+            let bits = |v: &[(f32, f32, f32, f32, u32, u32)]| -> Vec<_> {
+                v.iter()
+                    .map(|d| (d.0.to_bits(), d.1.to_bits(), d.2.to_bits(), d.3.to_bits(), d.4, d.5))
+                    .collect()
+            };
+            assert_eq!(bits(&got), bits(&want), "{projection:?}");
+            // The bilinear shares of the placed dots, in lanes and one at a time.
+            let dots: Vec<Dot> = got.iter().map(|d| Dot { x: d.0, y: d.1, value: d.2, len: d.3 }).collect();
+            for group in dots.chunks(LANES) {
+                let four = Bilinear::of(group);
+                for (k, d) in group.iter().enumerate() {
+                    let (fx, fy) = (d.x - 0.5, d.y - 0.5);
+                    assert_eq!(four.inside & (1 << k) != 0, fx >= -1.0 && fy >= -1.0);
+                    if fx < -1.0 || fy < -1.0 {
+                        continue;
+                    }
+                    let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
+                    let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
+                    let v = d.value;
+                    let shares = [
+                        v * ((1.0 - tx) * (1.0 - ty)),
+                        v * (tx * (1.0 - ty)),
+                        v * ((1.0 - tx) * ty),
+                        v * (tx * ty),
+                    ];
+                    assert_eq!((i64::from(four.i0[k]), i64::from(four.j0[k])), (i0, j0));
+                    for (c, share) in shares.iter().enumerate() {
+                        assert_eq!(four.share[c][k].to_bits(), share.to_bits());
+                    }
+                }
+            }
         }
     }
 

@@ -21,7 +21,9 @@
 //! position at t+1 is uniform and independent of the facet's own displacement j, so
 //! x_t = x_{t+1} - D - j; and a facet seen at t+1 had, at t, its normal within θ + δ of
 //! H_{t+1}(x_{t+1}). So the candidates are virtual facets with x_{t+1} uniform and N_t in
-//! that cap (a binomial count, thinned for lobes), moved one step forward to t+1 and
+//! that cap (a binomial count, thinned for lobes; in the box with uniform normals, a
+//! Poisson count per region of [`Regions`], drawn region by region in lanes), moved one
+//! step forward to t+1 and
 //! walked back through the remembered frames (positions undo each frame's displacement;
 //! normals take the same Metropolis step, which is reversible), and kept when seen at
 //! t+1 and unseen in every remembered frame. Each newcomer's state has exactly the full
@@ -31,18 +33,19 @@
 //! Two approximations remain, both documented and small: the newcomers' count is drawn
 //! independently of how many are held, as for a Poisson population of mean N (for
 //! exactly N facets the count's variance differs by a relative O(p), p the visible
-//! fraction, 3·10⁻⁴ in the benchmark scene); and a facet unseen for longer than the
+//! fraction, 3·10⁻⁴ in the benchmark scene; the per-region Poisson counts are exactly
+//! that population's); and a facet unseen for longer than the
 //! memory is forgotten, so a return after a longer gap comes back at a fresh place.
 
 use glam::Vec3;
 use phenomena_core::camera::Projection;
 use phenomena_core::rng::{Purpose, Stream};
-use rand_distr::weighted::WeightedAliasIndex;
 use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
+use wide::f32x8;
 
-use crate::batch::{LaneRng, forward_and_test};
+use crate::batch::{LANES, LaneRng, Step, V8, first_frame, forward_and_test, lane, move_and_test};
 use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
 use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
 use phenomena_core::validate::Issue;
@@ -100,6 +103,13 @@ impl Glints {
         self.normal.push(n);
         self.intensity.push(intensity);
         self.birth_frame.push(birth);
+    }
+
+    fn reserve(&mut self, more: usize) {
+        self.position_m.reserve(more);
+        self.normal.reserve(more);
+        self.intensity.reserve(more);
+        self.birth_frame.reserve(more);
     }
 
     fn append(&mut self, other: &mut Glints) {
@@ -672,75 +682,63 @@ impl SparkleSim {
         let chunks = ((n as f64 * mean_q / CANDIDATES_PER_CHUNK).ceil() as u64).clamp(1, MAX_BIRTH_CHUNKS);
         let lut = &self.intensity;
         let space = &self.space;
+        let walk = Walk { history: &history, motion, space, lut, frame };
         let parts: Vec<(Glints, u64)> = (0..chunks)
             .into_par_iter()
             .map(|k| {
-                let len = n / chunks + u64::from(k < n % chunks);
                 let mut rng = Stream::new(self.seed, BIRTH, (u64::from(frame) << 32) | k);
-                let count = rng.binomial(len, mean_q);
                 let mut lanes = LaneRng::new(&mut rng);
                 let mut out = Glints::default();
-                let mut left = count;
-                while left > 0 {
-                    let batch = left.min(CANDIDATE_BATCH);
-                    left -= batch;
-                    let (mut x1, mut n0) =
-                        (Vec::with_capacity(batch as usize), Vec::with_capacity(batch as usize));
-                    match &regions {
-                        Some(r) => r.draw_batch(&to.geo, batch as usize, &mut rng, &mut x1, &mut n0),
-                        None => {
+                let mut seen = Survivors::default();
+                let mut count = 0;
+                match &regions {
+                    Some(r) => {
+                        // This chunk's run of regions, each with its Poisson count.
+                        for i in r.range(k, chunks) {
+                            let lambda = n as f64 * r.mass[i];
+                            let Ok(poisson) = rand_distr::Poisson::new(lambda) else { continue };
+                            let c = rng.sample(&poisson) as u64;
+                            count += c;
+                            let (corner, size, omc_inner) = r.boxes[i];
+                            let omc = (omc_inner as f32, r.one_minus_cos_alpha as f32);
+                            for start in (0..c).step_by(LANES) {
+                                let (x1, n0, fine) =
+                                    to.geo.candidates_in(corner, size, omc, r.two_sided, &mut lanes);
+                                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, &mut lanes);
+                                let lanes_used = (c - start).min(LANES as u64) as u32;
+                                seen.push_seen(&x1, &n0, &n1, c2, fine & ((1u32 << lanes_used) - 1));
+                            }
+                            if seen.len() >= CANDIDATE_BATCH as usize {
+                                walk.back(&mut seen, &mut lanes, &mut out);
+                            }
+                        }
+                    }
+                    None => {
+                        let len = n / chunks + u64::from(k < n % chunks);
+                        count = rng.binomial(len, mean_q);
+                        let (mut x1, mut n0) = (Vec::new(), Vec::new());
+                        let mut left = count;
+                        while left > 0 {
+                            let batch = left.min(CANDIDATE_BATCH);
+                            left -= batch;
+                            x1.clear();
+                            n0.clear();
                             for _ in 0..batch {
                                 if let Some((x, n)) = table.draw(space, &self.lobe, &to.geo, &mut rng) {
                                     x1.push(x);
                                     n0.push(n);
                                 }
                             }
-                        }
-                    }
-                    let mut n1 = n0.clone();
-                    if let Some(m) = &motion {
-                        m.turn(&mut n1, &mut lanes);
-                    }
-                    let mut c2 = vec![0.0; x1.len()];
-                    to.test_all(space, &x1, &n1, &mut c2);
-                    // Walk the ones seen at t+1 back through the remembered frames: seen
-                    // in any of them means the facet is held already. Going back, the
-                    // position undoes each frame's displacement (uniform positions make
-                    // x_{t+1} and the own step independent) and the normal takes the same
-                    // Metropolis step (reversible, so its reverse kernel is itself).
-                    let mut alive: Vec<usize> = (0..x1.len()).filter(|&i| c2[i] >= 0.0).collect();
-                    let mut x: Vec<Vec3> = alive.iter().map(|&i| x1[i]).collect();
-                    let mut nrm: Vec<Vec3> = alive.iter().map(|&i| n0[i]).collect();
-                    let mut seen_then = Vec::new();
-                    let mut into = motion;
-                    for (k, (seen, m)) in history.iter().enumerate() {
-                        if alive.is_empty() {
-                            break;
-                        }
-                        if let Some(mi) = into {
-                            mi.displace(space, &mut x, -1.0, &mut lanes);
-                            if k > 0 {
-                                mi.turn(&mut nrm, &mut lanes);
+                            for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
+                                let (x1, n0) = (V8::load(xc), V8::load(nc));
+                                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, &mut lanes);
+                                seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
                             }
+                            walk.back(&mut seen, &mut lanes, &mut out);
                         }
-                        seen_then.resize(x.len(), 0.0);
-                        seen.test_all(space, &x, &nrm, &mut seen_then);
-                        let mut w = 0;
-                        for r in 0..alive.len() {
-                            if seen_then[r] < 0.0 {
-                                (alive[w], x[w], nrm[w]) = (alive[r], x[r], nrm[r]);
-                                w += 1;
-                            }
-                        }
-                        alive.truncate(w);
-                        x.truncate(w);
-                        nrm.truncate(w);
-                        into = *m;
-                    }
-                    for i in alive {
-                        out.push(x1[i], n1[i], lut.get(c2[i]), frame);
                     }
                 }
+                walk.back(&mut seen, &mut lanes, &mut out);
                 (out, count)
             })
             .collect();
@@ -945,6 +943,99 @@ impl SparkleSim {
     }
 }
 
+/// Birth candidates seen at t+1, waiting to be walked back through the remembered
+/// frames.
+#[derive(Default)]
+struct Survivors {
+    /// At t+1: position, normal and (N·H)².
+    x1: Vec<Vec3>,
+    n1: Vec<Vec3>,
+    c2: Vec<f32>,
+    /// Position and normal at the frame the walk has reached.
+    x: Vec<Vec3>,
+    nrm: Vec<Vec3>,
+    /// Scratch of the walk: survivors still unseen, and their test at one frame.
+    alive: Vec<u32>,
+    seen_then: Vec<f32>,
+}
+
+impl Survivors {
+    fn len(&self) -> usize {
+        self.x1.len()
+    }
+
+    /// Keep the lanes of `mask` seen at t+1 (`c2` ≥ 0), in lane order; `n0` is the
+    /// normal at t, where the walk starts.
+    #[inline]
+    fn push_seen(&mut self, x1: &V8, n0: &V8, n1: &V8, c2: f32x8, mask: u32) {
+        let mut keep = mask & c2.simd_ge(f32x8::ZERO).to_bitmask();
+        let c = c2.to_array();
+        while keep != 0 {
+            let i = keep.trailing_zeros() as usize;
+            keep &= keep - 1;
+            let x = lane(x1, i);
+            self.x1.push(x);
+            self.n1.push(lane(n1, i));
+            self.c2.push(c[i]);
+            self.x.push(x);
+            self.nrm.push(lane(n0, i));
+        }
+    }
+}
+
+/// The walk of birth candidates back through the remembered frames (module docs).
+struct Walk<'a> {
+    /// (test at frame f, motion into f), newest first.
+    history: &'a [(Seen, Option<Motion>)],
+    /// The motion into the frame being made.
+    motion: Option<Motion>,
+    space: &'a Space,
+    lut: &'a IntensityLut,
+    frame: u32,
+}
+
+impl Walk<'_> {
+    /// Walk every survivor back: seen in any remembered frame means the facet is held
+    /// already; the others are born, into `out`. Going back, the position undoes each
+    /// frame's displacement (uniform positions make x_{t+1} and the own step
+    /// independent) and the normal takes the same Metropolis step (reversible, so its
+    /// reverse kernel is itself). Leaves `s` empty.
+    fn back(&self, s: &mut Survivors, lanes: &mut LaneRng, out: &mut Glints) {
+        s.alive.clear();
+        s.alive.extend(0..s.x1.len() as u32);
+        let mut into = self.motion;
+        for (k, (seen, m)) in self.history.iter().enumerate() {
+            if s.alive.is_empty() {
+                break;
+            }
+            let back = into.as_ref().map(|mi| Step { motion: mi, shift: -1.0, turn: k > 0 });
+            s.seen_then.resize(s.x.len(), 0.0);
+            move_and_test(back, seen, self.space, &mut s.x, &mut s.nrm, &mut s.seen_then, lanes);
+            let mut w = 0;
+            for r in 0..s.alive.len() {
+                if s.seen_then[r] < 0.0 {
+                    (s.alive[w], s.x[w], s.nrm[w]) = (s.alive[r], s.x[r], s.nrm[r]);
+                    w += 1;
+                }
+            }
+            s.alive.truncate(w);
+            s.x.truncate(w);
+            s.nrm.truncate(w);
+            into = *m;
+        }
+        out.reserve(s.alive.len());
+        for &i in &s.alive {
+            let i = i as usize;
+            out.push(s.x1[i], s.n1[i], self.lut.get(s.c2[i]), self.frame);
+        }
+        s.x1.clear();
+        s.n1.clear();
+        s.c2.clear();
+        s.x.clear();
+        s.nrm.clear();
+    }
+}
+
 /// Birth candidates in the periodic box with uniform normals, by region: a facet whose
 /// normal at t lay within an inner angle β of ±H_{t+1}(x_{t+1}) was certainly seen at t,
 /// so only the annulus between β and α (α = θ + δ + margin) holds candidates.
@@ -964,9 +1055,10 @@ impl SparkleSim {
 struct Regions {
     /// (corner, size, 1 - cos β) per region.
     boxes: Vec<(Vec3, Vec3, f64)>,
-    /// Regions by their candidate mass (Walker's alias method: O(1) per draw); `None`
-    /// when no region holds any.
-    pick: Option<WeightedAliasIndex<f64>>,
+    /// Candidate probability per virtual facet of each region.
+    mass: Vec<f64>,
+    /// Sum of `mass` before each region.
+    mass_before: Vec<f64>,
     mean_q: f64,
     one_minus_cos_alpha: f64,
     two_sided: bool,
@@ -1058,48 +1150,36 @@ impl Regions {
                 w * sides * 0.5 * (omc_alpha - omc_inner)
             })
             .collect();
-        let total: f64 = mass.iter().sum();
-        let pick = WeightedAliasIndex::new(mass).ok();
-        Some(Self { boxes, pick, mean_q: total.min(1.0), one_minus_cos_alpha: omc_alpha, two_sided })
+        let mut total = 0.0;
+        let mass_before = mass
+            .iter()
+            .map(|m| {
+                total += m;
+                total - m
+            })
+            .collect();
+        Some(Self {
+            boxes,
+            mass,
+            mass_before,
+            mean_q: total.min(1.0),
+            one_minus_cos_alpha: omc_alpha,
+            two_sided,
+        })
     }
 
-    /// `count` candidates into `x1`, `n0` (cleared first): x_{t+1} uniform in a region
-    /// chosen by its candidate mass, and N_t uniform in that region's annulus around
-    /// ±H_{t+1}(x_{t+1}) (1 - cos uniform between the annulus' bounds, azimuth uniform).
-    /// Positions are drawn here, normals eight at a time (`Geometry::around_half_vectors`);
-    /// the rare candidate without a half vector is dropped, as a facet there is never seen.
-    fn draw_batch(
-        &self,
-        geo: &Geometry,
-        count: usize,
-        rng: &mut Stream,
-        x1: &mut Vec<Vec3>,
-        n0: &mut Vec<Vec3>,
-    ) {
-        x1.clear();
-        n0.clear();
-        let Some(pick) = &self.pick else { return };
-        let (mut side, mut omc, mut turn) =
-            (Vec::with_capacity(count), Vec::with_capacity(count), Vec::with_capacity(count));
-        for _ in 0..count {
-            let (corner, size, omc_inner) = self.boxes[rng.sample(pick)];
-            let [u, v, w] = crate::batch::fields21(rng.next_u64());
-            x1.push(corner + size * Vec3::new(u, v, w));
-            // One word: the side (top bit), 1 - cos (32 bits), the azimuth (24 bits).
-            let bits = rng.next_u64();
-            side.push(if self.two_sided && bits >> 63 == 1 { -1.0 } else { 1.0 });
-            let t = ((bits >> 24) & 0xffff_ffff) as f64 / 4_294_967_296.0;
-            omc.push((omc_inner + t * (self.one_minus_cos_alpha - omc_inner)) as f32);
-            turn.push((bits & 0xff_ffff) as f32 / 16_777_216.0);
-        }
-        n0.resize(count, Vec3::ZERO);
-        geo.around_half_vectors(x1, &side, &omc, &turn, n0);
-        if n0.iter().any(|n| !n.is_finite()) {
-            let keep: Vec<bool> = n0.iter().map(|n| n.is_finite()).collect();
-            let mut k = keep.iter();
-            x1.retain(|_| *k.next().unwrap_or(&false));
-            n0.retain(|n| n.is_finite());
-        }
+    /// The regions birth chunk `k` of `chunks` draws: consecutive runs holding about
+    /// equal shares of the candidate mass (the split depends only on the masses).
+    fn range(&self, k: u64, chunks: u64) -> std::ops::Range<usize> {
+        let total = self.mass_before.last().zip(self.mass.last()).map_or(0.0, |(b, m)| b + m);
+        let at = |k: u64| {
+            if k >= chunks {
+                self.mass.len()
+            } else {
+                self.mass_before.partition_point(|&b| b * (chunks as f64) < k as f64 * total)
+            }
+        };
+        at(k)..at(k + 1)
     }
 }
 
