@@ -338,7 +338,36 @@ fn run(cli: Cli) -> anyhow::Result<String> {
     }
 }
 
+/// The instruction sets this build was compiled for (`.cargo/config.toml`: x86-64-v3)
+/// that the running CPU does not have, so the binary can say so instead of dying on an
+/// illegal instruction. `None` when all are there (always, off x86-64).
+#[inline(never)]
+fn missing_cpu_features() -> Option<String> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let mut missing = Vec::new();
+        macro_rules! need {
+            ($($f:tt),*) => {$(
+                if cfg!(target_feature = $f) && !std::arch::is_x86_feature_detected!($f) {
+                    missing.push($f);
+                }
+            )*};
+        }
+        need!("avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
+        (!missing.is_empty()).then(|| missing.join(", "))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    None
+}
+
 fn main() -> ExitCode {
+    if let Some(missing) = missing_cpu_features() {
+        eprintln!(
+            "error: this build of phenomena needs CPU instructions this processor lacks ({missing}); \
+             rebuild for it with: RUSTFLAGS=\"-C target-cpu=x86-64\" cargo build --release"
+        );
+        return ExitCode::FAILURE;
+    }
     let cli = Cli::parse();
     let level = match cli.verbose {
         0 => "warn",
@@ -361,5 +390,16 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod cpu_tests {
+    /// The machine that built and runs the tests has every instruction set the build
+    /// targets (on a CPU without them the test binary could not have started at all, so
+    /// this checks that the detection names nothing missing when nothing is).
+    #[test]
+    fn this_cpu_runs_this_build() {
+        assert_eq!(super::missing_cpu_features(), None);
     }
 }

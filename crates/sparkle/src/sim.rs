@@ -245,7 +245,9 @@ struct IntensityLut {
     one_minus_cos2: f32,
     /// INTERVALS / one_minus_cos2.
     scale: f32,
-    table: Vec<f32>,
+    /// Brightness at t = i / INTERVALS (a fixed-size array: indices below INTERVALS need
+    /// no bounds check).
+    table: Box<[f32; IntensityLut::INTERVALS + 1]>,
     /// k = ln(k_s I_l / I_e) is too large for the table (I_e near 0): use powf.
     direct: Option<(f32, f32)>,
 }
@@ -257,12 +259,10 @@ impl IntensityLut {
         let c0 = cos_theta.unwrap_or(1.0);
         let omc2 = 1.0 - c0 * c0;
         let peak = f64::from(phong.specular_k_s) * f64::from(phong.light_intensity);
-        let table = (0..=Self::INTERVALS)
-            .map(|i| {
-                let c2 = 1.0 - omc2 * i as f64 / Self::INTERVALS as f64;
-                (peak * c2.max(0.0).powf(0.5 * f64::from(phong.exponent_n))) as f32
-            })
-            .collect();
+        let table = Box::new(std::array::from_fn(|i| {
+            let c2 = 1.0 - omc2 * i as f64 / Self::INTERVALS as f64;
+            (peak * c2.max(0.0).powf(0.5 * f64::from(phong.exponent_n))) as f32
+        }));
         let scale = if omc2 > 0.0 { (Self::INTERVALS as f64 / omc2) as f32 } else { 0.0 };
         // The table's error bound k² h²/8 stays below 1e-4 for k ≤ 12.
         let k = (peak / f64::from(phong.threshold_i_e)).ln();
@@ -280,8 +280,10 @@ impl IntensityLut {
             return self.table[0];
         }
         let t = ((1.0 - c2) * self.scale).clamp(0.0, Self::INTERVALS as f32);
-        let i = (t as usize).min(Self::INTERVALS - 1);
+        // (Through u32: converting an f32 to u32 takes fewer instructions than to usize.)
+        let i = (t as u32).min(Self::INTERVALS as u32 - 1);
         let f = t - i as f32;
+        let i = i as usize;
         self.table[i] + (self.table[i + 1] - self.table[i]) * f
     }
 }
