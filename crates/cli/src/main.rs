@@ -339,25 +339,42 @@ fn run(cli: Cli) -> anyhow::Result<String> {
 }
 
 /// The instruction sets this build was compiled for (`.cargo/config.toml`: x86-64-v3)
-/// that the running CPU does not have, so the binary can say so instead of dying on an
-/// illegal instruction. `None` when all are there (always, off x86-64).
+/// that the running CPU does not report, so the binary can say so instead of dying on an
+/// illegal instruction. `None` when all are there (always, off x86-64). Reads CPUID
+/// itself: `is_x86_feature_detected!` answers from the compile-time features when they
+/// are enabled, so it cannot tell.
 #[inline(never)]
 fn missing_cpu_features() -> Option<String> {
     #[cfg(target_arch = "x86_64")]
     {
-        let mut missing = Vec::new();
-        macro_rules! need {
-            ($($f:tt),*) => {$(
-                if cfg!(target_feature = $f) && !std::arch::is_x86_feature_detected!($f) {
-                    missing.push($f);
-                }
-            )*};
-        }
-        need!("avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
+        use std::arch::x86_64::{__cpuid, __cpuid_count};
+        let leaf1 = __cpuid(1);
+        let leaf7 = if __cpuid(0).eax >= 7 { __cpuid_count(7, 0).ebx } else { 0 };
+        let ext1 = if __cpuid(0x8000_0000).eax >= 0x8000_0001 { __cpuid(0x8000_0001).ecx } else { 0 };
+        let missing = missing_features(leaf1.ecx, leaf7, ext1);
         (!missing.is_empty()).then(|| missing.join(", "))
     }
     #[cfg(not(target_arch = "x86_64"))]
     None
+}
+
+/// The features this build needs that CPUID leaf 1 ECX, leaf 7 EBX and leaf 0x8000_0001
+/// ECX do not show (bit numbers from Intel's SDM, vol. 2A, CPUID). AVX also needs the
+/// operating system to save the wider registers, which OSXSAVE (leaf 1 ECX bit 27)
+/// announces.
+fn missing_features(leaf1_ecx: u32, leaf7_ebx: u32, ext1_ecx: u32) -> Vec<&'static str> {
+    let bit = |word: u32, n: u32| word >> n & 1 == 1;
+    let checks = [
+        ("avx", cfg!(target_feature = "avx"), bit(leaf1_ecx, 28) && bit(leaf1_ecx, 27)),
+        ("avx2", cfg!(target_feature = "avx2"), bit(leaf7_ebx, 5) && bit(leaf1_ecx, 27)),
+        ("fma", cfg!(target_feature = "fma"), bit(leaf1_ecx, 12)),
+        ("movbe", cfg!(target_feature = "movbe"), bit(leaf1_ecx, 22)),
+        ("f16c", cfg!(target_feature = "f16c"), bit(leaf1_ecx, 29)),
+        ("bmi1", cfg!(target_feature = "bmi1"), bit(leaf7_ebx, 3)),
+        ("bmi2", cfg!(target_feature = "bmi2"), bit(leaf7_ebx, 8)),
+        ("lzcnt", cfg!(target_feature = "lzcnt"), bit(ext1_ecx, 5)),
+    ];
+    checks.iter().filter(|(_, built_for, has)| *built_for && !has).map(|(name, ..)| *name).collect()
 }
 
 fn main() -> ExitCode {
@@ -395,11 +412,38 @@ fn main() -> ExitCode {
 
 #[cfg(test)]
 mod cpu_tests {
-    /// The machine that built and runs the tests has every instruction set the build
-    /// targets (on a CPU without them the test binary could not have started at all, so
-    /// this checks that the detection names nothing missing when nothing is).
+    use super::missing_features;
+
+    /// The machine that runs the tests has every instruction set the build targets.
     #[test]
     fn this_cpu_runs_this_build() {
         assert_eq!(super::missing_cpu_features(), None);
+    }
+
+    /// The decoding of the CPUID words: all bits set means nothing is missing; an old
+    /// CPU (SSE only) misses every feature this build was compiled for; one cleared bit
+    /// names exactly that feature.
+    #[test]
+    fn cpuid_bits_name_the_missing_features() {
+        assert!(missing_features(u32::MAX, u32::MAX, u32::MAX).is_empty());
+        let built_for: Vec<&str> = ["avx", "avx2", "fma", "movbe", "f16c", "bmi1", "bmi2", "lzcnt"]
+            .into_iter()
+            .filter(|f| match *f {
+                "avx" => cfg!(target_feature = "avx"),
+                "avx2" => cfg!(target_feature = "avx2"),
+                "fma" => cfg!(target_feature = "fma"),
+                "movbe" => cfg!(target_feature = "movbe"),
+                "f16c" => cfg!(target_feature = "f16c"),
+                "bmi1" => cfg!(target_feature = "bmi1"),
+                "bmi2" => cfg!(target_feature = "bmi2"),
+                _ => cfg!(target_feature = "lzcnt"),
+            })
+            .collect();
+        assert_eq!(missing_features(0, 0, 0), built_for);
+        if cfg!(target_feature = "avx2") {
+            assert_eq!(missing_features(u32::MAX, !(1 << 5), u32::MAX), ["avx2"]);
+            // Without OSXSAVE the operating system does not keep AVX registers.
+            assert_eq!(missing_features(!(1 << 27), u32::MAX, u32::MAX), ["avx", "avx2"]);
+        }
     }
 }

@@ -612,6 +612,42 @@ mod tests {
     }
 
     #[test]
+    fn region_candidates_fill_their_box_and_annulus_on_both_sides() {
+        // Positions within the box, 1 - cos from ±H(x) within the asked range, the side a
+        // fair coin (two-sided; fraction within 5 standard errors of 1/2) or always +H.
+        let geo = Geometry {
+            eye: Eye::Point(Vec3::new(0.0, 2.0, 5.0)),
+            light: LightAt::Direction(Vec3::new(0.6, 0.8, 0.0)),
+        };
+        let (corner, size, omc) = (Vec3::new(-3.0, 1.0, -20.0), Vec3::new(2.0, 0.5, 4.0), (1e-4f32, 1e-3f32));
+        let mut rng = LaneRng::new(&mut Stream::new(7, P, 0));
+        for two_sided in [true, false] {
+            let (mut minus, mut total) = (0usize, 0usize);
+            for _ in 0..4000 {
+                let (x, n, fine) = geo.candidates_in(corner, size, omc, two_sided, &mut rng);
+                assert_eq!(fine, 0xff);
+                for i in 0..LANES {
+                    let (x, n) = (lane(&x, i), lane(&n, i));
+                    assert!(x.cmpge(corner).all() && x.cmple(corner + size).all(), "{x}");
+                    let h = geo.half_vector(x).expect("exists here");
+                    let side = if n.dot(h) < 0.0 { -1.0 } else { 1.0 };
+                    minus += usize::from(side < 0.0);
+                    total += 1;
+                    let o = 1.0 - n.dot(h * side);
+                    // f32 rounding of unit vectors: a few 1e-7.
+                    assert!(o > omc.0 - 1e-6 && o < omc.1 + 1e-6, "{o}");
+                }
+            }
+            let frac = minus as f64 / total as f64;
+            if two_sided {
+                assert!((frac - 0.5).abs() < 5.0 * 0.5 / (total as f64).sqrt(), "{frac}");
+            } else {
+                assert_eq!(minus, 0);
+            }
+        }
+    }
+
+    #[test]
     fn lane_generators_are_uniform_and_independent() {
         // 2¹⁸ draws per lane into 64 bins: Pearson χ² with 63 degrees of freedom stays
         // below 120 (p ≈ 2·10⁻⁵) per lane; neighbouring lanes' draws are uncorrelated

@@ -428,8 +428,10 @@ impl Bilinear {
         let (half, one) = (f32x8::splat(0.5), f32x8::ONE);
         let (fx, fy) = (x - half, y - half);
         let inside = (fx.simd_ge(-one) & fy.simd_ge(-one)).to_bitmask() & ((1u32 << dots.len()) - 1);
-        // floor without a libm call: truncation of values at or above 0 (other lanes
-        // are not used; dots lie within the image and its glare margin, far below 2³¹).
+        // floor without a libm call: truncation of values at or above 0 (dots lie within
+        // the image and its glare margin, far below 2³¹). Other lanes are not used: a
+        // non-finite value gives i32::MIN, wrapped by the - 1, and fails the bounds
+        // checks of the caller too.
         let (i0, j0) = ((fx + one).fast_trunc_int() - i32x8::ONE, (fy + one).fast_trunc_int() - i32x8::ONE);
         let (tx, ty) = (fx - i0.round_float(), fy - j0.round_float());
         let (sx, sy) = (one - tx, one - ty);
@@ -772,6 +774,7 @@ mod tests {
         let (w, h) = (320usize, 180usize);
         for projection in [
             phenomena_core::camera::Projection::Perspective { fov_y_deg: 60.0 },
+            phenomena_core::camera::Projection::Orthographic { height_m: 40.0 },
             phenomena_core::camera::Projection::Fisheye { fov_deg: 180.0 },
         ] {
             let camera = phenomena_core::camera::Camera { projection, ..SparkleConfig::default().camera };

@@ -1059,8 +1059,9 @@ struct Regions {
     boxes: Vec<(Vec3, Vec3, f64)>,
     /// Candidate probability per virtual facet of each region.
     mass: Vec<f64>,
-    /// Sum of `mass` before each region.
+    /// Sum of `mass` before each region, and over all.
     mass_before: Vec<f64>,
+    mass_total: f64,
     mean_q: f64,
     one_minus_cos_alpha: f64,
     two_sided: bool,
@@ -1152,18 +1153,21 @@ impl Regions {
                 w * sides * 0.5 * (omc_alpha - omc_inner)
             })
             .collect();
+        // Running sums, so they never decrease (`range` bisects them).
         let mut total = 0.0;
         let mass_before = mass
             .iter()
             .map(|m| {
+                let before = total;
                 total += m;
-                total - m
+                before
             })
             .collect();
         Some(Self {
             boxes,
             mass,
             mass_before,
+            mass_total: total,
             mean_q: total.min(1.0),
             one_minus_cos_alpha: omc_alpha,
             two_sided,
@@ -1173,7 +1177,7 @@ impl Regions {
     /// The regions birth chunk `k` of `chunks` draws: consecutive runs holding about
     /// equal shares of the candidate mass (the split depends only on the masses).
     fn range(&self, k: u64, chunks: u64) -> std::ops::Range<usize> {
-        let total = self.mass_before.last().zip(self.mass.last()).map_or(0.0, |(b, m)| b + m);
+        let total = self.mass_total;
         let at = |k: u64| {
             if k >= chunks {
                 self.mass.len()
@@ -1377,6 +1381,53 @@ mod tests {
             let s = sim.step().unwrap();
             assert!(s.ghosts > 0 && s.bytes_held < 50_000_000, "{s:?}");
         }
+    }
+
+    #[test]
+    fn birth_chunks_own_every_region_once_and_about_equal_mass() {
+        // Chunk k owns the regions whose mass starts in [k, k+1)·total/chunks: runs that
+        // follow each other, cover every region once, and hold total/chunks give or take
+        // one region's mass.
+        let sim = SparkleSim::new(SparkleConfig::default(), 1).unwrap();
+        let (from, to) = (sim.seen_at(9), sim.seen_at(10));
+        let m = sim.motion_into(10).unwrap();
+        let theta = sim.cos_theta.unwrap().acos();
+        let alpha = theta + f64::from(m.rotation_rad) + CAP_MARGIN_RAD;
+        let Space::Box { min, size } = sim.space else { unreachable!() };
+        let r = Regions::build(min, size, &m, &from, &to, theta, alpha, false, 16).unwrap();
+        let biggest = r.mass.iter().copied().fold(0.0, f64::max);
+        assert!(r.mass.len() > 4096 && biggest > 0.0);
+        for chunks in [1u64, 2, 3, 7, 64, 256] {
+            let mut next = 0;
+            for k in 0..chunks {
+                let run = r.range(k, chunks);
+                assert_eq!(run.start, next, "{chunks} chunks, chunk {k}");
+                next = run.end;
+                let share: f64 = r.mass[run].iter().sum();
+                let want = r.mass_total / chunks as f64;
+                assert!((share - want).abs() <= biggest * (1.0 + 1e-9), "{chunks}/{k}: {share} vs {want}");
+            }
+            assert_eq!(next, r.mass.len());
+        }
+    }
+
+    #[test]
+    fn survivors_keep_exactly_the_asked_lanes_that_are_seen() {
+        let v = |k: f32| V8 {
+            x: f32x8::from(std::array::from_fn::<f32, 8, _>(|i| k + i as f32)),
+            y: f32x8::splat(k),
+            z: f32x8::ZERO,
+        };
+        let c2 = f32x8::from([0.5, -1.0, 0.2, 0.3, -1.0, 0.0, 0.9, f32::NAN]);
+        let mut s = Survivors::default();
+        // Asked: lanes 0, 1, 2, 4, 5, 7; seen among them: 0, 2, 5 (NaN is not seen).
+        s.push_seen(&v(0.0), &v(10.0), &v(20.0), c2, 0b1011_0111);
+        assert_eq!(s.len(), 3);
+        assert_eq!(s.x1.iter().map(|p| p.x).collect::<Vec<_>>(), [0.0, 2.0, 5.0]);
+        assert_eq!(s.x, s.x1);
+        assert_eq!(s.nrm.iter().map(|p| p.x).collect::<Vec<_>>(), [10.0, 12.0, 15.0]);
+        assert_eq!(s.n1.iter().map(|p| p.x).collect::<Vec<_>>(), [20.0, 22.0, 25.0]);
+        assert_eq!(s.c2, [0.5, 0.2, 0.0]);
     }
 
     #[test]
