@@ -261,12 +261,12 @@ impl Geometry {
                 f32x8::from(a)
             };
             let (p, fine) = self.around_half_lanes(V8::load(xc), lanes(sc), lanes(oc), lanes(tc));
-            let nan = f32x8::splat(f32::NAN);
-            let fine = f32x8::from(std::array::from_fn::<f32, LANES, _>(|i| {
-                if fine & (1 << i) != 0 { 0.0 } else { f32::NAN }
-            }))
-            .is_nan();
-            V8 { x: fine.select(nan, p.x), y: fine.select(nan, p.y), z: fine.select(nan, p.z) }.store(dst);
+            p.store(dst);
+            for (i, v) in dst.iter_mut().enumerate() {
+                if fine & (1 << i) == 0 {
+                    *v = Vec3::NAN;
+                }
+            }
         }
     }
 
@@ -372,7 +372,12 @@ pub(crate) struct Step<'a> {
     pub(crate) turn: bool,
 }
 
-impl Step<'_> {
+impl<'a> Step<'a> {
+    /// One frame forward: displaced and turned by `motion`.
+    pub(crate) fn forward(motion: &'a Motion) -> Self {
+        Self { motion, shift: 1.0, turn: true }
+    }
+
     /// Apply to one group of at most [`LANES`] facets in place (`nc` may be empty when
     /// only positions move); returns the moved lanes. Per group the random numbers come
     /// in a fixed order: the displacement's three, then the rotation's two (and the
@@ -424,21 +429,6 @@ pub(crate) fn move_and_test(
         let c = to.test_lanes(space, x, n).to_array();
         out.copy_from_slice(&c[..out.len()]);
     }
-}
-
-/// One frame forward for every facet (moved and turned by `motion`, if the facets move)
-/// and then tested by `to`: writes (N·H)² per facet when seen, else -1, into `c2`.
-pub(crate) fn forward_and_test(
-    motion: Option<&Motion>,
-    to: &Seen,
-    space: &Space,
-    xs: &mut [Vec3],
-    ns: &mut [Vec3],
-    c2: &mut [f32],
-    rng: &mut LaneRng,
-) {
-    let step = motion.map(|m| Step { motion: m, shift: 1.0, turn: true });
-    move_and_test(step, to, space, xs, ns, c2, rng);
 }
 
 impl Seen {

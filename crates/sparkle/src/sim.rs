@@ -45,7 +45,7 @@ use serde::Serialize;
 use thiserror::Error;
 use wide::f32x8;
 
-use crate::batch::{LANES, LaneRng, Step, V8, first_frame, forward_and_test, lane, move_and_test};
+use crate::batch::{LANES, LaneRng, Step, V8, first_frame, lane, move_and_test};
 use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
 use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
 use phenomena_core::validate::Issue;
@@ -210,7 +210,7 @@ fn forward_in_place(
         .enumerate()
         .for_each(|(k, ((xs, ns), c2))| {
             let mut rng = LaneRng::new(&mut Stream::new(seed, purpose, (u64::from(next) << 32) | k as u64));
-            forward_and_test(motion, to, space, xs, ns, c2, &mut rng);
+            move_and_test(motion.map(Step::forward), to, space, xs, ns, c2, &mut rng);
         });
 }
 
@@ -907,7 +907,7 @@ impl SparkleSim {
                 let mut gaps = Vec::new();
                 let mut deaths = 0;
                 let mut c2 = vec![0.0; xs.len()];
-                forward_and_test(motion.as_ref(), &to, &space, xs, ns, &mut c2, &mut rng);
+                move_and_test(motion.as_ref().map(Step::forward), &to, &space, xs, ns, &mut c2, &mut rng);
                 for ((((x, nrm), s), l), &c) in
                     xs.iter().zip(ns.iter()).zip(since.iter_mut()).zip(last.iter_mut()).zip(&c2)
                 {
