@@ -6,7 +6,7 @@
 // measured preview rates and change-to-frame latencies), and exits non-zero on failure.
 import { chromium } from 'playwright-core';
 import { spawn, spawnSync } from 'node:child_process';
-import { mkdirSync, writeFileSync, readdirSync, mkdtempSync } from 'node:fs';
+import { mkdirSync, writeFileSync, readdirSync, mkdtempSync, symlinkSync } from 'node:fs';
 import { join } from 'node:path';
 import { tmpdir } from 'node:os';
 import assert from 'node:assert/strict';
@@ -19,8 +19,13 @@ if (!bin || !outDir) {
 mkdirSync(outDir, { recursive: true });
 const work = mkdtempSync(join(tmpdir(), 'studio-e2e-'));
 
+// Session folders go to a temporary folder of this test's own, so the hostile-upload
+// check can find a session's folder and put a FIFO and a symlink in it.
+const sessionsTmp = join(work, 'tmp');
+mkdirSync(sessionsTmp);
 const server = spawn(bin, ['studio', '--port', '0', '--out', join(work, 'renders')], {
   stdio: ['ignore', 'pipe', 'inherit'],
+  env: { ...process.env, TMPDIR: sessionsTmp },
 });
 const url = await new Promise((resolve, reject) => {
   const timer = setTimeout(() => reject(new Error('the studio did not start within 60 s')), 60000);
@@ -269,6 +274,54 @@ await check('snow: the GLB download is a glTF binary', async () => {
   await download.saveAs(path);
   const bytes = (await import('node:fs')).readFileSync(path);
   assert.equal(bytes.subarray(0, 4).toString('latin1'), 'glTF');
+});
+
+// --- hostile uploads (issue 18): a page cannot make the studio read other files ---
+// One triangle, and a glTF whose only buffer has the URI given.
+const triangle = Buffer.from(new Float32Array([0, 0, 0, 0, 0, 4, 4, 0, 0]).buffer);
+const gltf = (uri) => Buffer.from(JSON.stringify({
+  asset: { version: '2.0' }, scene: 0, scenes: [{ nodes: [0] }], nodes: [{ mesh: 0 }],
+  meshes: [{ primitives: [{ attributes: { POSITION: 0 } }] }],
+  accessors: [{ bufferView: 0, componentType: 5126, count: 3, type: 'VEC3', max: [4, 0, 4], min: [0, 0, 0] }],
+  bufferViews: [{ buffer: 0, byteLength: 36 }], buffers: [{ uri, byteLength: 36 }],
+}));
+
+await check('snow: hostile glTF buffer URIs are refused without reading; this tab and others keep working', async () => {
+  await openTab('snow');
+  const folders = readdirSync(sessionsTmp).filter((f) => f.startsWith('phenomena-studio-'));
+  assert.equal(folders.length, 1, `one session folder: ${folders}`);
+  const folder = join(sessionsTmp, folders[0]);
+  // What a page cannot upload but another program might have left there.
+  assert.equal(spawnSync('mkfifo', [join(folder, 'pipe.bin')]).status, 0);
+  symlinkSync('/etc/hostname', join(folder, 'link.bin'));
+  const cases = [
+    ['/etc/hostname', 'absolute paths are refused'],
+    ['/dev/zero', 'absolute paths are refused'],
+    ['../../../../etc/hostname', 'plain name'],
+    ['pipe.bin', 'not a regular file'],
+    ['link.bin', 'symlink'],
+  ];
+  for (const [uri, why] of cases) {
+    const n = await studio('window.studio.messages.length');
+    await page.setInputFiles('#mesh-upload', { name: 'm.gltf', mimeType: 'model/gltf+json', buffer: gltf(uri) });
+    const m = await until(`the refusal of ${uri}`, () => studio(
+      `window.studio.messages.slice(${n}).find((x) => x.kind === 'error' && x.text.includes('its glTF buffer'))`), 20000);
+    assert.ok(m.text.includes(`geometry.mesh = "m.gltf": its glTF buffer ${JSON.stringify(uri)}`), m.text);
+    assert.ok(m.text.includes(why), `${uri}: ${m.text}`);
+    assert.ok(!m.text.includes(sessionsTmp), `the message reveals the server's folders: ${m.text}`);
+  }
+  // A glTF with its buffer beside it works in the same tab.
+  const g = await generation();
+  await page.setInputFiles('#mesh-upload', [
+    { name: 'good.gltf', mimeType: 'model/gltf+json', buffer: gltf('tri.bin') },
+    { name: 'tri.bin', mimeType: 'application/octet-stream', buffer: triangle },
+  ]);
+  await until('a frame of the uploaded mesh', () => studio(`window.studio.generation > ${g} && window.studio.lastFrame >= 0`), 30000);
+  // Another tab works meanwhile.
+  const other = await browser.newPage();
+  await other.goto(url);
+  await other.waitForFunction(() => window.studio && window.studio.frames > 0, null, { timeout: 30000 });
+  await other.close();
 });
 
 // --- save, then render the saved file ---

@@ -49,7 +49,14 @@ fn renewal_and_motion(c: &mut Criterion) {
         particles: sim.particles().len(),
     };
     c.bench_function("renewal_field_120k_charges_256", |b| {
-        b.iter(|| FieldState::build(shape.clone(), black_box(&inputs), &mut StepStats::default()))
+        b.iter(|| {
+            FieldState::build(
+                shape.clone(),
+                black_box(&inputs),
+                &mut StepStats::default(),
+                &Default::default(),
+            )
+        })
     });
 
     let model = ForceModel::new(&config.motion);
@@ -82,7 +89,7 @@ fn full_frame(c: &mut Criterion) {
         for _ in 0..20 {
             sim.step().expect("step");
         }
-        let mut sky = SkyRenderer::new(SkySettings::default(), w, h).expect("sky");
+        let mut sky = SkyRenderer::new(SkySettings::default(), w, h, None).expect("sky");
         group.bench_function(name, |b| {
             b.iter(|| {
                 sim.step().expect("step");

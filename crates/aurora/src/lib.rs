@@ -1,7 +1,8 @@
 //! Artist-controllable aurora, after Sekiguchi, "Artist-controllable aurora" (2018,
 //! `shared/papers/aurora-artist-controllable-sekiguchi-2018.txt`).
 //!
-//! Part 1: artist shapes and keyframes ([`shape`], §2.2.1-2.2.2), the electric field of
+//! Part 1: artist shapes and keyframes ([`shape`], §2.2.1-2.2.2; edited through
+//! [`editor`], §3.1), the electric field of
 //! charges near the intermediate target shape ([`field`], §2.2.3), the charged-particle
 //! motion ([`motion`], §2.3) and the simulation that ties them together ([`AuroraSim`],
 //! with the redistribution of §2.3.4); [`plane`] draws the x-z plane from above.
@@ -16,11 +17,13 @@
 pub mod atmosphere;
 mod config;
 pub mod deposition;
+pub mod editor;
 pub mod emission;
 pub mod fall;
 pub mod field;
 pub mod motion;
 pub mod plane;
+mod render;
 pub mod shape;
 mod sim;
 pub mod sky;
@@ -28,6 +31,7 @@ pub mod sky;
 pub use config::{
     AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
 };
-pub use plane::{AuroraView, PlaneView, RenderSettings};
+pub use plane::PlaneView;
+pub use render::{AuroraRenderer, AuroraView, LINE_LAYERS, RenderError, RenderSettings};
 pub use sim::{AuroraError, AuroraSim, FieldInputs, FieldState, StepStats};
-pub use sky::{ColourMode, SkyCamera, SkyRenderer, SkySettings};
+pub use sky::{ColourMode, SkyBackground, SkyCamera, SkyRenderer, SkySettings, SkyTimings};

@@ -27,29 +27,6 @@ impl Default for PlaneView {
     }
 }
 
-/// What an aurora scene's frames show.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AuroraView {
-    /// The aurora as a camera sees it ([`crate::sky`]).
-    #[default]
-    Sky,
-    /// The x-z simulation plane from above.
-    Plane,
-}
-
-/// Render settings of an aurora scene (`[render]`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RenderSettings {
-    /// What the frames show.
-    pub view: AuroraView,
-    /// The plane view's layers.
-    pub plane: PlaneView,
-    /// The sky view.
-    pub sky: crate::sky::SkySettings,
-}
-
 /// Maps plane km to pixels, preserving aspect (the plane is centred, letterboxed).
 struct Mapping {
     scale: f32,

@@ -259,7 +259,7 @@ pub fn segments_intersect(a: Vec2, b: Vec2, c: Vec2, d: Vec2) -> bool {
 pub struct Shape {
     /// Control point positions (x, z), km.
     pub points: Vec<Vec2>,
-    /// Link from each point to the next one of its chain, if any.
+    /// Link from each point to the next one of its chain, if any (one entry per point).
     pub next: Vec<Option<u32>>,
     /// Sheet of each point.
     pub sheet: Vec<u32>,
@@ -456,6 +456,11 @@ impl Animation {
             }
             topology.push(next.clone());
         }
+        // Points added by later transitions do not exist yet in earlier ones: unlinked
+        // there, so every shape has one link entry per point.
+        for links in &mut topology {
+            links.resize(rules.len(), None);
+        }
         // Positions of added points in every keyframe, from their rules (anchors are
         // always earlier points, so one pass in id order suffices).
         for pos in positions.iter_mut() {
@@ -583,24 +588,22 @@ fn clamped_spline_slopes(x: &[f32], y: &[Vec2]) -> Vec<Vec2> {
     m
 }
 
+/// The first pair of segments (segment of `a`, segment of `b`) at which two polylines
+/// meet (touching counts), if any: the one crossing rule of §2.2.1 ("aurora sheets never
+/// cross"), used to refuse crossing keyframes and crossing strokes in the editor.
+pub fn first_crossing(a: &[Vec2], b: &[Vec2]) -> Option<(usize, usize)> {
+    a.windows(2).enumerate().find_map(|(i, sa)| {
+        b.windows(2).position(|sb| segments_intersect(sa[0], sa[1], sb[0], sb[1])).map(|j| (i, j))
+    })
+}
+
 /// Refuse sheets that cross each other in one keyframe (§2.2.1).
 fn check_crossings(pos: &[Vec2], sheets: usize, n: usize, keyframe: usize) -> Result<(), ShapeError> {
     for sa in 0..sheets {
         for sb in sa + 1..sheets {
-            for i in 0..n - 1 {
-                let (a0, a1) = (pos[sa * n + i], pos[sa * n + i + 1]);
-                for j in 0..n - 1 {
-                    let (b0, b1) = (pos[sb * n + j], pos[sb * n + j + 1]);
-                    if segments_intersect(a0, a1, b0, b1) {
-                        return Err(ShapeError::Crossing {
-                            keyframe,
-                            a: sa,
-                            b: sb,
-                            segment_a: i,
-                            segment_b: j,
-                        });
-                    }
-                }
+            let (a, b) = (&pos[sa * n..(sa + 1) * n], &pos[sb * n..(sb + 1) * n]);
+            if let Some((segment_a, segment_b)) = first_crossing(a, b) {
+                return Err(ShapeError::Crossing { keyframe, a: sa, b: sb, segment_a, segment_b });
             }
         }
     }
@@ -643,6 +646,12 @@ mod tests {
         assert!(matches!(e, ShapeError::Crossing { keyframe: 0, a: 0, b: 1, .. }), "{e}");
         assert!(segments_intersect(Vec2::ZERO, Vec2::X, Vec2::X, Vec2::new(2.0, 0.0)), "touching counts");
         assert!(!segments_intersect(Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::new(1.0, 1.0)));
+        // The first meeting pair, by segment of the first polyline then of the second.
+        let zigzag = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(2.0, 2.0), Vec2::new(3.0, 2.0)];
+        let bar = [Vec2::new(1.5, -1.0), Vec2::new(1.5, 3.0)];
+        assert_eq!(first_crossing(&zigzag, &bar), Some((1, 0)));
+        assert_eq!(first_crossing(&bar, &zigzag), Some((0, 1)));
+        assert_eq!(first_crossing(&zigzag[..2], &bar), None);
     }
 
     #[test]
@@ -699,6 +708,22 @@ mod tests {
         let mid = anim.shape_at(50.0);
         let gap = mid.points[5].x - mid.points[4].x;
         assert!((gap - 5.0).abs() < 1e-4, "{gap}");
+    }
+
+    /// Points added by a later transition exist, unlinked, in earlier shapes: every
+    /// shape has one link per point (exports and editors index links by point).
+    #[test]
+    fn every_shape_has_one_link_per_point() {
+        let kf = |frame| Keyframe { frame, sheets: vec![line(0.0, 0.0, 30.0, 0.0, 4)] };
+        let split = Split { keyframe: 2, start: PointRef { sheet: 0, point: 1 } };
+        let anim =
+            Animation::build(&[kf(0), kf(50), kf(100)], &[split], &[], 4, Resample::Endpoints).unwrap();
+        for frame in [0.0, 25.0, 50.0, 75.0, 100.0] {
+            let s = anim.shape_at(frame);
+            assert_eq!(s.next.len(), s.points.len(), "frame {frame}");
+            assert!(s.next.iter().flatten().all(|&j| (j as usize) < s.points.len()));
+        }
+        assert_eq!(anim.shape_at(0.0).next[4..], [None, None], "not yet split: unlinked");
     }
 
     #[test]

@@ -2,12 +2,11 @@
 //! renewed (particles redistributed against the old shape, §2.3.4; a new field computed,
 //! §2.2.3); every frame the particles move (§2.3).
 
-use std::time::Instant;
-
 use glam::Vec2;
+use phenomena_core::clock::SharedClock;
 use phenomena_core::noise::NoiseSampler;
 use phenomena_core::rng::{Purpose, Stream};
-use phenomena_core::validate::Issue;
+use phenomena_core::validate::InvalidConfig;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{AuroraConfig, FieldParams};
@@ -24,8 +23,8 @@ const INITIAL_STREAM: u64 = 0;
 #[derive(Debug, thiserror::Error)]
 pub enum AuroraError {
     /// Invalid parameters; every problem listed.
-    #[error("invalid aurora configuration: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
-    Config(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// The shapes could not be built.
     #[error("invalid aurora shapes: {0}")]
     Shape(#[from] ShapeError),
@@ -76,16 +75,16 @@ pub struct FieldInputs<'a> {
 impl FieldState {
     /// One renewal's field (§2.2.3): sample charges near `shape`, count them per cell,
     /// solve the Poisson equation, add the noise, take E by central differences. Records
-    /// the times of sampling and of the rest in `stats`.
-    pub fn build(shape: Shape, inputs: &FieldInputs<'_>, stats: &mut StepStats) -> Self {
+    /// the times of sampling and of the rest in `stats`, read from `clock`.
+    pub fn build(shape: Shape, inputs: &FieldInputs<'_>, stats: &mut StepStats, clock: &SharedClock) -> Self {
         let (grid, f) = (inputs.grid, inputs.params);
-        let t = Instant::now();
+        let t = clock.stopwatch();
         let stream = 1 + inputs.renewal;
         let charges =
             sample_near_shape(&shape, f.reach_km, f.charges as usize, f.sampler, inputs.seed, stream);
         let counts = count_per_cell(grid, &charges);
-        stats.sampling_ms = ms(t);
-        let t = Instant::now();
+        stats.sampling_ms = t.ms();
+        let t = clock.stopwatch();
         let source: Vec<f64> = counts.iter().map(|&n| f64::from(n)).collect();
         let (potential, _) = solve_potential(grid, &source, f.poisson);
         let mut noisy = potential.clone();
@@ -97,7 +96,7 @@ impl FieldState {
             f.noise.amplitude,
         );
         let e = electric_field(grid, &noisy);
-        stats.poisson_ms = ms(t);
+        stats.poisson_ms = t.ms();
         let near_cells = counts.iter().filter(|&&n| n > 0).count().max(1);
         let cell_area = grid.cell_km * grid.cell_km;
         let rest_density = inputs.particles as f32 / (near_cells as f32 * cell_area);
@@ -105,7 +104,8 @@ impl FieldState {
     }
 }
 
-/// What one frame did, with timings of its parts (milliseconds).
+/// What one frame did, with timings of its parts (milliseconds, 0 unless the simulation
+/// was given a clock by [`AuroraSim::set_clock`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepStats {
     /// Particles after the frame.
@@ -157,12 +157,13 @@ pub struct AuroraSim {
     particles: Particles,
     field: FieldState,
     scratch: MotionScratch,
+    clock: SharedClock,
 }
 
 impl AuroraSim {
     /// Build the shapes, place the particles near the source shape and compute its field.
     pub fn new(config: AuroraConfig, seed: u64) -> Result<Self, AuroraError> {
-        config.validate().map_err(AuroraError::Config)?;
+        config.validate().map_err(InvalidConfig::from)?;
         let animation = config.animation()?;
         let grid = config.grid();
         let model = ForceModel::new(&config.motion);
@@ -194,10 +195,17 @@ impl AuroraSim {
             particles,
             field: FieldState::default(),
             scratch: MotionScratch::default(),
+            clock: SharedClock::default(),
         };
         let mut stats = StepStats::default();
         sim.renew(&mut stats, false);
         Ok(sim)
+    }
+
+    /// Time the parts of each step with `clock` (the library reads no clock itself;
+    /// without one the timings in [`StepStats`] are 0).
+    pub fn set_clock(&mut self, clock: SharedClock) {
+        self.clock = clock;
     }
 
     /// The configuration.
@@ -242,7 +250,7 @@ impl AuroraSim {
         if self.frame > 0 && self.frame.is_multiple_of(k) {
             self.renew(&mut stats, self.config.redistribution.enabled);
         }
-        let t = Instant::now();
+        let t = self.clock.stopwatch();
         stats.left_plane = step(
             &mut self.particles,
             &self.model,
@@ -251,7 +259,7 @@ impl AuroraSim {
             self.field.rest_density,
             &mut self.scratch,
         )?;
-        stats.forces_ms = ms(t);
+        stats.forces_ms = t.ms();
         self.frame += 1;
         stats.particles = self.particles.len();
         Ok(stats)
@@ -262,10 +270,11 @@ impl AuroraSim {
     fn renew(&mut self, stats: &mut StepStats, redistribute: bool) {
         stats.renewed = true;
         if redistribute && !self.field.counts.is_empty() {
-            let t = Instant::now();
+            let clock = self.clock.clone();
+            let t = clock.stopwatch();
             (stats.redistributed_removed, stats.redistributed_added, stats.crowded_cells) =
                 self.redistribute();
-            stats.redistribution_ms = ms(t);
+            stats.redistribution_ms = t.ms();
         }
         let renewal = if self.field.counts.is_empty() { 0 } else { self.field.renewal + 1 };
         let target_frame = self.frame as f32 + self.config.shape.lookahead_frames as f32;
@@ -280,7 +289,7 @@ impl AuroraSim {
             time_s,
             particles: self.particles.len(),
         };
-        self.field = FieldState::build(shape, &inputs, stats);
+        self.field = FieldState::build(shape, &inputs, stats, &self.clock);
     }
 
     /// §2.3.4 with Table 3.3's thresholds: remove particles in cells that are not near
@@ -368,6 +377,15 @@ impl AuroraSim {
     }
 }
 
-fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
+impl phenomena_core::phenomenon::Simulation for AuroraSim {
+    type StepStats = StepStats;
+    type Error = AuroraError;
+
+    fn step(&mut self) -> Result<StepStats, AuroraError> {
+        AuroraSim::step(self)
+    }
+
+    fn frames_done(&self) -> u64 {
+        self.frame()
+    }
 }

@@ -26,10 +26,11 @@
 
 use glam::{DVec3, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
+use phenomena_core::clock::SharedClock;
 use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
 use phenomena_core::rng::{Purpose, Stream};
-use phenomena_core::validate::{Issue, Issues};
+use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -164,8 +165,25 @@ impl Default for SkyCamera {
     }
 }
 
+/// What lies behind the aurora in the sky view.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum SkyBackground {
+    /// A black night sky (with the stars and the ground when those are switched on).
+    #[default]
+    Night,
+    /// An image file (sRGB, stretched bilinearly to the frame's size; e.g. a photograph
+    /// of a night landscape) under the aurora's light, which is added to it; the caller
+    /// loads it and passes it to [`SkyRenderer::new`]. Stars and ground are still drawn
+    /// when switched on.
+    Image {
+        /// Path, relative to the scene file.
+        path: std::path::PathBuf,
+    },
+}
+
 /// Settings of the sky view (`[render.sky]`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SkySettings {
     /// Emission and colour model.
@@ -210,6 +228,8 @@ pub struct SkySettings {
     /// `paper` mode: image value of one unattenuated 557.7 nm emission (the other lines
     /// scale by their colour-matching values, eq 2.29; line layers count emissions).
     pub paper_emission_brightness: f32,
+    /// Behind the aurora.
+    pub background: SkyBackground,
 }
 
 impl Default for SkySettings {
@@ -231,6 +251,7 @@ impl Default for SkySettings {
             white_kilorayleigh: 20.0,
             paper: PaperFall::default(),
             paper_emission_brightness: 0.05,
+            background: SkyBackground::Night,
         }
     }
 }
@@ -263,6 +284,11 @@ impl SkySettings {
         i.range_open_low("white_kilorayleigh", self.white_kilorayleigh, 0.0, 1e6);
         i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=9.0);
         i.range("paper_emission_brightness", self.paper_emission_brightness, 0.0..=1e9);
+        if let SkyBackground::Image { path } = &self.background
+            && path.as_os_str().is_empty()
+        {
+            i.push("background.path", "\"\"", "the path of a PNG file");
+        }
         i.into_result()
     }
 
@@ -304,14 +330,18 @@ pub struct SkyRenderer {
     lines: [Plane; 5],
     glow_started: bool,
     frame: Frame,
+    /// The image behind the aurora at the frame's size, if any.
+    background: Option<Frame>,
     timings: SkyTimings,
+    clock: SharedClock,
     /// Emit for particles `i` with `i % stride == phase` only, with `stride` times the
     /// weight (stride 1: all).
     stride: usize,
     phase: usize,
 }
 
-/// Where the last render's time went, ms.
+/// Where the last render's time went, ms (0 unless the renderer was given a clock by
+/// [`SkyRenderer::set_clock`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SkyTimings {
     /// Emission points: falls or profile sampling, projection, bucketing.
@@ -335,18 +365,34 @@ enum Model {
 #[derive(Debug, thiserror::Error)]
 pub enum SkyError {
     /// Settings out of range.
-    #[error("invalid sky settings: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
-    Settings(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// The image size.
     #[error("cannot render a {0}×{1} image")]
     Size(usize, usize),
+    /// `background.kind = "image"` but no image was supplied.
+    #[error("the background is an image file but none was loaded")]
+    MissingBackground,
 }
 
 impl SkyRenderer {
-    /// A renderer for `width × height` images.
-    pub fn new(settings: SkySettings, width: usize, height: usize) -> Result<Self, SkyError> {
-        settings.validate().map_err(SkyError::Settings)?;
+    /// A renderer for `width × height` images; `background` is the loaded image (linear
+    /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
+    /// settings ask for one.
+    pub fn new(
+        settings: SkySettings,
+        width: usize,
+        height: usize,
+        background: Option<&Frame>,
+    ) -> Result<Self, SkyError> {
+        settings.validate().map_err(InvalidConfig::from)?;
         let view = settings.camera.camera().view(width, height).ok_or(SkyError::Size(width, height))?;
+        let background = match &settings.background {
+            SkyBackground::Image { .. } => {
+                Some(background.ok_or(SkyError::MissingBackground)?.resized(width, height))
+            }
+            SkyBackground::Night => None,
+        };
         let air = Atmosphere::msis21();
         let model = match settings.mode {
             ColourMode::Paper => {
@@ -361,21 +407,30 @@ impl SkyRenderer {
             }
         };
         let scale = width as f32 / 1280.0;
+        let sigma_px = settings.splat_sigma_px.to_array().map(|s| s * scale);
+        let eye = settings.camera.camera().position;
         Ok(Self {
             settings,
             width,
             height,
             view,
-            eye: settings.camera.camera().position,
-            sigma_px: settings.splat_sigma_px.to_array().map(|s| s * scale),
+            eye,
+            sigma_px,
             model,
             lines: std::array::from_fn(|_| Plane::new(width, height)),
             glow_started: false,
             frame: Frame::new(width, height),
+            background,
             timings: SkyTimings::default(),
+            clock: SharedClock::default(),
             stride: 1,
             phase: 0,
         })
+    }
+
+    /// Time the parts of each render with `clock` (the library reads no clock itself).
+    pub fn set_clock(&mut self, clock: SharedClock) {
+        self.clock = clock;
     }
 
     /// The settings.
@@ -421,7 +476,8 @@ impl SkyRenderer {
     /// Render the sky over `sim`'s current particles; returns linear sRGB.
     pub fn render(&mut self, sim: &AuroraSim) -> &Frame {
         let mut fresh = self.emit_and_deposit(sim);
-        let t = std::time::Instant::now();
+        let clock = self.clock.clone();
+        let t = clock.stopwatch();
         for (plane, sigma) in fresh.iter_mut().zip(self.sigma_px) {
             plane.gaussian_blur(sigma);
         }
@@ -439,22 +495,30 @@ impl SkyRenderer {
             _ => self.lines = fresh,
         }
         self.glow_started = true;
-        self.timings.blur_ms = ms(t);
-        let t = std::time::Instant::now();
+        self.timings.blur_ms = t.ms();
+        let t = clock.stopwatch();
         self.colour();
+        if let Some(bg) = &self.background {
+            for (out, under) in self.frame.planes_mut().into_iter().zip([&bg.c0, &bg.c1, &bg.c2]) {
+                for (o, u) in out.data_mut().iter_mut().zip(under.data()) {
+                    *o += *u;
+                }
+            }
+        }
         if self.settings.stars {
             self.draw_stars(sim.seed());
         }
         if self.settings.ground {
             self.draw_ground();
         }
-        self.timings.colour_ms = ms(t);
+        self.timings.colour_ms = t.ms();
         &self.frame
     }
 
     /// Emissions of all particles, deposited into five unblurred line images.
     fn emit_and_deposit(&mut self, sim: &AuroraSim) -> [Plane; 5] {
-        let t = std::time::Instant::now();
+        let clock = self.clock.clone();
+        let t = clock.stopwatch();
         let particles = sim.particles();
         let chunks: Vec<(Vec<Splat>, Vec<u32>)> = (0..particles.len().div_ceil(CHUNK))
             .into_par_iter()
@@ -475,11 +539,11 @@ impl SkyRenderer {
                 bucket_by_band(splats, self.height)
             })
             .collect();
-        self.timings.emit_ms = ms(t);
+        self.timings.emit_ms = t.ms();
         self.timings.points = chunks.iter().map(|c| c.0.len()).sum();
-        let t = std::time::Instant::now();
+        let t = clock.stopwatch();
         let planes = deposit_banded(&chunks, self.width, self.height);
-        self.timings.deposit_ms = ms(t);
+        self.timings.deposit_ms = t.ms();
         planes
     }
 
@@ -673,10 +737,6 @@ impl SkyRenderer {
                 }
             });
     }
-}
-
-fn ms(t: std::time::Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
 }
 
 /// Share `total` emission points among the lines in proportion to the colour each

@@ -46,7 +46,7 @@ fn a_curtain_is_green_in_the_middle_and_redder_on_top() {
         ..SkySettings::default()
     };
     let s = sim(20_000, 3);
-    let mut sky = SkyRenderer::new(settings, 320, 240).expect("sky");
+    let mut sky = SkyRenderer::new(settings, 320, 240, None).expect("sky");
     let frame = sky.render(&s).clone();
     // Image rows of altitudes a..b at the curtain's distance (the centre of the plane is
     // 1500 km away; 240 px span 2·1500·tan 8° = 421.6 km, so 0.569 px/km).
@@ -83,7 +83,7 @@ fn the_red_line_lingers_after_the_particles_move_on() {
     let mut second = AuroraSim::new(config, 7).expect("moved arc");
     second.step().expect("step");
     let settings = SkySettings { afterglow: true, ..SkySettings::default() };
-    let mut sky = SkyRenderer::new(settings, 200, 120).expect("sky");
+    let mut sky = SkyRenderer::new(settings, 200, 120, None).expect("sky");
     sky.render(&first);
     let before = sky.line_images().clone();
     sky.render(&second);
@@ -125,7 +125,7 @@ fn sky_renders_are_identical_for_one_and_two_threads() {
         let render = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
             pool.install(|| {
-                let mut sky = SkyRenderer::new(settings, 160, 90).expect("sky");
+                let mut sky = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
                 sky.render(&s).to_interleaved()
             })
         };
@@ -139,7 +139,7 @@ fn sky_renders_are_identical_for_one_and_two_threads() {
 fn the_dome_master_shows_the_sky_inside_its_circle() {
     let s = sim(8_000, 2);
     let settings = SkySettings { camera: SkyCamera::Dome { fov_deg: 180.0 }, ..SkySettings::default() };
-    let mut sky = SkyRenderer::new(settings, 128, 128).expect("sky");
+    let mut sky = SkyRenderer::new(settings, 128, 128, None).expect("sky");
     let frame = sky.render(&s);
     let (mut inside, mut outside) = (0.0f64, 0.0f64);
     for y in 0..128 {
@@ -166,7 +166,7 @@ fn the_panorama_shows_the_arc_above_the_horizon_from_east_to_west() {
     // above the horizon (upper half) and reaches both the eastern and western quarters.
     let s = sim(8_000, 2);
     let settings = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
-    let mut sky = SkyRenderer::new(settings, 360, 180).expect("sky");
+    let mut sky = SkyRenderer::new(settings, 360, 180, None).expect("sky");
     let frame = sky.render(&s);
     let upper = rows_rgb(frame, 0..90).iter().sum::<f64>();
     let lower = rows_rgb(frame, 90..180).iter().sum::<f64>();
@@ -193,10 +193,10 @@ fn the_ground_hides_what_is_below_the_horizon_and_stars_shine_above_it() {
     let s = sim(4_000, 1);
     let base = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
     let render = |settings: SkySettings| {
-        let mut sky = SkyRenderer::new(settings, 360, 180).expect("sky");
+        let mut sky = SkyRenderer::new(settings, 360, 180, None).expect("sky");
         sky.render(&s).clone()
     };
-    let plain = render(base);
+    let plain = render(base.clone());
     let starry = render(SkySettings { stars: true, ground: true, ..base });
     // Elevation of row y's centre: 90° - (y + 0.5)·1°. Rows 91.. are below -0.5°.
     let lower = rows_rgb(&starry, 91..180);
@@ -222,14 +222,14 @@ fn the_phases_of_a_particle_subset_average_to_the_full_image() {
     // up to f32 rounding of the sums (relative 1e-4 is ~800 ulps of headroom).
     let s = sim(20_000, 3);
     let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };
-    let mut full = SkyRenderer::new(settings, 160, 90).expect("sky");
+    let mut full = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
     full.render(&s);
     let reference: Vec<Vec<f32>> = full.line_images().iter().map(|p| p.data().to_vec()).collect();
     let k = 4;
     let mut mean = vec![vec![0.0f64; reference[0].len()]; 5];
     let mut one_phase_differs = false;
     for phase in 0..k {
-        let mut sky = SkyRenderer::new(settings, 160, 90).expect("sky");
+        let mut sky = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
         sky.set_particle_subset(k, phase);
         sky.render(&s);
         for (m, (plane, r)) in mean.iter_mut().zip(sky.line_images().iter().zip(&reference)) {

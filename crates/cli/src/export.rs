@@ -8,9 +8,8 @@ use phenomena_core::color::{
     Observer, blackbody_srgb_normalized, blackbody_xyz, srgb_encode_u8, xy_chromaticity,
 };
 
-use crate::output;
-use crate::scene::Scene;
-use phenomena_aurora::AuroraSim;
+use phenomena_scene::output::{ensure_dir, write_bytes_atomic, write_png_rgb8};
+use phenomena_scene::{Assets, Scene, Simulate, registry};
 
 /// Output format of the blackbody table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -66,10 +65,10 @@ pub(crate) fn blackbody(
 ) -> Result<String> {
     let temps = temperatures(min_k, max_k, step_k)?;
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        output::ensure_dir(parent)?;
+        ensure_dir(parent)?;
     }
     match format {
-        TableFormat::Csv => output::write_bytes_atomic(out, blackbody_csv(&temps).as_bytes())?,
+        TableFormat::Csv => write_bytes_atomic(out, blackbody_csv(&temps).as_bytes())?,
         TableFormat::Png => {
             let rgb: Vec<u8> = temps
                 .iter()
@@ -78,7 +77,7 @@ pub(crate) fn blackbody(
                     [c.x, c.y, c.z].map(|v| srgb_encode_u8(v as f32))
                 })
                 .collect();
-            output::write_png_rgb8(out, temps.len() as u32, 1, &rgb)?;
+            write_png_rgb8(out, temps.len() as u32, 1, &rgb)?;
         }
     }
     Ok(format!("wrote {} temperatures ({min_k}-{max_k} K) to {}", temps.len(), out.display()))
@@ -87,10 +86,10 @@ pub(crate) fn blackbody(
 /// Write the aurora's model atmosphere table.
 pub(crate) fn atmosphere(out: &Path) -> Result<String> {
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        output::ensure_dir(parent)?;
+        ensure_dir(parent)?;
     }
     let air = phenomena_aurora::atmosphere::Atmosphere::msis21();
-    output::write_bytes_atomic(out, air.to_csv().as_bytes())?;
+    write_bytes_atomic(out, air.to_csv().as_bytes())?;
     let (lo, hi) = air.range_km();
     Ok(format!(
         "wrote the NRLMSIS 2.1 atmosphere ({lo}-{hi} km, {} rows) to {}",
@@ -125,9 +124,9 @@ pub(crate) fn aurora_profile(
         &Yields::default(),
     );
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        output::ensure_dir(parent)?;
+        ensure_dir(parent)?;
     }
-    output::write_bytes_atomic(out, model.to_csv().as_bytes())?;
+    write_bytes_atomic(out, model.to_csv().as_bytes())?;
     let green = model.column_photons_cm2_s(phenomena_aurora::emission::Line::O557) / 1e6;
     Ok(format!(
         "wrote the column model ({} rows; 557.7 nm column {green:.0} R, peak at {} km) to {}",
@@ -137,113 +136,40 @@ pub(crate) fn aurora_profile(
     ))
 }
 
-/// Mesh file formats for the snow.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum MeshFile {
-    Glb,
-    Obj,
-    Ply,
-}
-
-/// Simulate a snow scene for `time_h` hours (default: its frames' worth) and write the
-/// snow mesh.
-pub(crate) fn snow_mesh(
+/// Simulate the scene file `scene_path` for `steps` frames and write its export `name`
+/// (one of its phenomenon's exports) in `format` to `out`; returns the export's summary.
+pub(crate) fn scene_export(
     scene_path: &Path,
-    format: MeshFile,
-    time_h: Option<f64>,
+    name: &str,
+    format: &str,
+    steps: impl FnOnce(&Scene) -> Result<u32>,
     out: &Path,
 ) -> Result<String> {
-    use phenomena_snow::export::{snow_mesh, to_glb, to_obj, to_ply};
-    let scene = crate::scene::load(scene_path)?;
-    let Scene::Snow(s) = &scene else {
+    let scene = phenomena_scene::load(scene_path)?;
+    let p = scene.phenomenon();
+    if !p.exports().iter().any(|e| e.name == name) {
+        let from: Vec<&str> = registry::PHENOMENA
+            .iter()
+            .filter(|q| q.exports().iter().any(|e| e.name == name))
+            .map(|q| q.name())
+            .collect();
         bail!(
-            "{} holds a {} scene; snow meshes come from snow scenes",
+            "{} holds a {} scene; `{name}` is exported from {} scenes",
             scene_path.display(),
-            scene.phenomenon()
+            p.name(),
+            from.join(" and ")
         );
-    };
-    let dt = f64::from(s.snow.time_step_h);
-    let time = time_h.unwrap_or(f64::from(s.scene.frames) * dt);
-    if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
-        bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
     }
-    let mesh = crate::render::snow_mesh(s, scene_path.parent().unwrap_or(Path::new(".")))?;
-    let mut sim = phenomena_snow::SnowSim::new(mesh, s.snow.clone(), s.scene.seed)?;
-    let steps = (time / dt).round() as u64;
-    for _ in 0..steps {
-        sim.step();
-    }
-    let tris = snow_mesh(&sim);
+    let steps = steps(&scene)?;
+    let mut runner = crate::render::runner(&scene, &Assets::beside(scene_path))?;
+    crate::render::warn(&runner);
+    runner.run(0..steps, &mut Simulate, &mut ())?;
+    let exported = runner.export(name, format).map_err(anyhow::Error::msg)?;
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        output::ensure_dir(parent)?;
+        ensure_dir(parent)?;
     }
-    let bytes = match format {
-        MeshFile::Glb => to_glb(&tris),
-        MeshFile::Obj => to_obj(&tris).into_bytes(),
-        MeshFile::Ply => to_ply(&tris),
-    };
-    output::write_bytes_atomic(out, &bytes)?;
-    Ok(format!(
-        "wrote {} snow triangles ({:.3} m³ of snow after {:.2} h, {steps} steps) to {}",
-        tris.triangles(),
-        sim.volume_m3(),
-        steps as f64 * dt,
-        out.display()
-    ))
-}
-
-/// What `export` writes of an aurora.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum AuroraData {
-    /// `x,z,vx,vz` per particle.
-    Particles,
-    /// `sheet,index,x,z,next` per control point of the intermediate target shape.
-    Shape,
-}
-
-/// Simulate an aurora scene through frame `frame` and write its particles or shape.
-pub(crate) fn aurora(scene_path: &Path, frame: u32, out: &Path, what: AuroraData) -> Result<String> {
-    let scene = crate::scene::load(scene_path)?;
-    let Scene::Aurora(s) = &scene else {
-        bail!(
-            "{} holds a {} scene; particles and shapes are exported from aurora scenes",
-            scene_path.display(),
-            scene.phenomenon()
-        );
-    };
-    if frame >= s.scene.frames {
-        bail!("--frame {frame} is past the scene's {} frames (0..{})", s.scene.frames, s.scene.frames);
-    }
-    let mut sim = AuroraSim::new(s.aurora.clone(), s.scene.seed)?;
-    for _ in 0..=frame {
-        sim.step()?;
-    }
-    let mut text = String::new();
-    let rows = match what {
-        AuroraData::Particles => {
-            text.push_str("x,z,vx,vz\n");
-            let p = sim.particles();
-            for (x, v) in p.position_km.iter().zip(&p.velocity_km_s) {
-                let _ = writeln!(text, "{},{},{},{}", x.x, x.y, v.x, v.y);
-            }
-            p.len()
-        }
-        AuroraData::Shape => {
-            text.push_str("sheet,index,x,z,next\n");
-            let sh = &sim.field().shape;
-            for i in 0..sh.points.len() {
-                let next = sh.next[i].map(|j| sh.index_in_sheet[j as usize].to_string()).unwrap_or_default();
-                let p = sh.points[i];
-                let _ = writeln!(text, "{},{},{},{},{next}", sh.sheet[i], sh.index_in_sheet[i], p.x, p.y);
-            }
-            sh.points.len()
-        }
-    };
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        output::ensure_dir(parent)?;
-    }
-    output::write_bytes_atomic(out, text.as_bytes())?;
-    Ok(format!("wrote {rows} rows after frame {frame} to {}", out.display()))
+    write_bytes_atomic(out, &exported.bytes)?;
+    Ok(format!("wrote {} after {steps} steps to {}", exported.summary, out.display()))
 }
 
 #[cfg(test)]

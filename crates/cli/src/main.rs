@@ -3,21 +3,42 @@
 
 mod demo;
 mod export;
-mod output;
 mod render;
-mod scene;
-mod starter;
 #[cfg(feature = "studio")]
 mod studio;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
+use phenomena_scene::output::{ImageFormat, ensure_dir, write_bytes_atomic};
+use phenomena_scene::{Assets, registry};
 
 use crate::export::TableFormat;
-use crate::output::ImageFormat;
-use crate::render::{RenderJob, ViewArg};
+use crate::render::RenderJob;
+
+/// Every view of every phenomenon (`--view`), from the registry.
+fn view_names() -> PossibleValuesParser {
+    let mut names: Vec<&'static str> =
+        registry::PHENOMENA.iter().flat_map(|p| p.views().iter().map(|v| v.name)).collect();
+    names.dedup();
+    PossibleValuesParser::new(names)
+}
+
+/// Every phenomenon (`new`), from the registry.
+fn phenomenon_names() -> PossibleValuesParser {
+    PossibleValuesParser::new(registry::PHENOMENA.iter().map(|p| p.name()))
+}
+
+/// Image formats of `render`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum FormatArg {
+    /// 8-bit sRGB PNG, exposed and tone mapped.
+    Png,
+    /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping).
+    Exr,
+}
 
 /// Simulate and render natural phenomena: flame, aurora, snow cover and sparkle.
 #[derive(Parser, Debug)]
@@ -56,17 +77,18 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
         /// Image format: png (tone mapped, 8-bit sRGB) or exr (linear float radiance).
-        #[arg(long, value_enum, default_value_t = ImageFormat::Png)]
-        format: ImageFormat,
+        #[arg(long, value_enum, default_value_t = FormatArg::Png)]
+        format: FormatArg,
         /// Skip frames whose files already exist (they are still simulated).
         #[arg(long)]
         resume: bool,
         /// Write one JSON object per frame (timings, particle counts) to this file.
         #[arg(long)]
         stats: Option<PathBuf>,
-        /// What to draw: flame or density (flame scenes), plane (aurora scenes).
-        #[arg(long, value_enum)]
-        view: Option<ViewArg>,
+        /// What to draw: one of the scene's phenomenon's views (flame: flame, density;
+        /// aurora: sky, plane; snow: scene, probability; sparkle: glints).
+        #[arg(long, value_parser = view_names())]
+        view: Option<String>,
     },
     /// Export data products.
     Export {
@@ -100,8 +122,8 @@ enum Command {
     /// Write a commented starter scene holding every default.
     New {
         /// The phenomenon.
-        #[arg(value_enum)]
-        phenomenon: NewWhat,
+        #[arg(value_parser = phenomenon_names())]
+        phenomenon: String,
         /// Where to write it (default: `./PHENOMENON.toml`).
         path: Option<PathBuf>,
         /// Overwrite an existing file.
@@ -117,14 +139,6 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
     },
-}
-
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-enum NewWhat {
-    /// The SPH flame of Inagaki et al.
-    Flame,
-    /// Diamond dust or leaf glitter (Hwang and Noma).
-    Sparkle,
 }
 
 /// Format of a data table.
@@ -246,20 +260,26 @@ enum ExportWhat {
 fn run(cli: Cli) -> anyhow::Result<String> {
     match cli.command {
         Command::Render { scene, out, frames, width, height, seed, threads, format, resume, stats, view } => {
-            render::run(&RenderJob {
-                scene_path: scene,
-                out_dir: out,
-                frames,
-                width,
-                height,
-                seed,
-                threads: threads.map(usize::from),
-                format,
-                resume,
-                stats,
-                view,
-                quiet: false,
-            })
+            let format = match format {
+                FormatArg::Png => ImageFormat::Png,
+                FormatArg::Exr => ImageFormat::Exr,
+            };
+            render::run(
+                &scene,
+                &RenderJob {
+                    out_dir: out,
+                    frames,
+                    width,
+                    height,
+                    seed,
+                    threads: threads.map(usize::from),
+                    format,
+                    resume,
+                    stats,
+                    view,
+                    quiet: false,
+                },
+            )
         }
         Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
             export::blackbody(min_k, max_k, step_k, format, &out)
@@ -278,31 +298,38 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
             let format = match format {
-                MeshFormat::Glb => export::MeshFile::Glb,
-                MeshFormat::Obj => export::MeshFile::Obj,
-                MeshFormat::Ply => export::MeshFile::Ply,
+                MeshFormat::Glb => "glb",
+                MeshFormat::Obj => "obj",
+                MeshFormat::Ply => "ply",
             };
-            export::snow_mesh(&scene, format, time_h, &out)
+            let steps = |s: &phenomena_scene::Scene| {
+                let Some(snow) = s.get::<phenomena_scene::snow::SnowScene>() else { return Ok(0) };
+                let dt = f64::from(snow.snow.time_step_h);
+                let time = time_h.unwrap_or(f64::from(snow.scene.frames) * dt);
+                if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
+                    anyhow::bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
+                }
+                Ok((time / dt).round() as u32)
+            };
+            export::scene_export(&scene, "snow-mesh", format, steps, &out)
         }
         Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
-            export::aurora(&scene, frame, &out, export::AuroraData::Particles)
+            export::scene_export(&scene, "particles", "csv", |s| after_frame(s, frame), &out)
         }
         Command::Export { what: ExportWhat::Shape { scene, frame, out } } => {
-            export::aurora(&scene, frame, &out, export::AuroraData::Shape)
+            export::scene_export(&scene, "shape", "csv", |s| after_frame(s, frame), &out)
         }
         Command::New { phenomenon, path, force } => {
-            let (name, text) = match phenomenon {
-                NewWhat::Flame => ("flame", starter::FLAME),
-                NewWhat::Sparkle => ("sparkle", starter::SPARKLE),
-            };
-            let path = path.unwrap_or_else(|| PathBuf::from(format!("{name}.toml")));
+            let entry = registry::phenomenon(&phenomenon)
+                .ok_or_else(|| anyhow::anyhow!("no phenomenon `{phenomenon}`: use {}", registry::names()))?;
+            let path = path.unwrap_or_else(|| PathBuf::from(format!("{}.toml", entry.name())));
             if path.exists() && !force {
                 anyhow::bail!("{} already exists (use --force to overwrite)", path.display());
             }
             if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-                output::ensure_dir(parent)?;
+                ensure_dir(parent)?;
             }
-            output::write_bytes_atomic(&path, text.as_bytes())?;
+            write_bytes_atomic(&path, entry.starter().as_bytes())?;
             Ok(format!(
                 "wrote {}; render it with: phenomena render {} --out out",
                 path.display(),
@@ -319,16 +346,16 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         ),
         Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
         Command::Validate { scene } => {
-            let s = scene::load(&scene)?;
+            let s = phenomena_scene::load(&scene)?;
             // Everything `render` checks before its first frame: assets load and the
             // simulation and renderer accept the scene.
-            let dir = scene.parent().unwrap_or(std::path::Path::new(".")).to_path_buf();
-            render::Runner::new(&s, &dir)?;
+            let runner = render::runner(&s, &Assets::beside(&scene))?;
+            render::warn(&runner);
             let st = s.settings();
             Ok(format!(
                 "{}: ok ({} scene, {} frames at {}x{}, seed {})",
                 scene.display(),
-                s.phenomenon(),
+                s.phenomenon().name(),
                 st.frames,
                 st.width,
                 st.height,
@@ -336,6 +363,16 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             ))
         }
     }
+}
+
+/// Steps to simulate for an export "after frame `frame`" (frame 0 is after the first
+/// step), refusing frames past the scene's.
+fn after_frame(scene: &phenomena_scene::Scene, frame: u32) -> anyhow::Result<u32> {
+    let frames = scene.settings().frames;
+    if frame >= frames {
+        anyhow::bail!("--frame {frame} is past the scene's {frames} frames (0..{frames})");
+    }
+    Ok(frame + 1)
 }
 
 /// The instruction sets this build was compiled for (`.cargo/config.toml`: x86-64-v3)

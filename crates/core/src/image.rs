@@ -268,6 +268,43 @@ impl Frame {
         self.map_pixels(|v| crate::color::xyz_to_linear_srgb(v.as_dvec3()).as_vec3());
     }
 
+    /// Decode 8-bit sRGB-encoded RGB bytes (row-major triples) into a linear frame, e.g.
+    /// a user's background image. `None` if the length is not `width × height × 3`.
+    pub fn from_srgb8(width: usize, height: usize, rgb: &[u8]) -> Option<Self> {
+        if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb.len()) {
+            return None;
+        }
+        let decode: [f32; 256] = std::array::from_fn(|v| crate::color::srgb_decode(v as f32 / 255.0));
+        let mut f = Frame::new(width, height);
+        for (i, px) in rgb.chunks_exact(3).enumerate() {
+            f.c0.data[i] = decode[usize::from(px[0])];
+            f.c1.data[i] = decode[usize::from(px[1])];
+            f.c2.data[i] = decode[usize::from(px[2])];
+        }
+        Some(f)
+    }
+
+    /// This frame stretched to `width × height` by bilinear sampling at the new pixel
+    /// centres (clamped at the edges); at the same size, an exact copy. The one rule
+    /// for image backgrounds of every phenomenon: scaled to the frame, aspect not kept.
+    pub fn resized(&self, width: usize, height: usize) -> Frame {
+        if (width, height) == (self.width(), self.height()) {
+            return self.clone();
+        }
+        let mut f = Frame::new(width, height);
+        if self.width() == 0 || self.height() == 0 {
+            return f;
+        }
+        let (sx, sy) = (self.width() as f32 / width as f32, self.height() as f32 / height as f32);
+        for y in 0..height {
+            for x in 0..width {
+                let (u, v) = ((x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy);
+                f.set_pixel(x, y, self.sample_bilinear(u, v));
+            }
+        }
+        f
+    }
+
     /// Interleaved RGB triples, row-major (for encoders).
     pub fn to_interleaved(&self) -> Vec<f32> {
         let mut out = Vec::with_capacity(self.width() * self.height() * 3);
@@ -281,6 +318,27 @@ impl Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn srgb_bytes_decode_and_resize_keeps_flat_colour() {
+        assert!(Frame::from_srgb8(2, 2, &[0; 11]).is_none());
+        let f = Frame::from_srgb8(2, 1, &[255, 0, 188, 0, 255, 0]).unwrap();
+        assert_eq!(f.pixel(0, 0).x, 1.0);
+        assert_eq!(f.pixel(0, 0).y, 0.0);
+        // sRGB 188/255 is about 0.5 linear (IEC 61966-2-1).
+        assert!((f.pixel(0, 0).z - 0.5).abs() < 0.01, "{}", f.pixel(0, 0).z);
+        assert_eq!(f.resized(2, 1), f, "same size: an exact copy");
+        let mut flat = Frame::new(3, 2);
+        flat.map_pixels(|_| Vec3::new(0.25, 0.5, 0.75));
+        let big = flat.resized(7, 5);
+        assert_eq!((big.width(), big.height()), (7, 5));
+        // Bilinear weights sum to one: a flat image stays flat (to rounding).
+        for y in 0..5 {
+            for x in 0..7 {
+                assert!((big.pixel(x, y) - Vec3::new(0.25, 0.5, 0.75)).abs().max_element() < 1e-6);
+            }
+        }
+    }
 
     #[test]
     fn blur_of_a_delta_is_the_sampled_gaussian() {

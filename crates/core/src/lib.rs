@@ -11,9 +11,12 @@
 //! - [`camera`]: look-at cameras: perspective, orthographic, fisheye, equirectangular.
 //! - [`raster`]: triangle z-buffer rasteriser for depth and shadow maps, with ids.
 //! - [`validate`]: configuration problems that name the field, the value and the valid range.
+//! - [`phenomenon`]: the one API shape of every phenomenon ([`phenomenon::Simulation`],
+//!   [`phenomenon::Renderer`]).
+//! - [`clock`]: timings through a clock the caller injects (libraries read no clock).
 //! - [`serde_vec`]: strict `[x, y, z]` parsing for configuration files.
 //!
-//! This crate does no file, terminal or network IO.
+//! This crate does no file, terminal or network IO and reads no clock.
 //!
 //! ```
 //! use phenomena_core::color::{blackbody_srgb_normalized, blackbody_xyz, xy_chromaticity, Observer};
@@ -28,6 +31,7 @@
 //! None yet.
 
 pub mod camera;
+pub mod clock;
 mod cmf_data;
 pub mod color;
 pub mod grid;
@@ -35,6 +39,7 @@ pub mod image;
 pub mod kernel;
 pub mod noise;
 pub mod pairs;
+pub mod phenomenon;
 pub mod raster;
 pub mod rng;
 pub mod serde_vec;

@@ -41,6 +41,6 @@ pub use config::{
 };
 pub use render::{
     BAND_ROWS, Background, BlackbodyLut, Brightness, FlameRenderer, RenderError, RenderSettings, Shimmer,
-    View, frame_from_srgb8,
+    View,
 };
 pub use sim::{FlameError, FlameSim, FlameState, MAX_NEIGHBORS, Particles, StepStats};

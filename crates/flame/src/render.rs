@@ -12,11 +12,9 @@
 
 use glam::{DVec3, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
-use phenomena_core::color::{
-    Observer, blackbody_srgb_normalized, blackbody_xyz, srgb_decode, xyz_to_linear_srgb,
-};
+use phenomena_core::color::{Observer, blackbody_srgb_normalized, blackbody_xyz, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
-use phenomena_core::validate::{Issue, Issues};
+use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -104,7 +102,7 @@ pub enum Background {
     /// caller loads it and passes it to [`FlameRenderer::new`].
     Image {
         /// Path of the PNG.
-        path: String,
+        path: std::path::PathBuf,
     },
 }
 
@@ -210,7 +208,7 @@ impl RenderSettings {
                 i.vector("background.zenith", &zenith.to_array(), 1e6);
                 i.vector("background.horizon", &horizon.to_array(), 1e6);
             }
-            Background::Image { path } if path.is_empty() => {
+            Background::Image { path } if path.as_os_str().is_empty() => {
                 i.push("background.path", "\"\"", "the path of a PNG file")
             }
             _ => {}
@@ -223,8 +221,8 @@ impl RenderSettings {
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     /// Invalid settings; every problem listed.
-    #[error("invalid flame render settings: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
-    Settings(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// The frame size is zero or too large.
     #[error("frame size {0}x{1} is outside 1x1 ..= 16384x16384")]
     Size(usize, usize),
@@ -329,7 +327,7 @@ impl FlameRenderer {
         height: usize,
         background_image: Option<&Frame>,
     ) -> Result<Self, RenderError> {
-        settings.validate().map_err(RenderError::Settings)?;
+        settings.validate().map_err(InvalidConfig::from)?;
         if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
             return Err(RenderError::Size(width, height));
         }
@@ -339,7 +337,7 @@ impl FlameRenderer {
         let splat_view = settings.camera.view(splat_w, splat_h).ok_or(RenderError::Size(width, height))?;
         let background = match &settings.background {
             Background::Image { .. } => {
-                resample(background_image.ok_or(RenderError::MissingBackground)?, width, height)
+                background_image.ok_or(RenderError::MissingBackground)?.resized(width, height)
             }
             other => procedural_background(other, width, height),
         };
@@ -743,6 +741,16 @@ impl BandBuffers<'_> {
     }
 }
 
+impl phenomena_core::phenomenon::Renderer<FlameSim> for FlameRenderer {
+    fn render(&mut self, sim: &FlameSim) -> &Frame {
+        FlameRenderer::render(self, sim)
+    }
+
+    fn frame(&self) -> &Frame {
+        FlameRenderer::frame(self)
+    }
+}
+
 /// A built-in background at the frame size.
 fn procedural_background(bg: &Background, width: usize, height: usize) -> Frame {
     let mut f = Frame::new(width, height);
@@ -763,45 +771,6 @@ fn procedural_background(bg: &Background, width: usize, height: usize) -> Frame 
         }
     }
     f
-}
-
-/// Stretch a frame to `width × height` by bilinear sampling.
-fn resample(src: &Frame, width: usize, height: usize) -> Frame {
-    let mut f = Frame::new(width, height);
-    let (sx, sy) = (src.width() as f32 / width as f32, src.height() as f32 / height as f32);
-    for y in 0..height {
-        for x in 0..width {
-            let (u, v) = ((x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy);
-            f.set_pixel(
-                x,
-                y,
-                Vec3::new(
-                    src.c0.sample_bilinear(u, v),
-                    src.c1.sample_bilinear(u, v),
-                    src.c2.sample_bilinear(u, v),
-                ),
-            );
-        }
-    }
-    f
-}
-
-/// Decode 8-bit sRGB-encoded RGB bytes (row-major triples) into a linear frame, for
-/// user backgrounds. `None` if the length does not match.
-pub fn frame_from_srgb8(width: usize, height: usize, rgb: &[u8]) -> Option<Frame> {
-    if rgb.len() != width * height * 3 {
-        return None;
-    }
-    let mut f = Frame::new(width, height);
-    for (i, px) in rgb.chunks_exact(3).enumerate() {
-        let c = Vec3::new(
-            srgb_decode(f32::from(px[0]) / 255.0),
-            srgb_decode(f32::from(px[1]) / 255.0),
-            srgb_decode(f32::from(px[2]) / 255.0),
-        );
-        f.set_pixel(i % width, i / width, c);
-    }
-    Some(f)
 }
 
 #[cfg(test)]

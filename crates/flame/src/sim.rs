@@ -5,7 +5,7 @@ use glam::Vec3;
 use phenomena_core::grid::{GridError, NeighborGrid};
 use phenomena_core::kernel::{Dim, Kernel, KernelKind};
 use phenomena_core::rng::{Purpose, Stream};
-use phenomena_core::validate::Issue;
+use phenomena_core::validate::InvalidConfig;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -32,8 +32,8 @@ const GRID_RINGS: usize = 1;
 #[derive(Debug, thiserror::Error)]
 pub enum FlameError {
     /// The configuration is invalid; every problem is listed.
-    #[error("invalid flame configuration: {}", .0.iter().map(|i| i.to_string()).collect::<Vec<_>>().join("; "))]
-    Config(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// The neighbour grid could not be built (e.g. a particle became non-finite).
     #[error("neighbour search failed")]
     Grid(#[from] GridError),
@@ -233,7 +233,7 @@ pub struct FlameSim {
 impl FlameSim {
     /// A simulation with no particles yet; the burner adds them from the first step.
     pub fn new(config: FlameConfig, seed: u64) -> Result<Self, FlameError> {
-        config.validate().map_err(FlameError::Config)?;
+        config.validate().map_err(InvalidConfig::from)?;
         let d = config.sph.support_radius_m;
         Ok(Self {
             density_kernel: Kernel::new(KernelKind::Poly6, Dim::Three, d),
@@ -305,7 +305,7 @@ impl FlameSim {
     pub fn set_wind(&mut self, wind: crate::config::Wind) -> Result<(), FlameError> {
         let mut config = self.config.clone();
         config.wind = wind;
-        config.validate().map_err(FlameError::Config)?;
+        config.validate().map_err(InvalidConfig::from)?;
         self.config = config;
         Ok(())
     }
@@ -565,6 +565,19 @@ impl FlameSim {
     }
 }
 
+impl phenomena_core::phenomenon::Simulation for FlameSim {
+    type StepStats = StepStats;
+    type Error = FlameError;
+
+    fn step(&mut self) -> Result<StepStats, FlameError> {
+        FlameSim::step(self)
+    }
+
+    fn frames_done(&self) -> u64 {
+        self.frame()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -640,6 +653,8 @@ mod tests {
     #[test]
     fn invalid_config_is_refused() {
         let c = FlameConfig { substeps: 0, ..Default::default() };
-        assert!(matches!(FlameSim::new(c, 0), Err(FlameError::Config(v)) if v[0].field == "substeps"));
+        assert!(
+            matches!(FlameSim::new(c, 0), Err(FlameError::Invalid(v)) if v.issues[0].field == "substeps")
+        );
     }
 }

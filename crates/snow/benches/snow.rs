@@ -5,12 +5,12 @@
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene};
 use phenomena_snow::reference::naive_vertex_probability;
-use phenomena_snow::{SnowParams, SnowSim};
+use phenomena_snow::{SnowConfig, SnowSim};
 use std::hint::black_box;
 
 fn probability(c: &mut Criterion) {
     let params =
-        SnowParams { map_resolution: 128, directions: 64, shadow_resolution: 256, ..SnowParams::default() };
+        SnowConfig { map_resolution: 128, directions: 64, shadow_resolution: 256, ..SnowConfig::default() };
     let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).expect("table scene");
     c.bench_function("snow_probability_table_64dirs_256", |b| {
         b.iter(|| sim.update_probability().expect("raster"))
@@ -22,7 +22,7 @@ fn probability(c: &mut Criterion) {
 fn village(c: &mut Criterion) {
     let mesh = village_scene();
     let params =
-        SnowParams { map_resolution: 256, directions: 64, shadow_resolution: 256, ..SnowParams::default() };
+        SnowConfig { map_resolution: 256, directions: 64, shadow_resolution: 256, ..SnowConfig::default() };
     let mut sim = SnowSim::new(mesh.clone(), params, 1).expect("village");
     let mut group = c.benchmark_group("snow_village");
     group.sample_size(10);
@@ -32,7 +32,7 @@ fn village(c: &mut Criterion) {
     // The paper's comparison (Table 1): per-vertex rays against every triangle, here with
     // 8 directions, against the shadow-map method with the same 8 directions.
     let params8 =
-        SnowParams { map_resolution: 256, directions: 8, shadow_resolution: 256, ..SnowParams::default() };
+        SnowConfig { map_resolution: 256, directions: 8, shadow_resolution: 256, ..SnowConfig::default() };
     let mut sim8 = SnowSim::new(mesh.clone(), params8, 1).expect("village");
     let dirs: Vec<_> = sim8.directions().to_vec();
     group.bench_function("probability_8dirs_256", |b| b.iter(|| sim8.update_probability().expect("raster")));
@@ -45,26 +45,26 @@ fn village(c: &mut Criterion) {
 fn step(c: &mut Criterion) {
     // Fig 8: one group per object, 128×128 maps, repose 45°; 2 cm/h in 0.1 h steps,
     // measured from the state after 5 h (10 cm of snow).
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 128,
         directions: 16,
         object_groups: Some(vec![0, 1, 2, 3, 4]),
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     let mut sim = SnowSim::new(primitives_scene(), params, 1).expect("primitives");
     assert_eq!(sim.maps().len(), 5);
     for _ in 0..50 {
-        sim.step();
+        sim.step().unwrap();
     }
     c.bench_function("snow_step_5_maps_128", |b| {
-        b.iter_batched_ref(|| sim.clone(), |s| black_box(s.step()), BatchSize::LargeInput)
+        b.iter_batched_ref(|| sim.clone(), |s| black_box(s.step().unwrap()), BatchSize::LargeInput)
     });
     // Issue 5's step: accumulation + stabilisation + remesh (the snow solids).
     c.bench_function("snow_step_and_remesh_5_maps_128", |b| {
         b.iter_batched_ref(
             || sim.clone(),
             |s| {
-                black_box(s.step());
+                black_box(s.step().unwrap());
                 black_box(phenomena_snow::export::snow_mesh(s))
             },
             BatchSize::LargeInput,

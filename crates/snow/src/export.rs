@@ -275,20 +275,20 @@ mod tests {
         let json = std::str::from_utf8(&glb[20..]).unwrap();
         assert!(json.contains(r#""scenes":[{}]"#) && !json.contains("accessors"), "{json}");
     }
-    use crate::sim::SnowParams;
+    use crate::sim::SnowConfig;
     use std::collections::HashMap;
 
     fn snowy_sim() -> SnowSim {
-        let params = SnowParams {
+        let params = SnowConfig {
             map_resolution: 40,
             directions: 8,
             shadow_resolution: 128,
             rate_cm_per_h: 10.0,
-            ..SnowParams::default()
+            ..SnowConfig::default()
         };
         let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 2).unwrap();
         for _ in 0..10 {
-            sim.step();
+            sim.step().unwrap();
         }
         sim
     }

@@ -10,10 +10,10 @@
 //! Lengths are metres, y is up, snowfall rates cm/h of snow depth.
 //!
 //! ```
-//! use phenomena_snow::{SnowParams, SnowSim, mesh::table_scene};
-//! let params = SnowParams { map_resolution: 32, directions: 8, shadow_resolution: 64, ..SnowParams::default() };
+//! use phenomena_snow::{SnowConfig, SnowSim, mesh::table_scene};
+//! let params = SnowConfig { map_resolution: 32, directions: 8, shadow_resolution: 64, ..SnowConfig::default() };
 //! let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
-//! let stats = sim.step();
+//! let stats = sim.step().unwrap();
 //! assert!(stats.volume_m3 > 0.0 && stats.stable);
 //! ```
 
@@ -25,5 +25,5 @@ pub mod reference;
 pub mod render;
 mod sim;
 
-pub use render::{Flakes, SnowRenderSettings, SnowView, render};
-pub use sim::{Footprint, SnowError, SnowMap, SnowParams, SnowSim, SnowStats, snowfall_directions};
+pub use render::{Background, Flakes, RenderError, SnowRenderSettings, SnowRenderer, SnowView};
+pub use sim::{Footprint, SnowConfig, SnowError, SnowMap, SnowSim, StepStats, snowfall_directions};

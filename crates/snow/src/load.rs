@@ -21,8 +21,13 @@ pub enum LoadError {
         message: String,
     },
     /// A glTF buffer the caller could not supply.
-    #[error("the glTF refers to a buffer `{0}` that could not be read")]
-    MissingBuffer(String),
+    #[error("the glTF buffer `{uri}` cannot be used: {reason}")]
+    Buffer {
+        /// The buffer's URI as written in the glTF file.
+        uri: String,
+        /// Why the caller could not supply it.
+        reason: String,
+    },
     /// No usable triangle.
     #[error(
         "no usable triangle ({non_finite} with non-finite vertices and {degenerate} degenerate ones dropped)"
@@ -98,19 +103,25 @@ pub fn obj(bytes: &[u8], scale: f32) -> Result<Loaded, LoadError> {
     finish(mesh, objects, scale)
 }
 
-/// Parse glTF 2.0 (JSON or GLB) bytes; `buffer(uri)` supplies external buffers.
+/// Parse glTF 2.0 (JSON or GLB) bytes; `buffer(uri)` supplies external buffers (the URI
+/// as written: a relative reference or a `data:` URI) or says why it cannot.
 /// Triangle-list primitives of every node of the default scene, with node transforms.
-pub fn gltf(bytes: &[u8], buffer: impl Fn(&str) -> Option<Vec<u8>>, scale: f32) -> Result<Loaded, LoadError> {
+pub fn gltf(
+    bytes: &[u8],
+    mut buffer: impl FnMut(&str) -> Result<Vec<u8>, String>,
+    scale: f32,
+) -> Result<Loaded, LoadError> {
     let parse = |e: gltf::Error| LoadError::Parse { format: "glTF", message: e.to_string() };
     let doc = gltf::Gltf::from_slice(bytes).map_err(parse)?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
         let data = match b.source() {
-            gltf::buffer::Source::Bin => {
-                doc.blob.clone().ok_or_else(|| LoadError::MissingBuffer("GLB BIN chunk".into()))?
-            }
+            gltf::buffer::Source::Bin => doc.blob.clone().ok_or_else(|| LoadError::Buffer {
+                uri: "(GLB BIN chunk)".into(),
+                reason: "the file has no BIN chunk".into(),
+            })?,
             gltf::buffer::Source::Uri(uri) => {
-                buffer(uri).ok_or_else(|| LoadError::MissingBuffer(uri.to_string()))?
+                buffer(uri).map_err(|reason| LoadError::Buffer { uri: uri.to_string(), reason })?
             }
         };
         if data.len() < b.length() {
@@ -219,7 +230,10 @@ mod tests {
     #[test]
     fn our_own_obj_and_glb_read_back() {
         let q = unit_quad();
-        for loaded in [obj(to_obj(&q).as_bytes(), 2.0).unwrap(), gltf(&to_glb(&q), |_| None, 2.0).unwrap()] {
+        for loaded in [
+            obj(to_obj(&q).as_bytes(), 2.0).unwrap(),
+            gltf(&to_glb(&q), |_| Err("none".into()), 2.0).unwrap(),
+        ] {
             assert_eq!(loaded.mesh.len(), 2);
             assert_eq!(loaded.cleaned, Cleaned::default());
             // Scaled by 2, facing up.
@@ -248,11 +262,14 @@ mod tests {
         assert!(matches!(obj(b"# nothing\n", 1.0), Err(LoadError::Empty { .. })));
         let e = obj(b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", 1.0).unwrap_err();
         assert_eq!(e, LoadError::Empty { non_finite: 0, degenerate: 1 });
-        assert!(matches!(gltf(b"{not json", |_| None, 1.0), Err(LoadError::Parse { format: "glTF", .. })));
+        assert!(matches!(
+            gltf(b"{not json", |_| Err("none".into()), 1.0),
+            Err(LoadError::Parse { format: "glTF", .. })
+        ));
         let external = r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"data.bin","byteLength":12}]}"#;
         assert_eq!(
-            gltf(external.as_bytes(), |_| None, 1.0).unwrap_err(),
-            LoadError::MissingBuffer("data.bin".into())
+            gltf(external.as_bytes(), |_| Err("not here".into()), 1.0).unwrap_err().to_string(),
+            "the glTF buffer `data.bin` cannot be used: not here"
         );
         assert!(matches!(
             dxf(b"0\nSECTION\n2\nENTITIES\n0\nENDSEC\n0\nEOF\n", 1.0),

@@ -7,7 +7,7 @@ use phenomena_core::camera::Camera;
 use phenomena_core::camera::Projection;
 use phenomena_core::image::Frame;
 use phenomena_core::raster::{Cull, NO_ID, rasterize};
-use phenomena_core::validate::{Issue, Issues};
+use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use serde::{Deserialize, Serialize};
 
 use crate::export::snow_mesh;
@@ -25,8 +25,23 @@ pub enum SnowView {
     Probability,
 }
 
+/// What lies behind the scene: where no triangle is seen, and what fog fades towards.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Background {
+    /// A pale overcast sky of one colour.
+    #[default]
+    Sky,
+    /// An image file (sRGB, stretched bilinearly to the frame's size); the caller loads
+    /// it and passes it to [`SnowRenderer::new`].
+    Image {
+        /// Path, relative to the scene file.
+        path: std::path::PathBuf,
+    },
+}
+
 /// Render settings of a snow scene (`[render]`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SnowRenderSettings {
     /// What to draw.
@@ -40,6 +55,8 @@ pub struct SnowRenderSettings {
     pub fog_per_m: f32,
     /// Falling flakes drawn over the scene view (decoration; none by default).
     pub flakes: Flakes,
+    /// Behind the scene.
+    pub background: Background,
 }
 
 /// Snowflakes falling through the scene view along the snowfall directions: flake k
@@ -78,6 +95,7 @@ impl Default for SnowRenderSettings {
             sun_direction: Vec3::new(-0.4, 1.0, 0.3),
             fog_per_m: 0.0,
             flakes: Flakes::default(),
+            background: Background::Sky,
         }
     }
 }
@@ -96,6 +114,11 @@ impl SnowRenderSettings {
         i.range("flakes.fall_m_per_s", self.flakes.fall_m_per_s, 0.0..=100.0);
         i.range("flakes.radius_px", self.flakes.radius_px, 0.1..=50.0);
         i.range_open_low("flakes.frames_per_s", self.flakes.frames_per_s, 0.0, 1000.0);
+        if let Background::Image { path } = &self.background
+            && path.as_os_str().is_empty()
+        {
+            i.push("background.path", "\"\"", "the path of a PNG file");
+        }
         i.into_result()
     }
 }
@@ -117,16 +140,91 @@ fn object_albedo(o: u32) -> Vec3 {
     PALETTE[o as usize % PALETTE.len()]
 }
 
-/// Draw `sim` at `width × height` (linear RGB). The camera was checked by
-/// [`SnowRenderSettings::validate`]; a degenerate one gives a black frame.
-pub fn render(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
-    match settings.view {
-        SnowView::Scene => render_scene(sim, settings, width, height),
-        SnowView::Probability => render_probability(sim, width, height),
+/// Why a renderer cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// Settings out of range.
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
+    /// The frame size is zero or too large.
+    #[error("frame size {0}x{1} is outside 1x1 ..= 16384x16384")]
+    Size(usize, usize),
+    /// `background.kind = "image"` but no image was supplied.
+    #[error("the background is an image file but none was loaded")]
+    MissingBackground,
+}
+
+/// Draws a [`SnowSim`] frame by frame into linear RGB.
+#[derive(Clone, Debug)]
+pub struct SnowRenderer {
+    settings: SnowRenderSettings,
+    /// The image behind the scene, at the frame's size (`None`: the sky colour).
+    background: Option<Frame>,
+    frame: Frame,
+}
+
+impl SnowRenderer {
+    /// A renderer of `width × height` frames; `background` is the loaded image (linear
+    /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
+    /// settings ask for one.
+    pub fn new(
+        settings: SnowRenderSettings,
+        width: usize,
+        height: usize,
+        background: Option<&Frame>,
+    ) -> Result<Self, RenderError> {
+        settings.validate().map_err(InvalidConfig::from)?;
+        if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+            return Err(RenderError::Size(width, height));
+        }
+        let background = match &settings.background {
+            Background::Image { .. } => {
+                Some(background.ok_or(RenderError::MissingBackground)?.resized(width, height))
+            }
+            Background::Sky => None,
+        };
+        Ok(Self { settings, background, frame: Frame::new(width, height) })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &SnowRenderSettings {
+        &self.settings
+    }
+
+    /// The last rendered frame.
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// Draw `sim` (linear RGB). The camera was checked by [`SnowRenderSettings::validate`];
+    /// a degenerate one gives a black frame.
+    pub fn render(&mut self, sim: &SnowSim) -> &Frame {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        self.frame = match self.settings.view {
+            SnowView::Scene => render_scene(sim, &self.settings, self.background.as_ref(), w, h),
+            SnowView::Probability => render_probability(sim, w, h),
+        };
+        &self.frame
     }
 }
 
-fn render_scene(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
+impl phenomena_core::phenomenon::Renderer<SnowSim> for SnowRenderer {
+    fn render(&mut self, sim: &SnowSim) -> &Frame {
+        SnowRenderer::render(self, sim)
+    }
+
+    fn frame(&self) -> &Frame {
+        SnowRenderer::frame(self)
+    }
+}
+
+fn render_scene(
+    sim: &SnowSim,
+    settings: &SnowRenderSettings,
+    background: Option<&Frame>,
+    width: usize,
+    height: usize,
+) -> Frame {
     let mut frame = Frame::new(width, height);
     let Some(view) = settings.camera.view(width, height) else { return frame };
     let scene = &sim.mesh().triangles;
@@ -139,8 +237,9 @@ fn render_scene(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, heig
     for y in 0..height {
         for x in 0..width {
             let id = buf.id_at(x, y);
+            let sky = background.map_or(SKY, |b| b.pixel(x, y));
             let colour = if id == NO_ID {
-                SKY
+                sky
             } else {
                 let [a, b, c] = tris[id as usize];
                 let mut n = (b - a).cross(c - a).normalize_or_zero();
@@ -154,7 +253,7 @@ fn render_scene(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, heig
                 };
                 let lit = albedo * (SUN * n.dot(sun).max(0.0) + AMBIENT);
                 let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
-                lit * fog + SKY * (1.0 - fog)
+                lit * fog + sky * (1.0 - fog)
             };
             frame.set_pixel(x, y, colour);
         }
@@ -243,23 +342,32 @@ fn render_probability(sim: &SnowSim, width: usize, height: usize) -> Frame {
 mod tests {
     use super::*;
     use crate::mesh::table_scene;
-    use crate::sim::SnowParams;
+    use crate::sim::SnowConfig;
+
+    fn render(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
+        SnowRenderer::new(settings.clone(), width, height, None).unwrap().render(sim).clone()
+    }
 
     #[test]
     fn snow_whitens_the_picture_and_the_probability_map_shows_the_table() {
         let params =
-            SnowParams { map_resolution: 40, directions: 8, rate_cm_per_h: 20.0, ..SnowParams::default() };
+            SnowConfig { map_resolution: 40, directions: 8, rate_cm_per_h: 20.0, ..SnowConfig::default() };
         let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
         let settings = SnowRenderSettings::default();
         let mean = |f: &Frame| f.to_interleaved().iter().map(|&v| f64::from(v)).sum::<f64>();
         let bare = render(&sim, &settings, 96, 64);
         for _ in 0..10 {
-            sim.step();
+            sim.step().unwrap();
         }
         let snowy = render(&sim, &settings, 96, 64);
         assert!(mean(&snowy) > 1.2 * mean(&bare), "{} vs {}", mean(&snowy), mean(&bare));
         let maps = sim.maps().len();
-        let p = render(&sim, &SnowRenderSettings { view: SnowView::Probability, ..settings }, 64 * maps, 64);
+        let p = render(
+            &sim,
+            &SnowRenderSettings { view: SnowView::Probability, ..settings.clone() },
+            64 * maps,
+            64,
+        );
         // The ground's panel: dark under the table's centre, white in the open; the table
         // top's panel: white at the centre.
         let ground =
@@ -272,10 +380,11 @@ mod tests {
 
     #[test]
     fn flakes_fall_in_front_of_the_sky_and_move_between_frames() {
-        let params = SnowParams { map_resolution: 32, directions: 8, ..SnowParams::default() };
+        let params = SnowConfig { map_resolution: 32, directions: 8, ..SnowConfig::default() };
         let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
         let plain = SnowRenderSettings::default();
-        let with = SnowRenderSettings { flakes: Flakes { count: 4000, ..Flakes::default() }, ..plain };
+        let with =
+            SnowRenderSettings { flakes: Flakes { count: 4000, ..Flakes::default() }, ..plain.clone() };
         let a0 = render(&sim, &plain, 160, 120);
         let a1 = render(&sim, &with, 160, 120);
         // Flakes only lighten: every pixel is at least as bright, and many are brighter.
@@ -294,7 +403,7 @@ mod tests {
             (0..120 * 160).map(|i| q.pixel(i % 160, i / 160).y > p.pixel(i % 160, i / 160).y + 0.05).collect()
         };
         let before = mask(&sim);
-        sim.step();
+        sim.step().unwrap();
         assert_ne!(before, mask(&sim), "flakes moved between frames");
     }
 }

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::raster::{Cull, RasterError, Rasterizer, rasterize};
 use phenomena_core::rng::{Purpose, Stream};
-use phenomena_core::validate::{Issue, Issues};
+use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use wide::{f32x8, i32x8};
@@ -20,7 +20,7 @@ const DIRECTIONS: Purpose = Purpose::named("snow.directions");
 /// Parameters of the snow model (`[snow]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct SnowParams {
+pub struct SnowConfig {
     /// Texels along each side of the snow maps (the paper: 100-200).
     pub map_resolution: u32,
     /// Free border around the scene's footprint, m.
@@ -49,7 +49,7 @@ pub struct SnowParams {
     pub probability_every_steps: u32,
 }
 
-impl Default for SnowParams {
+impl Default for SnowConfig {
     fn default() -> Self {
         Self {
             map_resolution: 128,
@@ -68,7 +68,7 @@ impl Default for SnowParams {
     }
 }
 
-impl SnowParams {
+impl SnowConfig {
     /// Every problem, with the field, the value and the valid range.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
@@ -92,8 +92,8 @@ impl SnowParams {
 #[derive(Debug, thiserror::Error)]
 pub enum SnowError {
     /// Parameters out of range.
-    #[error("invalid snow parameters: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
-    Params(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// Nothing to put snow on.
     #[error("the scene has no upward-facing triangle to hold snow")]
     NoSnowSurface,
@@ -173,7 +173,7 @@ impl SnowMap {
 
 /// Per-step counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct SnowStats {
+pub struct StepStats {
     /// Snow volume on all maps, m³.
     pub volume_m3: f64,
     /// Snow volume that has left the scene over its edge so far, m³.
@@ -189,7 +189,7 @@ pub struct SnowStats {
 /// The snow cover simulation over one scene.
 #[derive(Clone, Debug)]
 pub struct SnowSim {
-    params: SnowParams,
+    params: SnowConfig,
     mesh: Mesh,
     groups: Groups,
     footprint: Footprint,
@@ -209,8 +209,8 @@ pub struct SnowSim {
 
 impl SnowSim {
     /// Snow maps for `mesh` (cleaned by the caller), with the probability computed once.
-    pub fn new(mesh: Mesh, params: SnowParams, seed: u64) -> Result<Self, SnowError> {
-        params.validate().map_err(SnowError::Params)?;
+    pub fn new(mesh: Mesh, params: SnowConfig, seed: u64) -> Result<Self, SnowError> {
+        params.validate().map_err(InvalidConfig::from)?;
         let groups = match &params.object_groups {
             Some(og) => {
                 let objects = mesh.object.iter().max().map_or(0, |o| *o as usize + 1);
@@ -273,7 +273,7 @@ impl SnowSim {
     }
 
     /// The parameters.
-    pub fn params(&self) -> &SnowParams {
+    pub fn config(&self) -> &SnowConfig {
         &self.params
     }
 
@@ -382,7 +382,7 @@ impl SnowSim {
     }
 
     /// Advance one time step: accumulate (eq 1), then stabilise and let snow fall.
-    pub fn step(&mut self) -> SnowStats {
+    pub fn step(&mut self) -> Result<StepStats, SnowError> {
         let dt = f64::from(self.params.time_step_h);
         let m = f64::from(self.params.rate_cm_per_h) * 0.01;
         let add = (m * dt) as f32;
@@ -394,16 +394,20 @@ impl SnowSim {
         self.steps += 1;
         let every = u64::from(self.params.probability_every_steps);
         if every > 0 && self.steps.is_multiple_of(every) {
-            // The rasteriser refuses only non-planar views, which these never are.
-            let _ = self.update_probability();
+            self.update_probability()?;
         }
-        SnowStats {
+        Ok(StepStats {
             volume_m3: self.volume_m3(),
             fallen_off_m3: self.fallen_off_m3,
             passes,
             stable,
             time_h: self.time_h,
-        }
+        })
+    }
+
+    /// Simulated time, hours.
+    pub fn time_h(&self) -> f64 {
+        self.time_h
     }
 
     /// Snow volume on all maps, m³.
@@ -611,7 +615,7 @@ enum Target {
 
 /// The snowfall directions: tilts from the vertical drawn from a 2-D normal distribution
 /// about the main tilt (§2.2.2), as unit vectors pointing down the way the snow moves.
-pub fn snowfall_directions(params: &SnowParams, seed: u64) -> Vec<Vec3> {
+pub fn snowfall_directions(params: &SnowConfig, seed: u64) -> Vec<Vec3> {
     (0..params.directions)
         .map(|k| {
             let mut rng = Stream::new(seed, DIRECTIONS, u64::from(k));
@@ -671,7 +675,7 @@ impl Exposure {
         maps: &[SnowMap],
         fp: &Footprint,
         directions: &[Vec3],
-        params: &SnowParams,
+        params: &SnowConfig,
         silhouettes: bool,
     ) -> Result<(), SnowError> {
         let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
@@ -826,5 +830,18 @@ impl Exposure {
     /// Exposed directions of point `i`.
     fn exposed(&self, i: usize) -> f32 {
         self.workers[0].exposed[i / 8].as_array()[i % 8]
+    }
+}
+
+impl phenomena_core::phenomenon::Simulation for SnowSim {
+    type StepStats = StepStats;
+    type Error = SnowError;
+
+    fn step(&mut self) -> Result<StepStats, SnowError> {
+        SnowSim::step(self)
+    }
+
+    fn frames_done(&self) -> u64 {
+        self.steps()
     }
 }

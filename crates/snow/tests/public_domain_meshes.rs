@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 use phenomena_snow::mesh::{Mesh, ground_square};
-use phenomena_snow::{SnowParams, SnowSim, load};
+use phenomena_snow::{SnowConfig, SnowSim, load};
 
 /// The mesh scaled to `height_m`, standing on y = 0 centred over the origin, on a
 /// ground square of half-size `ground_half_m` (object 1).
@@ -27,13 +27,13 @@ fn on_ground(bytes: &[u8], height_m: f32, ground_half_m: f32) -> Mesh {
 }
 
 fn check(name: &str, mesh: Mesh) {
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 96,
         directions: 16,
         spread_deg: 10.0,
         rate_cm_per_h: 10.0,
         repose_deg: 40.0,
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     let mut s = SnowSim::new(mesh, params, 5).expect("snow sim");
     assert!(s.maps().len() >= 2, "{name}: overhangs need more than one polygon group");
@@ -41,7 +41,7 @@ fn check(name: &str, mesh: Mesh) {
     let t2 = f64::from(fp.texel_m).powi(2);
     let mut added = 0.0;
     for _ in 0..30 {
-        let m = f64::from(s.params().rate_cm_per_h) * 0.01 * f64::from(s.params().time_step_h);
+        let m = f64::from(s.config().rate_cm_per_h) * 0.01 * f64::from(s.config().time_step_h);
         added += s
             .maps()
             .iter()
@@ -49,7 +49,7 @@ fn check(name: &str, mesh: Mesh) {
             .sum::<f64>()
             * t2
             * m;
-        let stats = s.step();
+        let stats = s.step().unwrap();
         assert!(stats.stable, "{name}: stabilisation did not finish in {} passes", stats.passes);
         let excess = s.max_slope_excess();
         assert!(excess <= 1e-4, "{name}: slope exceeds tan(40°) by {excess}");

@@ -3,7 +3,7 @@
 
 use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene};
 use phenomena_snow::reference::ray_cast_probability;
-use phenomena_snow::{SnowParams, SnowSim};
+use phenomena_snow::{SnowConfig, SnowSim};
 
 /// |ΔP| per texel off silhouettes, and how many texels were left out.
 fn differences(sim: &SnowSim) -> (Vec<f32>, usize) {
@@ -61,18 +61,18 @@ fn check(name: &str, sim: &SnowSim, min_kept: f64) {
 #[test]
 fn the_table_scene_matches_ray_casting() {
     let params =
-        SnowParams { map_resolution: 100, directions: 32, spread_deg: 10.0, ..SnowParams::default() };
+        SnowConfig { map_resolution: 100, directions: 32, spread_deg: 10.0, ..SnowConfig::default() };
     check("table", &SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 5).unwrap(), 0.75);
 }
 
 #[test]
 fn the_primitives_scene_matches_ray_casting() {
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 128,
         directions: 32,
         spread_deg: 15.0,
         object_groups: Some(vec![0, 1, 2, 3, 4]),
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     check("primitives", &SnowSim::new(primitives_scene(), params, 5).unwrap(), 0.75);
 }
@@ -85,12 +85,12 @@ fn the_primitives_scene_matches_ray_casting() {
 /// 256² (0.23 m pixels, a 0.46 m bias) the same comparison gives mean 0.016 and p99 0.38.
 #[test]
 fn the_village_matches_ray_casting() {
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 256,
         directions: 32,
         shadow_resolution: 1024,
         spread_deg: 10.0,
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     check("village", &SnowSim::new(village_scene(), params, 5).unwrap(), 0.70);
 }

@@ -3,17 +3,17 @@
 //! falling off the table onto the ground, and thread-count independence.
 
 use phenomena_snow::mesh::table_scene;
-use phenomena_snow::{SnowParams, SnowSim};
+use phenomena_snow::{SnowConfig, SnowSim};
 
 /// A 4 m ground with a 1.2 m table 0.7 m high in the middle.
 fn sim(spread_deg: f32, directions: u32, repose_deg: f32) -> SnowSim {
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 80,
         directions,
         spread_deg,
         shadow_resolution: 256,
         repose_deg,
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).expect("table scene")
 }
@@ -83,7 +83,7 @@ fn snow_rests_at_the_angle_of_repose_and_none_is_lost() {
     let add_per_step = |s: &SnowSim| {
         let fp = s.footprint();
         let t2 = f64::from(fp.texel_m).powi(2);
-        let m = f64::from(s.params().rate_cm_per_h) * 0.01 * f64::from(s.params().time_step_h);
+        let m = f64::from(s.config().rate_cm_per_h) * 0.01 * f64::from(s.config().time_step_h);
         s.maps().iter().map(|map| map.probability.iter().map(|&p| f64::from(p)).sum::<f64>()).sum::<f64>()
             * t2
             * m
@@ -91,12 +91,12 @@ fn snow_rests_at_the_angle_of_repose_and_none_is_lost() {
     let mut added = 0.0;
     // Heavy snow: 10 cm/h for 6 h in 0.1 h steps, 60 cm in all: more than the table's
     // 0.6 m half-width times tan(30°) = 35 cm, so the pile reaches the repose.
-    let mut params = s.params().clone();
+    let mut params = s.config().clone();
     params.rate_cm_per_h = 10.0;
     s = SnowSim::new(s.mesh().clone(), params, 3).unwrap();
     for _ in 0..60 {
         added += add_per_step(&s);
-        let stats = s.step();
+        let stats = s.step().unwrap();
         assert!(stats.stable, "stabilisation did not finish in {} passes", stats.passes);
         // No snow-covered texel is steeper than the repose towards any neighbour.
         let excess = s.max_slope_excess();
@@ -112,17 +112,17 @@ fn snow_sliding_off_the_table_lands_on_the_ground_beside_it() {
     // Straight down (no snow under the table), a low angle of repose and a lot of snow:
     // the table top sheds snow over its edges onto the ground map next to it, so the
     // ground just outside the edge holds more than the open ground far away.
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 80,
         directions: 4,
         spread_deg: 0.0,
         repose_deg: 20.0,
         rate_cm_per_h: 100.0,
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).unwrap();
     for _ in 0..10 {
-        s.step();
+        s.step().unwrap();
     }
     let fp = s.footprint();
     let g = &s.maps()[ground_map(&s)];
@@ -143,7 +143,7 @@ fn any_thread_count_gives_the_same_snow() {
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
             let mut s = sim(10.0, 16, 35.0);
             for _ in 0..5 {
-                s.step();
+                s.step().unwrap();
             }
             // Bits, not values: the ground is NaN where a map holds no snow.
             s.maps()
@@ -172,12 +172,12 @@ fn lying_snow_shades_like_any_occluder() {
     // x in (1.0, 1.29) m are just out of the bare table's shadow (the ray up from x
     // passes the top's edge x = 0.6 at height (x - 0.6)/tan 30° > 0.7 m), but inside the
     // shadow of 0.5 m of snow lying on the top (that height is below 1.2 m).
-    let params = SnowParams {
+    let params = SnowConfig {
         map_resolution: 100,
         directions: 4,
         spread_deg: 0.0,
         main_tilt_deg: [30.0, 0.0],
-        ..SnowParams::default()
+        ..SnowConfig::default()
     };
     let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).unwrap();
     let fp = s.footprint();

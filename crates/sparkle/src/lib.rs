@@ -39,4 +39,4 @@ pub use config::{
     MIN_CONE_DEG, Method, Normals, Phong, Population, SparkleConfig,
 };
 pub use render::{Background, GlareShape, RenderError, RenderSettings, SparkleRenderer};
-pub use sim::{Glints, SparkleError, SparkleSim, StepError, StepStats};
+pub use sim::{Glints, SparkleError, SparkleSim, StepStats};

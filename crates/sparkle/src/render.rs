@@ -12,7 +12,7 @@ use wide::{f32x8, i32x8, u32x8};
 
 use crate::batch::{LANES, V8};
 use phenomena_core::image::Frame;
-use phenomena_core::validate::{Issue, Issues};
+use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -36,8 +36,8 @@ pub enum Background {
     Sky,
     /// Black (glints alone, for compositing).
     Black,
-    /// An image file (sRGB, resized to nothing: it must have the frame's size); the
-    /// caller loads it and passes it to [`SparkleRenderer::new`].
+    /// An image file (sRGB, stretched bilinearly to the frame's size); the caller loads
+    /// it and passes it to [`SparkleRenderer::new`].
     Image {
         /// Path, relative to the scene file.
         path: std::path::PathBuf,
@@ -154,14 +154,14 @@ impl RenderSettings {
 #[derive(Debug, Error)]
 pub enum RenderError {
     /// Settings out of range.
-    #[error("invalid render settings:\n{}", .0.iter().map(|i| format!("  {i}")).collect::<Vec<_>>().join("\n"))]
-    Invalid(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
     /// The camera cannot make an image of this size.
     #[error("the camera cannot make a {0}×{1} image (degenerate camera or empty image)")]
     Camera(usize, usize),
-    /// The background image has another size than the frame.
-    #[error("the background image is {0}×{1} but the frame is {2}×{3}")]
-    BackgroundSize(usize, usize, usize, usize),
+    /// `background.kind = "image"` but no image was supplied.
+    #[error("the background is an image file but none was loaded")]
+    MissingBackground,
 }
 
 /// Renders a [`SparkleSim`] frame by frame into linear RGB.
@@ -175,7 +175,8 @@ pub struct SparkleRenderer {
 }
 
 impl SparkleRenderer {
-    /// A renderer of `width × height` frames; `background` is the loaded image when the
+    /// A renderer of `width × height` frames; `background` is the loaded image (linear
+    /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
     /// settings ask for one.
     pub fn new(
         settings: RenderSettings,
@@ -183,21 +184,17 @@ impl SparkleRenderer {
         height: usize,
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
-        settings.validate().map_err(RenderError::Invalid)?;
-        if let Some(b) = background
-            && (b.width() != width || b.height() != height)
-        {
-            return Err(RenderError::BackgroundSize(b.width(), b.height(), width, height));
-        }
+        settings.validate().map_err(InvalidConfig::from)?;
         if width == 0 || height == 0 {
             return Err(RenderError::Camera(width, height));
         }
-        Ok(Self {
-            settings,
-            user_background: background.cloned(),
-            cached: None,
-            frame: Frame::new(width, height),
-        })
+        let user_background = match &settings.background {
+            Background::Image { .. } => {
+                Some(background.ok_or(RenderError::MissingBackground)?.resized(width, height))
+            }
+            _ => None,
+        };
+        Ok(Self { settings, user_background, cached: None, frame: Frame::new(width, height) })
     }
 
     /// The last rendered frame.
@@ -226,6 +223,16 @@ impl SparkleRenderer {
             splat(&self.settings, &mut self.frame, bg, sim, &view);
         }
         &self.frame
+    }
+}
+
+impl phenomena_core::phenomenon::Renderer<SparkleSim> for SparkleRenderer {
+    fn render(&mut self, sim: &SparkleSim) -> &Frame {
+        SparkleRenderer::render(self, sim)
+    }
+
+    fn frame(&self) -> &Frame {
+        SparkleRenderer::frame(self)
     }
 }
 

@@ -48,7 +48,7 @@ use wide::f32x8;
 use crate::batch::{LANES, LaneRng, Step, V8, first_frame, lane, move_and_test};
 use crate::config::{Dust, LightAt, Normals, Population, SparkleConfig};
 use crate::model::{CAP_MARGIN_RAD, Eye, Geometry, Lobe, Space, in_cap, one_minus_cos};
-use phenomena_core::validate::Issue;
+use phenomena_core::validate::{Expected, InvalidConfig, Issue};
 
 const TRACK: Purpose = Purpose::named("sparkle.track");
 const BIRTH: Purpose = Purpose::named("sparkle.birth");
@@ -66,12 +66,25 @@ const MAX_BIRTH_CHUNKS: u64 = 256;
 /// Birth candidates drawn and tested together.
 const CANDIDATE_BATCH: u64 = 4096;
 
-/// Why a simulation cannot be built.
+/// Why a simulation cannot be built or stepped.
 #[derive(Debug, Error)]
 pub enum SparkleError {
     /// The configuration has problems (each names the field, value and valid range).
-    #[error("invalid sparkle configuration:\n{}", .0.iter().map(|i| format!("  {i}")).collect::<Vec<_>>().join("\n"))]
-    Invalid(Vec<Issue>),
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
+    /// The light moved so that far more facets became candidates than the memory guard
+    /// allows (lobes under a moving sun: their bound is only known frame by frame).
+    #[error(
+        "frame {frame}: this cone and lobe would draw up to {expected:.3e} candidate facets (at most {max:e}): raise phong.threshold_i_e or phong.exponent_n, or lower the count"
+    )]
+    TooManyCandidates {
+        /// The frame being made.
+        frame: u32,
+        /// Candidates it would draw.
+        expected: f64,
+        /// The limit ([`crate::MAX_CANDIDATES`]).
+        max: f64,
+    },
 }
 
 /// The facets seen in the current frame, structure of arrays.
@@ -359,24 +372,6 @@ struct Everything {
     last_seen: Vec<u32>,
 }
 
-/// Why a step cannot be taken.
-#[derive(Debug, Error)]
-pub enum StepError {
-    /// The light moved so that far more facets became candidates than the memory guard
-    /// allows (lobes under a moving sun: their bound is only known frame by frame).
-    #[error(
-        "frame {frame}: this cone and lobe would draw up to {expected:.3e} candidate facets (at most {max:e}): raise phong.threshold_i_e or phong.exponent_n, or lower the count"
-    )]
-    TooManyCandidates {
-        /// The frame being made.
-        frame: u32,
-        /// Candidates it would draw.
-        expected: f64,
-        /// The limit ([`crate::MAX_CANDIDATES`]).
-        max: f64,
-    },
-}
-
 /// The glints of §2, frame by frame.
 #[derive(Clone, Debug)]
 pub struct SparkleSim {
@@ -408,7 +403,7 @@ pub struct SparkleSim {
 impl SparkleSim {
     /// Build the simulation and generate frame 0's visible facets.
     pub fn new(config: SparkleConfig, seed: u64) -> Result<Self, SparkleError> {
-        config.validate().map_err(SparkleError::Invalid)?;
+        config.validate().map_err(InvalidConfig::from)?;
         let lobe = match config.population {
             Population::DiamondDust(Dust { normals: Normals::Uniform, .. }) => Lobe::new(0.0),
             Population::DiamondDust(Dust { normals: Normals::Plates { tilt_deg }, .. }) => {
@@ -448,14 +443,15 @@ impl SparkleSim {
             && let Some(expected) = sim.candidate_bound(0)
             && expected > crate::config::MAX_CANDIDATES
         {
-            return Err(SparkleError::Invalid(vec![Issue {
+            return Err(InvalidConfig::from(vec![Issue {
                 field: "phong.threshold_i_e".into(),
                 value: sim.config.phong.threshold_i_e.to_string(),
-                expected: format!(
+                expected: Expected::Text(format!(
                     "fewer than {:e} candidate facets per frame: this cone and lobe give up to {expected:.3e}; raise the threshold or the exponent, or lower the count",
                     crate::config::MAX_CANDIDATES
-                ),
-            }]));
+                )),
+            }])
+            .into());
         }
         sim.start();
         Ok(sim)
@@ -517,7 +513,7 @@ impl SparkleSim {
 
     /// Advance one frame. Fails only when a lobe population under a moving light would
     /// draw more candidates than [`crate::MAX_CANDIDATES`] (the state is then unchanged).
-    pub fn step(&mut self) -> Result<StepStats, StepError> {
+    pub fn step(&mut self) -> Result<StepStats, SparkleError> {
         let next = self.frame + 1;
         self.gaps.clear();
         let (births, deaths, candidates) = match self.cos_theta {
@@ -756,12 +752,12 @@ impl SparkleSim {
     /// Move the held glints (seen, then ghosts) one frame, delete the seen ones that left
     /// the cone (they become ghosts), bring back ghosts seen again, and add the newborn.
     /// Returns (births, deaths, candidates).
-    fn step_stochastic(&mut self, next: u32) -> Result<(u64, u64, u64), StepError> {
+    fn step_stochastic(&mut self, next: u32) -> Result<(u64, u64, u64), SparkleError> {
         if !self.lobe.is_uniform()
             && let Some(expected) = self.candidate_bound(next)
             && expected > crate::config::MAX_CANDIDATES
         {
-            return Err(StepError::TooManyCandidates {
+            return Err(SparkleError::TooManyCandidates {
                 frame: next,
                 expected,
                 max: crate::config::MAX_CANDIDATES,
@@ -1278,6 +1274,19 @@ impl CellTable {
             }
         }
         Some((x, n))
+    }
+}
+
+impl phenomena_core::phenomenon::Simulation for SparkleSim {
+    type StepStats = StepStats;
+    type Error = SparkleError;
+
+    fn step(&mut self) -> Result<StepStats, SparkleError> {
+        SparkleSim::step(self)
+    }
+
+    fn frames_done(&self) -> u64 {
+        u64::from(self.frame())
     }
 }
 

@@ -191,11 +191,19 @@ async fn upload(
     };
     let path = dir.join(&name);
     let bytes = body.to_vec();
-    let written = tokio::task::spawn_blocking(move || crate::output::write_bytes_atomic(&path, &bytes)).await;
+    let written =
+        tokio::task::spawn_blocking(move || phenomena_scene::output::write_bytes_atomic(&path, &bytes)).await;
     match written {
         Ok(Ok(())) => axum::Json(serde_json::json!({ "name": name, "bytes": body.len() })).into_response(),
-        Ok(Err(e)) => (StatusCode::INTERNAL_SERVER_ERROR, format!("{e:#}")).into_response(),
-        Err(e) => (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response(),
+        // The page is not told the session folder's path; the server's log is.
+        Ok(Err(e)) => {
+            tracing::error!("upload {name}: {e}");
+            (StatusCode::INTERNAL_SERVER_ERROR, format!("cannot store the upload {name}")).into_response()
+        }
+        Err(e) => {
+            tracing::error!("upload {name}: {e}");
+            (StatusCode::INTERNAL_SERVER_ERROR, format!("cannot store the upload {name}")).into_response()
+        }
     }
 }
 

@@ -10,6 +10,11 @@
 //! Every accepted scene change increments the generation; the page ignores frames of
 //! older generations, and the thread drains every queued command before it renders, so
 //! no stale frame is computed after a change arrives.
+//!
+//! The scene, its simulation and its frames all come from the scene layer
+//! (`phenomena_scene`): the preview and the final renders run its [`Runner`], and every
+//! file a scene reads comes through its sandbox ([`Assets::Sandbox`]): only the files
+//! uploaded to this session, by plain name.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -17,14 +22,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use anyhow::{Result, bail};
-use phenomena_aurora::shape::{Keyframe, Merge, PointRef, Split, resample, segments_intersect};
-use phenomena_core::tonemap::Exposure;
+use anyhow::Result;
+use phenomena_aurora::editor::{self, Drawn, EditOp};
+use phenomena_scene::aurora::AuroraScene;
+use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, to_srgb8, write_bytes_atomic};
+use phenomena_scene::{
+    Assets, FrameRecord, FrameSink, Observer, Output, Runner, Scene, SinkError, Steer, registry,
+};
 use serde::Deserialize;
 use serde_json::{Value, json};
-
-use crate::render::Runner;
-use crate::scene::{self, Scene};
 
 /// A message to the page.
 pub(crate) enum Out {
@@ -37,11 +43,6 @@ pub(crate) enum Out {
 /// The preview's frame-rate cap (frames per second): enough for a live view, and the
 /// rest of the machine stays free for the other tabs and final renders.
 const MAX_PREVIEW_FPS: f64 = 30.0;
-
-/// The aurora's sky preview emits for about this many particles per frame (every k-th
-/// particle, k times the weight, the phase turning each frame: an unbiased thinning,
-/// see `SkyRenderer::set_particle_subset`); final renders use all of them.
-const AURORA_PREVIEW_PARTICLES: usize = 15_000;
 
 /// Largest preview, pixels per side.
 const MAX_PREVIEW_SIDE: u32 = 1920;
@@ -83,35 +84,14 @@ pub(crate) enum Incoming {
     Wind {
         force: [f32; 3],
     },
-    /// An aurora editing operation.
-    Aurora(AuroraOp),
+    /// An aurora editing operation (thesis §3.1; `phenomena_aurora::editor`).
+    Aurora(EditOp),
     /// Ask for the scene as TOML (for download).
     Save,
     /// Render the scene at its own size to the studio's output folder.
     RenderFinal {
         frames: Option<u32>,
     },
-}
-
-/// Aurora editor operations (thesis §3.1, Figs 3.1-3.3).
-#[derive(Debug, Deserialize)]
-#[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
-pub(crate) enum AuroraOp {
-    /// A mouse stroke on keyframe `keyframe`'s canvas, samples in km of the plane.
-    Stroke { keyframe: usize, points: Vec<[f32; 2]> },
-    /// Open the segment that starts at (sheet, point) during the transition into
-    /// `keyframe`.
-    Split { keyframe: u32, sheet: u32, point: u32 },
-    /// Join two chain ends during the transition into `keyframe`.
-    Merge { keyframe: u32, a: PointRef, b: PointRef },
-    /// Add a target keyframe at `frame` (a copy of the last one to draw over).
-    AddKeyframe { frame: u32 },
-    /// Move keyframe `keyframe` to `frame`.
-    MoveKeyframe { keyframe: usize, frame: u32 },
-    /// Delete target keyframe `keyframe` (and its operations).
-    DeleteKeyframe { keyframe: usize },
-    /// Start over: no sheets, a source and one target keyframe.
-    Clear,
 }
 
 /// A command to the session thread.
@@ -135,47 +115,26 @@ pub(crate) fn hello(id: &str, controls: &super::controls::Catalogue) -> String {
     json!({
         "type": "hello",
         "session": id,
-        "builtins": super::controls::BUILTINS.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
+        "builtins": registry::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
         "featured": controls.featured(),
         "limits": { "upload_bytes": super::MAX_UPLOAD_BYTES, "message_bytes": super::MAX_MESSAGE_BYTES },
     })
     .to_string()
 }
 
-/// The scene as JSON (the form the page edits).
-pub(crate) fn scene_json(scene: &Scene) -> Value {
-    let v = match scene {
-        Scene::Flame(s) => serde_json::to_value(&**s),
-        Scene::Aurora(s) => serde_json::to_value(&**s),
-        Scene::Snow(s) => serde_json::to_value(&**s),
-        Scene::Sparkle(s) => serde_json::to_value(&**s),
-    };
-    v.unwrap_or(Value::Null)
-}
-
 /// A scene from its JSON form (not validated).
 pub(crate) fn scene_from_json(phenomenon: &str, v: Value) -> Result<Scene, String> {
-    let e = |e: serde_json::Error| e.to_string();
-    Ok(match phenomenon {
-        "flame" => Scene::Flame(Box::new(serde_json::from_value(v).map_err(e)?)),
-        "aurora" => Scene::Aurora(Box::new(serde_json::from_value(v).map_err(e)?)),
-        "snow" => Scene::Snow(Box::new(serde_json::from_value(v).map_err(e)?)),
-        "sparkle" => Scene::Sparkle(Box::new(serde_json::from_value(v).map_err(e)?)),
-        other => return Err(format!("unknown phenomenon `{other}`")),
-    })
+    registry::phenomenon(phenomenon)
+        .ok_or_else(|| format!("unknown phenomenon `{phenomenon}`: use {}", registry::names()))?
+        .scene_from_json(v)
 }
 
 /// The scene as a TOML file `phenomena render` accepts.
-pub(crate) fn scene_toml(scene: &Scene) -> Result<String> {
-    let body = match scene {
-        Scene::Flame(s) => toml::to_string(&**s)?,
-        Scene::Aurora(s) => toml::to_string(&**s)?,
-        Scene::Snow(s) => toml::to_string(&**s)?,
-        Scene::Sparkle(s) => toml::to_string(&**s)?,
-    };
+pub(crate) fn scene_toml(scene: &Scene) -> Result<String, String> {
     Ok(format!(
-        "# Saved by phenomena studio. Render it with:\n#   phenomena render {}.toml --out out\n\n{body}",
-        scene.phenomenon()
+        "# Saved by phenomena studio. Render it with:\n#   phenomena render {}.toml --out out\n\n{}",
+        scene.phenomenon().name(),
+        scene.to_toml()?
     ))
 }
 
@@ -206,61 +165,21 @@ pub(crate) fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(),
     Ok(())
 }
 
-/// Files a scene reads (mesh, background image), as written in it.
-fn asset_paths(scene: &Scene) -> Vec<(&'static str, PathBuf)> {
-    let mut paths = Vec::new();
-    match scene {
-        Scene::Flame(f) => {
-            if let phenomena_flame::Background::Image { path } = &f.render.background {
-                paths.push(("render.background.path", PathBuf::from(path)));
-            }
-        }
-        Scene::Snow(s) => {
-            if let Some(mesh) = &s.geometry.mesh {
-                paths.push(("geometry.mesh", mesh.clone()));
-            }
-        }
-        Scene::Sparkle(s) => {
-            if let phenomena_sparkle::Background::Image { path } = &s.render.background {
-                paths.push(("render.background.path", path.clone()));
-            }
-        }
-        Scene::Aurora(_) => {}
-    }
-    paths
+/// The session's files: only what was uploaded to it, by plain name, each at most the
+/// upload cap.
+fn sandbox(dir: &Path) -> Assets {
+    Assets::Sandbox { dir: dir.to_path_buf(), max_bytes: super::MAX_UPLOAD_BYTES as u64 }
 }
-
-/// In the studio a scene reads only files uploaded to its session: plain file names,
-/// no folders, so a page cannot make the server read anything else on the machine.
-fn check_assets(scene: &Scene) -> Result<(), String> {
-    for (field, path) in asset_paths(scene) {
-        let mut parts = path.components();
-        let plain = matches!((parts.next(), parts.next()), (Some(std::path::Component::Normal(_)), None));
-        if !plain {
-            return Err(format!(
-                "{field} = {:?}: in the studio, upload the file and use its plain name (no folders)",
-                path.display().to_string()
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Editor bookkeeping of the aurora: which sheets of each keyframe the artist drew
-/// (the others are placeholders copied from the source, so the scene stays valid while
-/// targets are being drawn).
-#[derive(Clone, Debug, Default)]
-struct Drawn(Vec<Vec<bool>>);
 
 struct Session {
     dir: tempfile::TempDir,
     out_root: PathBuf,
     out: tokio::sync::mpsc::Sender<Out>,
     scene: Option<Scene>,
+    /// The aurora editor's record of the sheets the artist drew.
     drawn: Drawn,
     runner: Option<Runner>,
     generation: u32,
-    frame: u32,
     playing: bool,
     preview: (u32, u32),
     next_due: Instant,
@@ -277,6 +196,35 @@ struct EncodeJob {
     rgb: Vec<u8>,
     /// The `frame` message, completed with `encode_ms`.
     stats: Value,
+}
+
+/// The preview as a frame sink: each frame tone mapped here, JPEG-encoded on the
+/// encoder thread (which overlaps the next step).
+struct PreviewSink<'a> {
+    generation: u32,
+    /// Frames simulated when this one was rendered (0: the initial state).
+    shown: u32,
+    encoder: &'a std::sync::mpsc::SyncSender<EncodeJob>,
+}
+
+impl FrameSink for PreviewSink<'_> {
+    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        let t = Instant::now();
+        let rgb = to_srgb8(out.frame, &out.exposure);
+        let (w, h) = (out.frame.width() as u32, out.frame.height() as u32);
+        let r = out.record;
+        let stats = json!({
+            "type": "frame",
+            "generation": self.generation,
+            "frame": self.shown,
+            "step_ms": r.step_ms,
+            "render_ms": r.render_ms,
+            "tonemap_ms": t.elapsed().as_secs_f64() * 1e3,
+            "counters": r.counters,
+        });
+        let job = EncodeJob { header: [self.generation, self.shown, w, h], rgb, stats };
+        self.encoder.send(job).map_err(|_| SinkError("the page went away".into()))
+    }
 }
 
 /// Encode preview frames as JPEG and send them, each after its `frame` message, until
@@ -342,7 +290,6 @@ pub(crate) fn run(
         drawn: Drawn::default(),
         runner: None,
         generation: 0,
-        frame: 0,
         playing: true,
         preview: (640, 360),
         next_due: Instant::now(),
@@ -353,6 +300,11 @@ pub(crate) fn run(
     if let Some(cancel) = &s.render_cancel {
         cancel.store(true, Ordering::Relaxed);
     }
+}
+
+/// A list of problems as one line.
+fn joined(problems: &[phenomena_core::validate::Issue]) -> String {
+    problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")
 }
 
 impl Session {
@@ -382,7 +334,7 @@ impl Session {
                 None => {
                     self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
                     let generation = self.generation;
-                    let Some((step_ms, counters)) = self.step()? else { continue };
+                    let Some(mut record) = self.step()? else { continue };
                     // What came in during the step goes first: a change makes this
                     // frame stale, and the change's own frame is then the next shown.
                     loop {
@@ -393,7 +345,7 @@ impl Session {
                         }
                     }
                     if self.generation == generation {
-                        self.render_and_send(step_ms, counters)?;
+                        self.show(&mut record)?;
                     }
                 }
             }
@@ -425,8 +377,8 @@ impl Session {
 
     fn handle(&mut self, m: Incoming) -> Result<(), Closed> {
         match m {
-            Incoming::Builtin { name } => match super::controls::builtin(&name) {
-                Some(b) => match scene::parse(b.text, Path::new(b.name)) {
+            Incoming::Builtin { name } => match registry::shipped(&name) {
+                Some(b) => match b.scene() {
                     Ok(scene) => self.replace(scene)?,
                     Err(e) => self.error(format!("shipped scene {name} is invalid: {e}"))?,
                 },
@@ -434,7 +386,7 @@ impl Session {
             },
             Incoming::Toml { text, name } => {
                 let name = name.unwrap_or_else(|| "uploaded.toml".into());
-                match scene::parse(&text, Path::new(&name)) {
+                match phenomena_scene::parse(&text, &name) {
                     Ok(scene) => self.replace(scene)?,
                     Err(e) => self.send(json!({
                         "type": "error",
@@ -449,10 +401,7 @@ impl Session {
                     if problems.is_empty() {
                         self.replace(s)?;
                     } else {
-                        self.error(format!(
-                            "scene refused: {}",
-                            problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")
-                        ))?;
+                        self.error(format!("scene refused: {}", joined(&problems)))?;
                     }
                 }
                 Err(e) => self.error(format!("scene refused: {e}"))?,
@@ -465,7 +414,9 @@ impl Session {
             Incoming::Pause => self.playing = false,
             Incoming::Step => {
                 self.playing = false;
-                self.advance()?;
+                if let Some(mut record) = self.step()? {
+                    self.show(&mut record)?;
+                }
             }
             Incoming::Reset => self.rebuild()?,
             Incoming::Preview { width, height } => {
@@ -486,13 +437,13 @@ impl Session {
                         let problems = scene.validate();
                         self.send(json!({
                             "type": "saved",
-                            "name": format!("{}.toml", scene.phenomenon()),
+                            "name": format!("{}.toml", scene.phenomenon().name()),
                             "toml": text,
                             "valid": problems.is_empty(),
                             "problems": problems.iter().map(ToString::to_string).collect::<Vec<_>>(),
                         }))?
                     }
-                    Err(e) => self.error(format!("cannot write the scene as TOML: {e:#}"))?,
+                    Err(e) => self.error(format!("cannot write the scene as TOML: {e}"))?,
                 },
                 None => self.error("no scene to save: load one first")?,
             },
@@ -503,37 +454,23 @@ impl Session {
 
     /// Take a new scene (already valid) and start it.
     fn replace(&mut self, scene: Scene) -> Result<(), Closed> {
-        if let Err(e) = check_assets(&scene) {
-            return self.error(format!("scene refused: {e}"));
-        }
-        self.drawn = match &scene {
-            Scene::Aurora(a) => {
-                Drawn(a.aurora.keyframes.iter().map(|k| vec![true; k.sheets.len()]).collect())
-            }
-            _ => Drawn::default(),
-        };
+        self.drawn = scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default();
         self.scene = Some(scene);
         self.rebuild()
-    }
-
-    /// The scene the preview runs: the authored one at the preview's size.
-    fn preview_scene(&self) -> Option<Scene> {
-        let mut scene = self.scene.clone()?;
-        let s = scene.settings_mut();
-        (s.width, s.height) = self.preview;
-        Some(scene)
     }
 
     /// A new generation: the scene to the page, the simulation rebuilt, its first frame.
     fn rebuild(&mut self) -> Result<(), Closed> {
         self.generation = self.generation.wrapping_add(1);
-        self.frame = 0;
         self.runner = None;
-        let Some(scene) = self.preview_scene() else {
+        let Some(mut scene) = self.scene.clone() else {
             return Ok(());
         };
         self.send_scene()?;
-        if let Scene::Aurora(a) = &scene
+        // The preview runs the authored scene at the preview's size.
+        let s = scene.settings_mut();
+        (s.width, s.height) = self.preview;
+        if let Some(a) = scene.get::<AuroraScene>()
             && a.aurora.keyframes.first().is_none_or(|k| k.sheets.is_empty())
         {
             return self.notice("draw a sheet on the source canvas to start the aurora");
@@ -542,16 +479,30 @@ impl Session {
         if !problems.is_empty() {
             return self.send(json!({
                 "type": "error",
-                "message": format!("the preview waits for a valid scene: {}", problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")),
+                "message": format!("the preview waits for a valid scene: {}", joined(&problems)),
                 "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
             }));
         }
-        match Runner::new(&scene, self.dir.path()) {
-            Ok(runner) => self.runner = Some(runner),
-            Err(e) => return self.error(format!("cannot start the simulation: {e:#}")),
+        match Runner::new(&scene, &sandbox(self.dir.path())) {
+            Ok(mut runner) => {
+                runner.set_preview(true);
+                runner.set_clock(crate::render::wall_clock());
+                for w in runner.warnings() {
+                    self.notice(format!("warning: {w}"))?;
+                }
+                self.runner = Some(runner);
+            }
+            Err(e) => {
+                let issues = e.key().map(|k| json!([{"field": k, "message": e.to_string()}]));
+                return self.send(json!({
+                    "type": "error",
+                    "message": format!("cannot start the simulation: {e}"),
+                    "issues": issues.unwrap_or(json!([])),
+                }));
+            }
         }
         self.next_due = Instant::now();
-        self.render_and_send(0.0, Value::Null)
+        self.show(&mut FrameRecord::default())
     }
 
     fn send_scene(&self) -> Result<(), Closed> {
@@ -559,74 +510,41 @@ impl Session {
         let mut msg = json!({
             "type": "scene",
             "generation": self.generation,
-            "phenomenon": scene.phenomenon(),
-            "scene": scene_json(scene),
+            "phenomenon": scene.phenomenon().name(),
+            "scene": scene.to_json(),
         });
-        if let Scene::Aurora(a) = scene {
-            msg["editor"] = aurora_editor(&a.aurora, &self.drawn);
+        if let Some(a) = scene.get::<AuroraScene>() {
+            msg["editor"] = serde_json::to_value(editor::view(&a.aurora, &self.drawn)).unwrap_or(Value::Null);
         }
         self.send(msg)
     }
 
-    /// One frame: step, render, send.
-    fn advance(&mut self) -> Result<(), Closed> {
-        match self.step()? {
-            Some((step_ms, counters)) => self.render_and_send(step_ms, counters),
-            None => Ok(()),
-        }
-    }
-
-    /// One step: its time (ms) and counters; `None` without a simulation or when it
-    /// stopped (the page is told).
-    fn step(&mut self) -> Result<Option<(f64, Value)>, Closed> {
+    /// One step; `None` without a simulation or when it stopped (the page is told).
+    fn step(&mut self) -> Result<Option<FrameRecord>, Closed> {
         let Some(runner) = &mut self.runner else { return Ok(None) };
-        let t = Instant::now();
         match runner.step() {
-            Ok(counters) => {
-                self.frame += 1;
-                Ok(Some((t.elapsed().as_secs_f64() * 1e3, counters)))
-            }
+            Ok(record) => Ok(Some(record)),
             Err(e) => {
                 self.playing = false;
                 self.runner = None;
-                self.error(format!("the simulation stopped at frame {}: {e:#}", self.frame + 1))?;
+                self.error(format!("{e}"))?;
                 Ok(None)
             }
         }
     }
 
-    fn render_and_send(&mut self, step_ms: f64, counters: Value) -> Result<(), Closed> {
-        let (Some(runner), Some(scene)) = (&mut self.runner, &self.scene) else { return Ok(()) };
-        let exposure: Exposure = scene.settings().exposure();
-        if let Runner::Aurora { sim, sky: Some(sky), .. } = runner {
-            let k = sim.particles().len().div_ceil(AURORA_PREVIEW_PARTICLES).max(1);
-            sky.set_particle_subset(k, self.frame as usize % k);
-        }
-        let t = Instant::now();
-        let frame = runner.render();
-        let render_ms = t.elapsed().as_secs_f64() * 1e3;
-        let t = Instant::now();
-        let (w, h) = (frame.width() as u32, frame.height() as u32);
-        let rgb = crate::output::to_srgb8(frame, &exposure);
-        let tonemap_ms = t.elapsed().as_secs_f64() * 1e3;
-        let stats = json!({
-            "type": "frame",
-            "generation": self.generation,
-            "frame": self.frame,
-            "step_ms": step_ms,
-            "render_ms": render_ms,
-            "tonemap_ms": tonemap_ms,
-            "counters": counters,
-        });
-        // JPEG encoding overlaps the next step on the encoder thread.
-        let job = EncodeJob { header: [self.generation, self.frame, w, h], rgb, stats };
-        self.encoder.send(job).map_err(|_| Closed)
+    /// Render the current state and send it to the page.
+    fn show(&mut self, record: &mut FrameRecord) -> Result<(), Closed> {
+        let Some(runner) = &mut self.runner else { return Ok(()) };
+        let shown = runner.frames_done();
+        let mut sink = PreviewSink { generation: self.generation, shown, encoder: &self.encoder };
+        runner.output(record, &mut sink).map_err(|_| Closed)
     }
 
     fn set(&mut self, path: &str, value: Value) -> Result<(), Closed> {
         let Some(scene) = &self.scene else { return self.error("no scene yet: load one first") };
-        let phenomenon = scene.phenomenon();
-        let mut v = scene_json(scene);
+        let phenomenon = scene.phenomenon().name();
+        let mut v = scene.to_json();
         if let Err(e) = set_path(&mut v, path, value.clone()) {
             return self.error(e);
         }
@@ -637,15 +555,11 @@ impl Session {
                 return self.send_scene();
             }
         };
-        if let Err(e) = check_assets(&candidate) {
-            self.send(json!({"type": "error", "message": e, "issues": [{"field": path, "message": e}]}))?;
-            return self.send_scene();
-        }
         let problems = candidate.validate();
         if !problems.is_empty() {
             self.send(json!({
                 "type": "error",
-                "message": problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "),
+                "message": joined(&problems),
                 "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
             }))?;
             return self.send_scene(); // the page's controls go back to the scene's values
@@ -654,26 +568,31 @@ impl Session {
         self.rebuild()
     }
 
+    /// The flame's wind, steered live: the same simulation continues (no new
+    /// generation), and the scene keeps the new wind.
     fn wind(&mut self, force: [f32; 3]) -> Result<(), Closed> {
-        let Some(Scene::Flame(f)) = &mut self.scene else {
-            return self.error("wind applies to flame scenes");
-        };
-        let wind = phenomena_flame::Wind { force_n_m3: glam::Vec3::from(force), keys: Vec::new() };
-        if let Some(Runner::Flame { sim, .. }) = &mut self.runner
-            && let Err(e) = sim.set_wind(wind.clone())
-        {
-            return self.error(format!("wind {force:?} refused: {e}"));
+        use phenomena_scene::flame::WIND_PATH;
+        let Some(scene) = &self.scene else { return self.error("wind applies to flame scenes") };
+        let value = json!({ "force_n_m3": force });
+        let mut v = scene.to_json();
+        let updated = set_path(&mut v, WIND_PATH, value.clone())
+            .and_then(|()| scene_from_json(scene.phenomenon().name(), v));
+        let Ok(updated) = updated else { return self.error("wind applies to flame scenes") };
+        if let Some(runner) = &mut self.runner {
+            match runner.steer(WIND_PATH, &value) {
+                Steer::Applied => {}
+                Steer::NotLive => return self.error("wind applies to flame scenes"),
+                Steer::Refused(e) => return self.error(format!("wind {force:?} refused: {e}")),
+            }
         }
-        f.flame.wind = wind;
-        // The same simulation continues (no new generation): the drag steers it live.
+        self.scene = Some(updated);
         self.send(json!({"type": "wind", "force": force}))
     }
 
     fn snow_glb(&self) -> Result<Vec<u8>, String> {
         match &self.runner {
-            Some(Runner::Snow { sim, .. }) => {
-                let tris = phenomena_snow::export::snow_mesh(sim);
-                Ok(phenomena_snow::export::to_glb(&tris))
+            Some(runner) if self.scene.as_ref().is_some_and(|s| s.phenomenon().name() == "snow") => {
+                runner.export("snow-mesh", "glb").map(|e| e.bytes)
             }
             _ => Err("the session is not running a snow scene".into()),
         }
@@ -683,10 +602,7 @@ impl Session {
         let Some(scene) = self.scene.clone() else { return self.error("no scene to render") };
         let problems = scene.validate();
         if !problems.is_empty() {
-            return self.error(format!(
-                "the scene is not valid: {}",
-                problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")
-            ));
+            return self.error(format!("the scene is not valid: {}", joined(&problems)));
         }
         let total = frames.unwrap_or(scene.settings().frames);
         if !(1..=100_000).contains(&total) {
@@ -698,18 +614,18 @@ impl Session {
         self.renders += 1;
         let stamp =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-        let dir = self.out_root.join(format!("{}-{stamp}-{}", scene.phenomenon(), self.renders));
+        let dir = self.out_root.join(format!("{}-{stamp}-{}", scene.phenomenon().name(), self.renders));
         let cancel = Arc::new(AtomicBool::new(false));
         self.render_cancel = Some(cancel.clone());
         let out = self.out.clone();
-        let assets = self.dir.path().to_path_buf();
+        let assets = sandbox(self.dir.path());
         let spawned = std::thread::Builder::new().name("studio-render".into()).spawn(move || {
             let send = |v: Value| out.blocking_send(Out::Text(v.to_string())).is_ok();
-            match render_to(&scene, &assets, &dir, total, &cancel, |done| {
-                send(json!({"type": "progress", "done": done, "total": total, "dir": dir.display().to_string()}))
-            }) {
+            let shown = dir.display().to_string();
+            let mut progress = FinalProgress { send: &send, cancel: &cancel, total, dir: &shown };
+            match render_to(&scene, &assets, &dir, total, &mut progress) {
                 Ok(()) => {
-                    send(json!({"type": "rendered", "dir": dir.display().to_string(), "frames": total}));
+                    send(json!({"type": "rendered", "dir": shown, "frames": total}));
                 }
                 Err(e) => {
                     send(json!({"type": "error", "message": format!("render final failed: {e:#}")}));
@@ -722,15 +638,15 @@ impl Session {
         }
     }
 
-    fn aurora(&mut self, op: AuroraOp) -> Result<(), Closed> {
-        let Some(Scene::Aurora(a)) = &self.scene else {
+    fn aurora(&mut self, op: EditOp) -> Result<(), Closed> {
+        let Some(a) = self.scene.as_ref().and_then(|s| s.get::<AuroraScene>()) else {
             return self.error("aurora editing needs an aurora scene: open the Aurora tab");
         };
         let mut config = a.aurora.clone();
         let mut drawn = self.drawn.clone();
-        match edit_aurora(&mut config, &mut drawn, op) {
+        match editor::edit(&mut config, &mut drawn, op) {
             Ok(message) => {
-                if let Some(Scene::Aurora(a)) = &mut self.scene {
+                if let Some(a) = self.scene.as_mut().and_then(|s| s.get_mut::<AuroraScene>()) {
                     a.aurora = config;
                 }
                 self.drawn = drawn;
@@ -740,372 +656,65 @@ impl Session {
                 }
                 Ok(())
             }
-            Err(refusal) => self.send(json!({"type": "refused", "message": refusal})),
+            Err(refusal) => self.send(json!({"type": "refused", "message": refusal.to_string()})),
+        }
+    }
+}
+
+/// A final render's progress to the page; stops the render when cancelled or when the
+/// page is gone.
+struct FinalProgress<'a> {
+    send: &'a dyn Fn(Value) -> bool,
+    cancel: &'a AtomicBool,
+    total: u32,
+    dir: &'a str,
+}
+
+impl Observer for FinalProgress<'_> {
+    fn frame(&mut self, record: &FrameRecord) -> std::ops::ControlFlow<()> {
+        let done = record.frame + 1;
+        let told =
+            (self.send)(json!({"type": "progress", "done": done, "total": self.total, "dir": self.dir}));
+        if !told || self.cancel.load(Ordering::Relaxed) {
+            std::ops::ControlFlow::Break(())
+        } else {
+            std::ops::ControlFlow::Continue(())
         }
     }
 }
 
 /// Render `total` frames of `scene` at its own size into `dir` (PNG, with the scene
-/// file beside them), reporting after each frame; stops early when cancelled or when
-/// `progress` returns false.
+/// file beside them) through the runner, its files from `assets`.
 fn render_to(
     scene: &Scene,
-    assets: &Path,
+    assets: &Assets,
     dir: &Path,
     total: u32,
-    cancel: &AtomicBool,
-    mut progress: impl FnMut(u32) -> bool,
+    progress: &mut FinalProgress<'_>,
 ) -> Result<()> {
-    crate::output::ensure_dir(dir)?;
-    crate::output::write_bytes_atomic(&dir.join("scene.toml"), scene_toml(scene)?.as_bytes())?;
+    ensure_dir(dir)?;
+    let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
+    write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
     let mut runner = Runner::new(scene, assets)?;
-    let exposure = scene.settings().exposure();
-    for f in 0..total {
-        if cancel.load(Ordering::Relaxed) {
-            bail!("cancelled after {f} frames");
-        }
-        runner.step()?;
-        let frame = runner.render();
-        let path = dir.join(format!("frame_{f:05}.png"));
-        crate::output::write_frame(&path, frame, &[], crate::output::ImageFormat::Png, &exposure)?;
-        if !progress(f + 1) {
-            bail!("the page went away after {} frames", f + 1);
-        }
-    }
+    let mut sink = ImageSink::new(dir, ImageFormat::Png, false)?;
+    runner.run(0..total, &mut sink, progress)?;
     Ok(())
-}
-
-/// The control points of every sheet of keyframe `k`, resampled as the simulation does.
-fn control_points(config: &phenomena_aurora::AuroraConfig, k: usize) -> Vec<Vec<glam::Vec2>> {
-    let n = config.shape.control_points_per_sheet as usize;
-    config.keyframes[k]
-        .sheets
-        .iter()
-        .map(|s| {
-            let pts: Vec<glam::Vec2> = s.iter().map(|p| glam::Vec2::from(*p)).collect();
-            resample(&pts, n, config.shape.resample)
-        })
-        .collect()
-}
-
-/// The first sheet of `other` that the polyline `stroke` crosses.
-fn crossed(stroke: &[glam::Vec2], other: &[Vec<glam::Vec2>], skip: Option<usize>) -> Option<usize> {
-    other.iter().enumerate().filter(|(s, _)| Some(*s) != skip).find_map(|(s, sheet)| {
-        let hit =
-            stroke.windows(2).any(|a| sheet.windows(2).any(|b| segments_intersect(a[0], a[1], b[0], b[1])));
-        hit.then_some(s)
-    })
-}
-
-/// Apply one editor operation; `Err` is the refusal shown to the artist (and leaves
-/// the shapes as they were), `Ok` may carry a hint.
-fn edit_aurora(
-    config: &mut phenomena_aurora::AuroraConfig,
-    drawn: &mut Drawn,
-    op: AuroraOp,
-) -> Result<Option<String>, String> {
-    let (config_before, drawn_before) = (config.clone(), drawn.clone());
-    let result = apply_aurora_op(config, drawn, op);
-    if result.is_err() {
-        (*config, *drawn) = (config_before, drawn_before);
-    }
-    result
-}
-
-fn apply_aurora_op(
-    config: &mut phenomena_aurora::AuroraConfig,
-    drawn: &mut Drawn,
-    op: AuroraOp,
-) -> Result<Option<String>, String> {
-    let n = config.shape.control_points_per_sheet as usize;
-    let last = config.keyframes.len().saturating_sub(1);
-    let size = config.plane.size_km;
-    match op {
-        AuroraOp::Stroke { keyframe: k, points } => {
-            if k > last {
-                return Err(format!("there is no keyframe {k} (keyframes 0..={last})"));
-            }
-            if points.len() < 2 {
-                return Err("a stroke needs at least two mouse samples: drag to draw".into());
-            }
-            if let Some(p) =
-                points.iter().find(|p| !((0.0..=size.x).contains(&p[0]) && (0.0..=size.y).contains(&p[1])))
-            {
-                return Err(format!(
-                    "stroke point ({}, {}) lies outside the plane [0, {}] x [0, {}] km",
-                    p[0], p[1], size.x, size.y
-                ));
-            }
-            let raw: Vec<glam::Vec2> = points.iter().map(|p| glam::Vec2::from(*p)).collect();
-            let stroke = resample(&raw, n, config.shape.resample);
-            let sheets = control_points(config, k);
-            let target = if k == 0 {
-                None
-            } else {
-                match drawn.0[k].iter().position(|d| !d) {
-                    Some(s) => Some(s),
-                    None => {
-                        return Err(format!(
-                            "every sheet of keyframe {k} is drawn: draw on the source canvas to add a sheet"
-                        ));
-                    }
-                }
-            };
-            if let Some(s) = crossed(&stroke, &sheets, target) {
-                return Err(format!(
-                    "refused: the stroke crosses sheet {s} of keyframe {k} (aurora sheets never cross, thesis §2.2.1)"
-                ));
-            }
-            let sheet: Vec<[f32; 2]> = stroke.iter().map(|p| p.to_array()).collect();
-            match target {
-                None => {
-                    for (kf, d) in config.keyframes.iter_mut().zip(drawn.0.iter_mut()) {
-                        kf.sheets.push(sheet.clone());
-                        d.push(false);
-                    }
-                    drawn.0[0][config.keyframes[0].sheets.len() - 1] = true;
-                    Ok((last > 0).then(|| {
-                        "sheet added: now draw where it goes on the target canvas (the highlighted placeholder)"
-                            .to_string()
-                    }))
-                }
-                Some(s) => {
-                    config.keyframes[k].sheets[s] = sheet;
-                    drawn.0[k][s] = true;
-                    Ok(None)
-                }
-            }
-        }
-        AuroraOp::Split { keyframe, sheet, point } => {
-            config.splits.push(Split { keyframe, start: PointRef { sheet, point } });
-            check_animation(config).map(|()| None)
-        }
-        AuroraOp::Merge { keyframe, a, b } => {
-            if a == b {
-                return Err("pick two different end points to merge".into());
-            }
-            config.merges.push(Merge { keyframe, a, b });
-            check_animation(config).map(|()| None)
-        }
-        AuroraOp::AddKeyframe { frame } => {
-            let prev = config.keyframes.last().map_or(0, |k| k.frame);
-            if frame <= prev && !config.keyframes.is_empty() {
-                return Err(format!(
-                    "a new keyframe goes after the last one (frame {prev}); got frame {frame}"
-                ));
-            }
-            let sheets = config.keyframes.last().map(|k| k.sheets.clone()).unwrap_or_default();
-            drawn.0.push(vec![false; sheets.len()]);
-            config.keyframes.push(Keyframe { frame, sheets });
-            Ok(Some(format!(
-                "keyframe {} added at frame {frame}: draw its sheets",
-                config.keyframes.len() - 1
-            )))
-        }
-        AuroraOp::MoveKeyframe { keyframe, frame } => {
-            if keyframe > last {
-                return Err(format!("there is no keyframe {keyframe}"));
-            }
-            config.keyframes[keyframe].frame = frame;
-            let order_ok = config.keyframes.windows(2).all(|w| w[0].frame < w[1].frame);
-            if !order_ok {
-                return Err(format!(
-                    "keyframe {keyframe} cannot move to frame {frame}: keyframes stay in time order without ties"
-                ));
-            }
-            Ok(None)
-        }
-        AuroraOp::DeleteKeyframe { keyframe } => {
-            if keyframe == 0 {
-                return Err("the source keyframe cannot be deleted (use Clear to start over)".into());
-            }
-            if keyframe > last {
-                return Err(format!("there is no keyframe {keyframe}"));
-            }
-            if config.keyframes.len() <= 2 {
-                return Err("an aurora needs a source and at least one target keyframe".into());
-            }
-            config.keyframes.remove(keyframe);
-            drawn.0.remove(keyframe);
-            let k = keyframe as u32;
-            config.splits.retain(|s| s.keyframe != k);
-            config.merges.retain(|m| m.keyframe != k);
-            for s in &mut config.splits {
-                if s.keyframe > k {
-                    s.keyframe -= 1;
-                }
-            }
-            for m in &mut config.merges {
-                if m.keyframe > k {
-                    m.keyframe -= 1;
-                }
-            }
-            check_animation(config).map(|()| None)
-        }
-        AuroraOp::Clear => {
-            let end = config.keyframes.get(1).map_or(120, |k| k.frame);
-            config.keyframes =
-                vec![Keyframe { frame: 0, sheets: Vec::new() }, Keyframe { frame: end, sheets: Vec::new() }];
-            config.splits.clear();
-            config.merges.clear();
-            drawn.0 = vec![Vec::new(), Vec::new()];
-            Ok(None)
-        }
-    }
-}
-
-fn check_animation(config: &phenomena_aurora::AuroraConfig) -> Result<(), String> {
-    config.animation().map(|_| ()).map_err(|e| format!("refused: {e}"))
-}
-
-/// What the editor draws: per keyframe, the control points with their links as the
-/// simulation sees them at that keyframe (splits open, merges joined), which sheets
-/// the artist drew, and the sheet the next stroke on that canvas fills.
-fn aurora_editor(config: &phenomena_aurora::AuroraConfig, drawn: &Drawn) -> Value {
-    let built = config.animation();
-    let keyframes: Vec<Value> = config
-        .keyframes
-        .iter()
-        .enumerate()
-        .map(|(k, kf)| {
-            let d = drawn.0.get(k).cloned().unwrap_or_else(|| vec![true; kf.sheets.len()]);
-            let next_sheet = if k == 0 { Some(kf.sheets.len()) } else { d.iter().position(|x| !x) };
-            let shape = match &built {
-                Ok(anim) if !kf.sheets.is_empty() => {
-                    let s = anim.shape_at(kf.frame as f32);
-                    json!({
-                        "points": s.points.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
-                        "next": s.next,
-                        "sheet": s.sheet,
-                        "index": s.index_in_sheet,
-                    })
-                }
-                _ => {
-                    // The strokes as drawn, each a chain.
-                    let (mut points, mut next, mut sheet, mut index) = (vec![], vec![], vec![], vec![]);
-                    for (s, stroke) in kf.sheets.iter().enumerate() {
-                        for (i, p) in stroke.iter().enumerate() {
-                            let id = points.len() as u32;
-                            points.push(*p);
-                            next.push((i + 1 < stroke.len()).then_some(id + 1));
-                            sheet.push(s as u32);
-                            index.push(i as u32);
-                        }
-                    }
-                    json!({"points": points, "next": next, "sheet": sheet, "index": index})
-                }
-            };
-            json!({"frame": kf.frame, "drawn": d, "next_sheet": next_sheet, "shape": shape})
-        })
-        .collect();
-    json!({
-        "plane_km": [config.plane.size_km.x, config.plane.size_km.y],
-        "control_points": config.shape.control_points_per_sheet,
-        "built": built.is_ok(),
-        "problem": built.err().map(|e| e.to_string()),
-        "keyframes": keyframes,
-    })
 }
 
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
 
-    fn line(x0: f32, z0: f32, x1: f32, z1: f32) -> Vec<[f32; 2]> {
-        (0..20).map(|i| i as f32 / 19.0).map(|t| [x0 + (x1 - x0) * t, z0 + (z1 - z0) * t]).collect()
-    }
-
-    fn stroke(keyframe: usize, points: Vec<[f32; 2]>) -> AuroraOp {
-        AuroraOp::Stroke { keyframe, points }
-    }
-
-    #[test]
-    fn the_editor_draws_sources_then_targets_and_refuses_crossings() {
-        let mut c = phenomena_aurora::AuroraConfig::default();
-        let mut d = Drawn::default();
-        edit_aurora(&mut c, &mut d, AuroraOp::Clear).unwrap();
-        edit_aurora(&mut c, &mut d, stroke(0, line(50.0, 100.0, 300.0, 100.0))).unwrap();
-        edit_aurora(&mut c, &mut d, stroke(0, line(50.0, 200.0, 300.0, 200.0))).unwrap();
-        let n = c.shape.control_points_per_sheet as usize;
-        assert_eq!(c.keyframes[0].sheets.len(), 2);
-        assert_eq!(c.keyframes[0].sheets[0].len(), n, "strokes are stored resampled");
-        assert_eq!(d.0[1], vec![false, false], "targets start as placeholders");
-        let e = edit_aurora(&mut c, &mut d, stroke(0, line(100.0, 50.0, 100.0, 250.0))).unwrap_err();
-        assert!(e.contains("crosses sheet 0"), "{e}");
-        // The target's next stroke fills sheet 0; one that crosses sheet 1 is refused.
-        let e = edit_aurora(&mut c, &mut d, stroke(1, line(50.0, 120.0, 300.0, 260.0))).unwrap_err();
-        assert!(e.contains("crosses sheet 1"), "{e}");
-        edit_aurora(&mut c, &mut d, stroke(1, line(50.0, 130.0, 300.0, 150.0))).unwrap();
-        assert_eq!(d.0[1], vec![true, false]);
-        let v = aurora_editor(&c, &d);
-        assert_eq!(v["built"], true, "{v}");
-        assert_eq!(v["keyframes"][1]["next_sheet"], 1);
-        assert!(c.validate().is_ok());
-    }
-
-    #[test]
-    fn split_and_merge_change_the_links_and_bad_ones_are_refused() {
-        let mut c = phenomena_aurora::AuroraConfig::default();
-        let mut d = Drawn::default();
-        edit_aurora(&mut c, &mut d, AuroraOp::Clear).unwrap();
-        edit_aurora(&mut c, &mut d, stroke(0, line(50.0, 100.0, 300.0, 100.0))).unwrap();
-        let links = |c: &phenomena_aurora::AuroraConfig| {
-            let v =
-                aurora_editor(c, &Drawn(c.keyframes.iter().map(|k| vec![true; k.sheets.len()]).collect()));
-            v["keyframes"][1]["shape"]["next"].as_array().unwrap().iter().filter(|x| !x.is_null()).count()
-        };
-        let n = c.shape.control_points_per_sheet as usize;
-        assert_eq!(links(&c), n - 1);
-        edit_aurora(&mut c, &mut d, AuroraOp::Split { keyframe: 1, sheet: 0, point: 5 }).unwrap();
-        // A split adds two points and opens one segment: n + 1 points, n - 2 + 2 links... the chain
-        // a -> m1 and m2 -> b, so the link count grows by one and one segment is open.
-        assert_eq!(links(&c), n);
-        let e = edit_aurora(&mut c, &mut d, AuroraOp::Split { keyframe: 1, sheet: 0, point: (n - 1) as u32 })
-            .unwrap_err();
-        assert!(e.contains("starts no segment"), "{e}");
-        edit_aurora(&mut c, &mut d, AuroraOp::AddKeyframe { frame: 240 }).unwrap();
-        // Merge the two ends of the split (the added points n and n + 1) in the next transition.
-        let a = PointRef { sheet: 0, point: n as u32 };
-        let b = PointRef { sheet: 0, point: n as u32 + 1 };
-        edit_aurora(&mut c, &mut d, AuroraOp::Merge { keyframe: 2, a, b }).unwrap();
-        let e = edit_aurora(
-            &mut c,
-            &mut d,
-            AuroraOp::Merge { keyframe: 2, a: PointRef { sheet: 0, point: 3 }, b },
-        )
-        .unwrap_err();
-        assert!(e.contains("refused"), "{e}");
-        assert!(c.validate().is_ok());
-        let e = edit_aurora(&mut c, &mut d, AuroraOp::MoveKeyframe { keyframe: 2, frame: 10 }).unwrap_err();
-        assert!(e.contains("time order"), "{e}");
-        edit_aurora(&mut c, &mut d, AuroraOp::DeleteKeyframe { keyframe: 2 }).unwrap();
-        assert!(c.merges.is_empty() && c.keyframes.len() == 2);
-    }
-
     #[test]
     fn saved_scenes_read_back_identically() {
-        for b in super::super::controls::BUILTINS {
-            let scene = scene::parse(b.text, Path::new(b.name)).unwrap();
+        for b in &registry::SHIPPED {
+            let scene = b.scene().unwrap();
             let text = scene_toml(&scene).unwrap();
-            let back = scene::parse(&text, Path::new("saved.toml"))
+            let back = phenomena_scene::parse(&text, "saved.toml")
                 .unwrap_or_else(|e| panic!("{}: {e}\n{text}", b.name));
             assert_eq!(back, scene, "{}", b.name);
-            let json = scene_json(&scene);
-            assert_eq!(scene_from_json(scene.phenomenon(), json).unwrap(), scene, "{}", b.name);
-        }
-    }
-
-    #[test]
-    fn scenes_read_only_plain_uploaded_names() {
-        let mut scene = scene::parse(super::super::controls::BUILTINS[0].text, Path::new("f")).unwrap();
-        assert!(check_assets(&scene).is_ok());
-        for (path, ok) in
-            [("bg.png", true), ("../bg.png", false), ("/etc/passwd", false), ("a/bg.png", false)]
-        {
-            if let Scene::Flame(f) = &mut scene {
-                f.render.background = phenomena_flame::Background::Image { path: path.into() };
-            }
-            assert_eq!(check_assets(&scene).is_ok(), ok, "{path}");
+            let json = scene.to_json();
+            assert_eq!(scene_from_json(scene.phenomenon().name(), json).unwrap(), scene, "{}", b.name);
         }
     }
 

@@ -17,6 +17,12 @@ fn runtime() -> tokio::runtime::Runtime {
 
 /// A studio on a free loopback port; returns its address.
 async fn start(max_sessions: usize) -> (SocketAddr, tempfile::TempDir) {
+    let (addr, out, _) = start_shared(max_sessions).await;
+    (addr, out)
+}
+
+/// A studio on a free loopback port; returns its address and its shared state.
+async fn start_shared(max_sessions: usize) -> (SocketAddr, tempfile::TempDir, Arc<Shared>) {
     let out = tempfile::tempdir().unwrap();
     let shared = Arc::new(Shared {
         controls: controls::Catalogue::build(),
@@ -33,8 +39,18 @@ async fn start(max_sessions: usize) -> (SocketAddr, tempfile::TempDir) {
     });
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
-    tokio::spawn(async move { axum::serve(listener, router(shared)).await });
-    (addr, out)
+    let served = shared.clone();
+    tokio::spawn(async move { axum::serve(listener, router(served)).await });
+    (addr, out, shared)
+}
+
+/// Upload `bytes` as `name` to session `id`; the status code.
+async fn upload_file(addr: SocketAddr, id: &str, name: &str, bytes: &[u8]) -> u16 {
+    let head = format!(
+        "POST /api/session/{id}/upload/{name} HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        bytes.len()
+    );
+    raw(addr, &head, bytes).await.0
 }
 
 /// Send raw HTTP/1.1 bytes (so paths are not normalised) and return the status code
@@ -245,5 +261,94 @@ fn snow_glb_download_is_a_gltf_binary() {
         assert!(head.starts_with("HTTP/1.1 200"), "{head}");
         assert!(head.contains("model/gltf-binary"), "{head}");
         assert_eq!(&buf[split..split + 4], b"glTF", "GLB magic");
+    });
+}
+
+/// A glTF (one triangle) whose only buffer has the URI `uri`.
+fn gltf_with_buffer(uri: &str) -> String {
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","max":[4,0,4],"min":[0,0,0]}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],"buffers":[{{"uri":{uri:?},"byteLength":36}}]}}"#
+    )
+}
+
+/// Issue 18: a page cannot make the studio read any file but its own uploads. Every
+/// hostile glTF buffer URI is refused with a message naming the scene key and the URI
+/// (never the server's folders), without reading it; the session and other sessions
+/// keep working.
+#[test]
+fn hostile_gltf_buffer_uris_are_refused_without_reading() {
+    runtime().block_on(async {
+        let (addr, _out, shared) = start_shared(4).await;
+        let (mut ws, id) = connect(addr).await;
+        let (mut other, _) = connect(addr).await;
+        let dir = shared.sessions().get(&id).unwrap().dir.clone();
+        let folder = dir.to_string_lossy().into_owned();
+        // What a page cannot upload but another program might have put there: a FIFO
+        // (reading it would block the session for ever) and a symlink out of the folder.
+        #[cfg(unix)]
+        {
+            let made = std::process::Command::new("mkfifo").arg(dir.join("pipe.bin")).status();
+            assert!(made.unwrap().success());
+            std::os::unix::fs::symlink("/etc/hostname", dir.join("link.bin")).unwrap();
+        }
+        let triangle: Vec<u8> =
+            [[0.0f32, 0.0, 0.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]].iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        assert_eq!(upload_file(addr, &id, "tri.bin", &triangle).await, 200);
+        let mut cases = vec![
+            ("/etc/hostname", "absolute paths are refused"),
+            ("/dev/zero", "absolute paths are refused"),
+            ("../../../../etc/hostname", "plain name"),
+            ("sub/tri.bin", "plain name"),
+            ("%2E%2E%2Ftri.bin", "plain name"),
+            ("file:///etc/hostname", "only relative paths and data: URIs"),
+        ];
+        if cfg!(unix) {
+            cases.push(("pipe.bin", "not a regular file"));
+            cases.push(("link.bin", "symlink"));
+        }
+        for (uri, why) in cases {
+            assert_eq!(upload_file(addr, &id, "m.gltf", gltf_with_buffer(uri).as_bytes()).await, 200);
+            let text = "[scene]\nframes = 5\n[geometry]\nmesh = \"m.gltf\"\n[snow]\nmap_resolution = 16\ndirections = 4\nshadow_resolution = 32\n";
+            send(&mut ws, json!({"type": "toml", "text": text, "name": "hostile.toml"})).await;
+            let e = tokio::time::timeout(Duration::from_secs(20), next_json(&mut ws, "error"))
+                .await
+                .unwrap_or_else(|_| panic!("{uri}: no answer in 20 s (a blocked read?)"));
+            let message = e["message"].as_str().unwrap();
+            assert!(message.contains(&format!("geometry.mesh = \"m.gltf\": its glTF buffer {uri:?}")), "{message}");
+            assert!(message.contains(why), "{uri}: {message}");
+            assert!(!message.contains(&folder), "{uri}: the message reveals the session folder: {message}");
+            assert_eq!(e["issues"][0]["field"], "geometry.mesh", "{e}");
+        }
+        // A good buffer beside the glTF works in the same session; another tab never
+        // stopped.
+        assert_eq!(upload_file(addr, &id, "m.gltf", gltf_with_buffer("tri.bin").as_bytes()).await, 200);
+        let text = "[scene]\nframes = 5\n[geometry]\nmesh = \"m.gltf\"\n[snow]\nmap_resolution = 16\ndirections = 4\nshadow_resolution = 32\n";
+        send(&mut ws, json!({"type": "toml", "text": text})).await;
+        next_json(&mut ws, "frame").await;
+        send(&mut other, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut other, "frame").await;
+    });
+}
+
+/// Scene keys that name files take only plain uploaded names in the studio.
+#[test]
+fn scene_files_are_read_only_from_the_session_uploads() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut ws, "frame").await;
+        for path in ["../bg.png", "/etc/passwd", "a/bg.png", "missing.png"] {
+            send(
+                &mut ws,
+                json!({"type": "set", "path": "render.background", "value": {"kind": "image", "path": path}}),
+            )
+            .await;
+            let e = next_json(&mut ws, "error").await;
+            let message = e["message"].as_str().unwrap();
+            assert!(message.contains(&format!("render.background.path = {path:?}")), "{message}");
+            let why = if path == "missing.png" { "no such file" } else { "plain name" };
+            assert!(message.contains(why), "{message}");
+        }
     });
 }

@@ -1,6 +1,7 @@
 //! End-to-end tests of the `phenomena` binary: one scenario per module, all through the
 //! helpers below (run the binary, check its exit, its output and the files it wrote).
 
+mod assets;
 mod aurora_sky;
 mod bad_input;
 mod determinism;

@@ -76,7 +76,9 @@ function selectTab(phenomenon) {
 function buildExtras(phenomenon) {
   const box = $('extras');
   box.replaceChildren();
-  const upload = (label, accept, id, use) => {
+  // Uploads go to this session's folder; a scene reads them by their plain names.
+  // `use` gets the names uploaded (several at once: a .gltf and the buffers it names).
+  const upload = (label, accept, id, use, multiple = false) => {
     const l = document.createElement('label');
     l.className = 'file';
     l.textContent = `${label} `;
@@ -84,35 +86,44 @@ function buildExtras(phenomenon) {
     input.type = 'file';
     input.accept = accept;
     input.id = id;
+    input.multiple = multiple;
     input.addEventListener('change', async () => {
-      const file = input.files[0];
-      if (!file) return;
-      const name = file.name.replace(/[^A-Za-z0-9._-]/g, '_');
-      const r = await fetch(`/api/session/${studio.session}/upload/${encodeURIComponent(name)}`, { method: 'POST', body: file });
-      if (!r.ok) {
-        say('error', `upload of ${file.name} failed (${r.status}): ${await r.text()}`);
-        return;
+      const names = [];
+      for (const file of input.files) {
+        const name = file.name.replace(/[^A-Za-z0-9._-]/g, '_');
+        const r = await fetch(`/api/session/${studio.session}/upload/${encodeURIComponent(name)}`, { method: 'POST', body: file });
+        if (!r.ok) {
+          say('error', `upload of ${file.name} failed (${r.status}): ${await r.text()}`);
+          return;
+        }
+        names.push(name);
       }
-      use(name);
+      if (names.length) use(names);
     });
     l.append(input);
     box.append(l);
   };
-  if (phenomenon === 'flame') {
-    upload('Background image', 'image/png', 'background-upload', (name) =>
-      setParam('render.background', { kind: 'image', path: name }));
+  const background = (path) => upload('Background image', 'image/png', 'background-upload', (names) =>
+    setParam(path, { kind: 'image', path: names[0] }));
+  if (phenomenon === 'flame' || phenomenon === 'sparkle') {
+    background('render.background');
+  } else if (phenomenon === 'aurora') {
+    background('render.sky.background');
   } else if (phenomenon === 'snow') {
-    upload('Mesh (OBJ, GLB, glTF, DXF)', '.obj,.glb,.gltf,.dxf', 'mesh-upload', (name) =>
-      setParam('geometry.mesh', name));
+    // A glTF's buffers are uploaded with it (select them all); the mesh is the file
+    // with a mesh extension.
+    upload('Mesh (OBJ, GLB, glTF + buffers, DXF)', '.obj,.glb,.gltf,.bin,.dxf', 'mesh-upload', (names) => {
+      const mesh = names.find((n) => /\.(obj|glb|gltf|dxf)$/i.test(n));
+      if (mesh) setParam('geometry.mesh', mesh);
+      else say('error', 'no mesh among the files: choose an .obj, .glb, .gltf or .dxf file (with the buffers a .gltf names)');
+    }, true);
+    background('render.background');
     const a = document.createElement('a');
     a.id = 'snow-glb';
     a.textContent = 'Download snow mesh (GLB)';
     a.href = `/api/session/${studio.session}/snow.glb`;
     a.download = 'snow.glb';
     box.append(a);
-  } else if (phenomenon === 'sparkle') {
-    upload('Background image', 'image/png', 'background-upload', (name) =>
-      setParam('render.background', { kind: 'image', path: name }));
   }
 }
 

@@ -1,0 +1,162 @@
+//! Aurora scenes: `[aurora]` (artist shapes, field and particle motion of Sekiguchi
+//! 2018, §2.1-2.3) and its `[render]` (the sky view of §2.4 or the plane view).
+
+use std::fmt::Write as _;
+
+use phenomena_aurora::{AuroraConfig, AuroraRenderer, AuroraSim, AuroraView, RenderSettings, SkyBackground};
+use phenomena_core::clock::SharedClock;
+use phenomena_core::validate::{Issue, Issues};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::assets::Assets;
+use crate::phenomenon::{Built, ExportKind, Exported, Phenomenon, View};
+use crate::runner::BuildError;
+use crate::settings::SceneSettings;
+
+/// An aurora scene file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AuroraScene {
+    /// `[scene]`.
+    #[serde(default)]
+    pub scene: SceneSettings,
+    /// `[aurora]`.
+    #[serde(default)]
+    pub aurora: AuroraConfig,
+    /// `[render]`.
+    #[serde(default)]
+    pub render: RenderSettings,
+}
+
+/// The sky preview emits for about this many particles per frame (every k-th particle,
+/// k times the weight, the phase turning each frame: an unbiased thinning, see
+/// `SkyRenderer::set_particle_subset`); final renders use all of them.
+const PREVIEW_PARTICLES: usize = 15_000;
+
+impl Phenomenon for AuroraScene {
+    const NAME: &'static str = "aurora";
+    const ABOUT: &'static str =
+        "the artist-controllable aurora: drawn shapes, charged particles, emission lines (Sekiguchi 2018)";
+    const VIEWS: &'static [View] = &[
+        View { name: "sky", about: "the aurora in the sky through the scene's camera (thesis §2.4)" },
+        View { name: "plane", about: "the x-z simulation plane from above (thesis Figs 2.9-2.14)" },
+    ];
+    const EXPORTS: &'static [ExportKind] = &[
+        ExportKind {
+            name: "particles",
+            about: "the particles after a frame: x,z,vx,vz (km, km/s)",
+            formats: &["csv"],
+        },
+        ExportKind {
+            name: "shape",
+            about: "the intermediate target shape at a frame: sheet,index,x,z,next",
+            formats: &["csv"],
+        },
+    ];
+    const STARTER: &'static str = include_str!("../starters/aurora.toml");
+    type Sim = AuroraSim;
+    type Renderer = AuroraRenderer;
+
+    fn settings(&self) -> &SceneSettings {
+        &self.scene
+    }
+
+    fn settings_mut(&mut self) -> &mut SceneSettings {
+        &mut self.scene
+    }
+
+    fn validate(&self, i: &mut Issues) {
+        match self.aurora.validate() {
+            Err(e) => i.extend_prefixed("aurora", e),
+            Ok(()) => {
+                if let Err(e) = self.render.sky.validate() {
+                    i.extend_prefixed("render.sky", e);
+                }
+                if let Err(e) = self.aurora.animation() {
+                    i.extend_prefixed("aurora", vec![Issue::described(e.field(), e.to_string())]);
+                }
+            }
+        }
+    }
+
+    fn view(&self) -> &'static str {
+        match self.render.view {
+            AuroraView::Sky => "sky",
+            AuroraView::Plane => "plane",
+        }
+    }
+
+    fn set_view(&mut self, view: &str) {
+        self.render.view = if view == "plane" { AuroraView::Plane } else { AuroraView::Sky };
+    }
+
+    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError> {
+        let background = match (&self.render.view, &self.render.sky.background) {
+            (AuroraView::Sky, SkyBackground::Image { path }) => {
+                Some(assets.image("render.sky.background.path", path)?)
+            }
+            _ => None,
+        };
+        let sim = AuroraSim::new(self.aurora.clone(), self.scene.seed).map_err(BuildError::refused)?;
+        let (w, h) = self.scene.size();
+        let renderer = AuroraRenderer::new(self.render.clone(), w, h, background.as_ref())
+            .map_err(BuildError::refused)?;
+        Ok(Built { sim, renderer, warnings: Vec::new() })
+    }
+
+    fn set_clock(built: &mut Built<Self>, clock: &SharedClock) {
+        built.sim.set_clock(clock.clone());
+        built.renderer.set_clock(clock.clone());
+    }
+
+    fn before_render(built: &mut Built<Self>, preview: Option<u32>) {
+        let (stride, phase) = match preview {
+            Some(frame) => {
+                let k = built.sim.particles().len().div_ceil(PREVIEW_PARTICLES).max(1);
+                (k, frame as usize % k)
+            }
+            None => (1, 0),
+        };
+        built.renderer.set_particle_subset(stride, phase);
+    }
+
+    fn render_detail(built: &Built<Self>) -> Option<Value> {
+        built.renderer.timings().and_then(|t| serde_json::to_value(t).ok())
+    }
+
+    fn export(built: &Built<Self>, name: &str, format: &str) -> Result<Exported, String> {
+        if format != "csv" {
+            return Err(format!("aurora {name} exports are csv, not {format}"));
+        }
+        let sim = &built.sim;
+        let mut text = String::new();
+        let rows = match name {
+            "particles" => {
+                text.push_str("x,z,vx,vz\n");
+                let p = sim.particles();
+                for (x, v) in p.position_km.iter().zip(&p.velocity_km_s) {
+                    let _ = writeln!(text, "{},{},{},{}", x.x, x.y, v.x, v.y);
+                }
+                p.len()
+            }
+            "shape" => {
+                text.push_str("sheet,index,x,z,next\n");
+                let sh = &sim.field().shape;
+                for i in 0..sh.points.len() {
+                    let next = sh.next.get(i).copied().flatten();
+                    let next = next
+                        .and_then(|j| sh.index_in_sheet.get(j as usize))
+                        .map(ToString::to_string)
+                        .unwrap_or_default();
+                    let p = sh.points[i];
+                    let (sheet, index) = (sh.sheet[i], sh.index_in_sheet[i]);
+                    let _ = writeln!(text, "{sheet},{index},{},{},{next}", p.x, p.y);
+                }
+                sh.points.len()
+            }
+            other => return Err(format!("aurora scenes export particles or shape, not `{other}`")),
+        };
+        Ok(Exported { bytes: text.into_bytes(), summary: format!("{rows} rows") })
+    }
+}

@@ -1,0 +1,59 @@
+//! Scene files of phenomena, and the one loop that turns them into frames.
+//!
+//! - [`parse`] reads a scene file (TOML: a `[scene]` table and one phenomenon's tables)
+//!   and reports every problem at its line and column.
+//! - [`registry`] lists the phenomena ([`registry::PHENOMENA`]) and the scenes shipped
+//!   in `scenes/` ([`registry::SHIPPED`]); each phenomenon is one module ([`flame`],
+//!   [`aurora`], [`snow`], [`sparkle`]) implementing [`Phenomenon`].
+//! - [`Assets`] is the only way a scene reads a file: from a folder, a studio session's
+//!   sandbox, or memory.
+//! - [`Runner`] builds a scene's simulation and renderer and runs them, handing frames
+//!   to a [`FrameSink`] ([`output::ImageSink`] writes PNG or EXR files).
+//!
+//! A game or tool can load and run a scene with this crate alone:
+//!
+//! ```
+//! use phenomena_scene::{Assets, FrameSink, Output, Runner, SinkError, parse};
+//! let text = "[scene]\nframes = 3\nwidth = 64\nheight = 36\n[flame]\n[flame.emitter]\nrate_per_s = 600.0\n";
+//! let scene = parse(text, "fire.toml").unwrap();
+//! assert_eq!(scene.phenomenon().name(), "flame");
+//!
+//! /// Keeps the brightest value of each frame.
+//! struct Peaks(Vec<f32>);
+//! impl FrameSink for Peaks {
+//!     fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+//!         self.0.push(out.frame.c0.data().iter().fold(0.0, |a, &b| a.max(b)));
+//!         Ok(())
+//!     }
+//! }
+//! let mut runner = Runner::new(&scene, &Assets::none()).unwrap();
+//! let mut peaks = Peaks(Vec::new());
+//! runner.run(1..3, &mut peaks, &mut ()).unwrap();
+//! assert_eq!(peaks.0.len(), 2); // frames 1 and 2 (frame 0 is simulated, not drawn)
+//! ```
+//!
+//! Unlike the phenomenon crates, this crate touches files: [`Assets`] reads them and
+//! [`output`] writes them. It never prints and reads no clock (timings come from the
+//! clock the caller gives [`Runner::set_clock`]).
+
+pub mod assets;
+pub mod aurora;
+pub mod flame;
+pub mod output;
+mod parse;
+mod phenomenon;
+pub mod registry;
+mod runner;
+mod scene;
+mod settings;
+pub mod snow;
+pub mod sparkle;
+
+pub use assets::{AssetError, Assets};
+pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
+pub use phenomenon::{Built, ExportKind, Exported, Phenomenon, Steer, View};
+pub use runner::{
+    BuildError, FrameRecord, FrameSink, Observer, Output, RunError, Runner, Simulate, SinkError,
+};
+pub use scene::Scene;
+pub use settings::{MAX_SIDE_PX, SceneSettings};

@@ -1,0 +1,295 @@
+//! Writing files: frame sinks for PNG and EXR, and the atomic write they share. Every
+//! output goes to a temporary name in the same folder (unique to the process) and is
+//! renamed into place, so an interrupted write never leaves a half-written file under
+//! the real name.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use phenomena_core::color::srgb_encode_u8_fast;
+use phenomena_core::image::Frame;
+use phenomena_core::phenomenon::Layer;
+use phenomena_core::tonemap::Exposure;
+
+use crate::runner::{FrameSink, Output, SinkError};
+
+/// Image formats for frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit sRGB PNG, exposed and tone mapped.
+    Png,
+    /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping), with
+    /// the renderer's layers as extra channels.
+    Exr,
+}
+
+impl ImageFormat {
+    /// The file extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Exr => "exr",
+        }
+    }
+}
+
+fn error(e: impl std::fmt::Display) -> SinkError {
+    SinkError(e.to_string())
+}
+
+/// Temporary names written so far by this process (for uniqueness).
+static TEMPS: AtomicU64 = AtomicU64::new(0);
+
+/// The temporary name used while writing `path`: `.NAME.PID-N.tmp` beside it, unique
+/// to this process and write.
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let n = TEMPS.fetch_add(1, Ordering::Relaxed);
+    path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()))
+}
+
+/// Write `path` atomically with a closure that writes the temporary file it is given.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), SinkError>,
+) -> Result<(), SinkError> {
+    let tmp = temp_path(path);
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path)
+            .map_err(|e| SinkError(format!("cannot rename {} to {}: {e}", tmp.display(), path.display())))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Write bytes atomically.
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), SinkError> {
+    write_atomic(path, |tmp| {
+        let mut f =
+            std::fs::File::create(tmp).map_err(|e| error(format!("cannot create {}: {e}", tmp.display())))?;
+        f.write_all(bytes).map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))?;
+        f.sync_all().ok();
+        Ok(())
+    })
+}
+
+/// Temporary files left in `dir` by writers that are no longer running (killed
+/// mid-write): `.NAME.PID-N.tmp` whose process `PID` is gone. Removes them; returns
+/// how many.
+pub fn remove_stale_temps(dir: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = stale_temp_pid(&name) else { continue };
+        if !process_alive(pid) && std::fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+/// The writer's process id in a temporary name `.NAME.PID-N.tmp`.
+fn stale_temp_pid(name: &str) -> Option<u32> {
+    let body = name.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (_, tag) = body.rsplit_once('.')?;
+    let (pid, n) = tag.split_once('-')?;
+    n.parse::<u64>().ok()?;
+    pid.parse().ok()
+}
+
+/// Whether process `pid` may be running: asked of `/proc` (Linux); where there is no
+/// `/proc`, yes, so nothing is removed.
+fn process_alive(pid: u32) -> bool {
+    let proc = Path::new("/proc");
+    pid == std::process::id() || !proc.is_dir() || proc.join(pid.to_string()).exists()
+}
+
+/// Tone map a linear frame to 8-bit sRGB bytes (row-major RGB triples).
+pub fn to_srgb8(frame: &Frame, exposure: &Exposure) -> Vec<u8> {
+    use rayon::prelude::*;
+    // Each value maps on its own, so chunks in parallel give the same bytes.
+    const CHUNK: usize = 1 << 14;
+    let linear = frame.to_interleaved();
+    let mut out = vec![0u8; linear.len()];
+    out.par_chunks_mut(CHUNK).zip(linear.par_chunks(CHUNK)).for_each(|(o, l)| {
+        let mut k = 0;
+        exposure.apply_all(l, |v| {
+            o[k] = srgb_encode_u8_fast(v);
+            k += 1;
+        });
+    });
+    out
+}
+
+/// Write a frame as PNG (tone mapped) or EXR (linear, with `layers` as extra channels
+/// named as given, e.g. `aurora_557_7.Y`), atomically.
+pub fn write_frame(
+    path: &Path,
+    frame: &Frame,
+    layers: &[Layer<'_>],
+    format: ImageFormat,
+    exposure: &Exposure,
+) -> Result<(), SinkError> {
+    let (w, h) = (frame.width() as u32, frame.height() as u32);
+    match format {
+        ImageFormat::Png => write_png_rgb8(path, w, h, &to_srgb8(frame, exposure)),
+        ImageFormat::Exr if !layers.is_empty() => write_atomic(path, |tmp| {
+            use exr::prelude::*;
+            let mut list: Vec<AnyChannel<FlatSamples>> = vec![
+                AnyChannel::new("R", FlatSamples::F32(frame.c0.data().to_vec())),
+                AnyChannel::new("G", FlatSamples::F32(frame.c1.data().to_vec())),
+                AnyChannel::new("B", FlatSamples::F32(frame.c2.data().to_vec())),
+            ];
+            for layer in layers {
+                list.push(AnyChannel::new(layer.name, FlatSamples::F32(layer.plane.data().to_vec())));
+            }
+            Image::from_channels((frame.width(), frame.height()), AnyChannels::sort(SmallVec::from_vec(list)))
+                .write()
+                .non_parallel()
+                .to_file(tmp)
+                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+        }),
+        ImageFormat::Exr => write_atomic(path, |tmp| {
+            use exr::prelude::*;
+            let data = frame.to_interleaved();
+            let width = frame.width();
+            let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+                let i = (y * width + x) * 3;
+                (data[i], data[i + 1], data[i + 2])
+            });
+            // One thread, blocks in order: the same pixels give the same bytes (the
+            // parallel writer emits compressed blocks in completion order).
+            Image::from_channels((frame.width(), frame.height()), channels)
+                .write()
+                .non_parallel()
+                .to_file(tmp)
+                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+        }),
+    }
+}
+
+/// Write 8-bit RGB as PNG, atomically.
+pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), SinkError> {
+    write_atomic(path, |tmp| {
+        image::save_buffer_with_format(
+            tmp,
+            rgb,
+            width,
+            height,
+            image::ColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+    })
+}
+
+/// Create `dir` (and parents) if missing; a clear error if that fails or it is a file.
+pub fn ensure_dir(dir: &Path) -> Result<(), SinkError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(error(format!("{} exists and is not a directory", dir.display())));
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| error(format!("cannot create the output directory {}: {e}", dir.display())))?;
+    // Probe writability now rather than after minutes of simulation.
+    let probe = temp_path(&dir.join("write-test"));
+    std::fs::write(&probe, b"")
+        .map_err(|e| error(format!("the output directory {} is not writable: {e}", dir.display())))?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+/// Frames as numbered image files: `DIR/frame_00000.png`, ...
+pub struct ImageSink {
+    dir: PathBuf,
+    format: ImageFormat,
+    resume: bool,
+    written: u32,
+    kept: u32,
+}
+
+impl ImageSink {
+    /// Frames into `dir` (created if missing). With `resume`, frames whose files exist
+    /// are kept (not rendered again) and temporary files of writers that were killed
+    /// are removed.
+    pub fn new(dir: &Path, format: ImageFormat, resume: bool) -> Result<Self, SinkError> {
+        ensure_dir(dir)?;
+        if resume {
+            remove_stale_temps(dir);
+        }
+        Ok(Self { dir: dir.to_path_buf(), format, resume, written: 0, kept: 0 })
+    }
+
+    /// The file of frame `index`.
+    pub fn path(&self, index: u32) -> PathBuf {
+        self.dir.join(format!("frame_{index:05}.{}", self.format.extension()))
+    }
+
+    /// Frames written.
+    pub fn written(&self) -> u32 {
+        self.written
+    }
+
+    /// Frames kept because their files existed (`resume`).
+    pub fn kept(&self) -> u32 {
+        self.kept
+    }
+}
+
+impl FrameSink for ImageSink {
+    fn wants(&mut self, index: u32) -> bool {
+        if self.resume && self.path(index).is_file() {
+            self.kept += 1;
+            return false;
+        }
+        true
+    }
+
+    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        write_frame(&self.path(out.index), out.frame, out.layers, self.format, &out.exposure)?;
+        self.written += 1;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_writes_leave_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.bin");
+        let r = write_atomic(&path, |tmp| {
+            std::fs::write(tmp, b"partial").unwrap();
+            Err(SinkError("simulated failure".into()))
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        write_bytes_atomic(&path, b"ok").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"ok");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn temporary_names_are_unique_and_stale_ones_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = temp_path(&dir.path().join("frame_00001.exr"));
+        let b = temp_path(&dir.path().join("frame_00001.exr"));
+        assert_ne!(a, b);
+        let name = a.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(stale_temp_pid(&name), Some(std::process::id()));
+        assert_eq!(stale_temp_pid(".frame_00001.exr.tmp"), None, "the old fixed name is not ours");
+        // A temp of this (live) process stays; one of a process that cannot exist goes.
+        std::fs::write(&a, b"x").unwrap();
+        let dead = dir.path().join(".frame_00002.exr.4294967295-0.tmp");
+        std::fs::write(&dead, b"x").unwrap();
+        if Path::new("/proc").is_dir() {
+            assert_eq!(remove_stale_temps(dir.path()), 1);
+            assert!(a.exists() && !dead.exists());
+        }
+    }
+}

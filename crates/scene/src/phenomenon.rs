@@ -1,0 +1,122 @@
+//! The one trait each phenomenon's scene module implements: its file struct (the whole
+//! scene file: `[scene]` plus the phenomenon's tables) is the implementing type. Code
+//! above it (the runner, the CLI, the studio) reaches phenomena only through the
+//! [`crate::registry`], so adding a phenomenon is one module plus one registry line.
+
+use std::fmt::Debug;
+
+use phenomena_core::clock::SharedClock;
+use phenomena_core::phenomenon::{Renderer, Simulation};
+use phenomena_core::validate::Issues;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use serde_json::Value;
+
+use crate::assets::Assets;
+use crate::runner::BuildError;
+use crate::settings::SceneSettings;
+
+/// A way a phenomenon can draw its frames (`[render] view` and `--view`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct View {
+    /// The name in scene files and on the command line.
+    pub name: &'static str,
+    /// What it shows.
+    pub about: &'static str,
+}
+
+/// A data product a phenomenon's state can be exported as (`phenomena export NAME`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct ExportKind {
+    /// The name (`snow-mesh`).
+    pub name: &'static str,
+    /// What it holds.
+    pub about: &'static str,
+    /// File formats, by extension; the first is the default.
+    pub formats: &'static [&'static str],
+}
+
+/// An exported file's bytes and a one-line summary of what it holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Exported {
+    /// The file's bytes.
+    pub bytes: Vec<u8>,
+    /// e.g. "120000 rows".
+    pub summary: String,
+}
+
+/// What a live change of a running simulation did ([`Phenomenon::steer`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Steer {
+    /// Applied to the running simulation (no restart needed).
+    Applied,
+    /// This parameter cannot change live: rebuild the simulation.
+    NotLive,
+    /// The value was refused; the simulation is unchanged.
+    Refused(String),
+}
+
+/// A built simulation and renderer, with warnings for the user (a scene that can show
+/// nothing, triangles dropped from a mesh, ...).
+pub struct Built<P: Phenomenon> {
+    /// The simulation.
+    pub sim: P::Sim,
+    /// Its renderer.
+    pub renderer: P::Renderer,
+    /// Warnings, each a sentence.
+    pub warnings: Vec<String>,
+}
+
+/// One phenomenon's scene file.
+pub trait Phenomenon:
+    Serialize + DeserializeOwned + Default + Clone + PartialEq + Debug + Send + Sync + 'static
+{
+    /// The table name (`flame`): a scene file holding `[flame]` is a flame scene.
+    const NAME: &'static str;
+    /// One line on what it is and which paper it follows.
+    const ABOUT: &'static str;
+    /// The views it can draw; the first is the default.
+    const VIEWS: &'static [View];
+    /// The data it can export.
+    const EXPORTS: &'static [ExportKind] = &[];
+    /// A commented scene file holding every default (`phenomena new`).
+    const STARTER: &'static str;
+
+    /// The simulation.
+    type Sim: Simulation;
+    /// Its renderer.
+    type Renderer: Renderer<Self::Sim>;
+
+    /// The `[scene]` table.
+    fn settings(&self) -> &SceneSettings;
+    /// The `[scene]` table, to change.
+    fn settings_mut(&mut self) -> &mut SceneSettings;
+    /// Every problem of the phenomenon's own tables, with paths from the file's root
+    /// (`flame.sph.support_radius_m`, `render.view`).
+    fn validate(&self, issues: &mut Issues);
+    /// The view drawn (one of [`Phenomenon::VIEWS`]).
+    fn view(&self) -> &'static str;
+    /// Draw `view` (one of [`Phenomenon::VIEWS`]; others are refused by the caller).
+    fn set_view(&mut self, view: &str);
+    /// Read the scene's files through `assets` (the only way a scene reads a file) and
+    /// build the simulation and its renderer at the scene's size.
+    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError>;
+
+    /// Give the simulation and renderer a clock for their timing breakdowns.
+    fn set_clock(_built: &mut Built<Self>, _clock: &SharedClock) {}
+    /// Before a render: `Some(frame)` asks for a fast preview of frame `frame` (the
+    /// studio), `None` for the full render.
+    fn before_render(_built: &mut Built<Self>, _preview: Option<u32>) {}
+    /// The renderer's timing breakdown of the last render, if it has one.
+    fn render_detail(_built: &Built<Self>) -> Option<Value> {
+        None
+    }
+    /// Export `name` ([`Phenomenon::EXPORTS`]) in `format`.
+    fn export(_built: &Built<Self>, name: &str, _format: &str) -> Result<Exported, String> {
+        Err(format!("{} scenes export nothing called `{name}`", Self::NAME))
+    }
+    /// Change parameter `path` of the running simulation to `value` without a restart.
+    fn steer(_built: &mut Built<Self>, _path: &str, _value: &Value) -> Steer {
+        Steer::NotLive
+    }
+}

@@ -1,0 +1,354 @@
+//! The one render loop: build a scene's simulation and renderer ([`Runner::new`]), step
+//! it frame by frame and hand the frames wanted to a [`FrameSink`] (PNG or EXR files,
+//! the studio's preview, ...), reporting each frame to an [`Observer`] (progress,
+//! statistics, cancellation). `render`, `demo`, `export`, the studio's preview and its
+//! final renders all run through it.
+
+use std::ops::{ControlFlow, Range};
+
+use phenomena_core::clock::SharedClock;
+use phenomena_core::image::Frame;
+use phenomena_core::phenomenon::{Layer, Renderer, Simulation};
+use phenomena_core::tonemap::Exposure;
+use phenomena_core::validate::Issue;
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::assets::{AssetError, Assets};
+use crate::phenomenon::{Built, Exported, Phenomenon, Steer};
+use crate::scene::Scene;
+
+/// Why a scene's simulation or renderer could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The scene is not valid (a scene changed after it was read, say).
+    #[error("the scene is not valid: {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    Invalid(Vec<Issue>),
+    /// A file could not be read.
+    #[error(transparent)]
+    Asset(#[from] AssetError),
+    /// A file was read but cannot be used (a mesh that does not parse, say).
+    #[error("{key}: {message}")]
+    Unusable {
+        /// The scene key that names the file.
+        key: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The simulation or renderer refused the scene.
+    #[error("{0}")]
+    Refused(String),
+}
+
+impl BuildError {
+    /// The scene key the problem is at, if it is at one.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            BuildError::Asset(e) => Some(&e.key),
+            BuildError::Unusable { key, .. } => Some(key),
+            BuildError::Invalid(issues) => issues.first().map(|i| i.field.as_str()),
+            BuildError::Refused(_) => None,
+        }
+    }
+
+    /// A simulation's or renderer's refusal.
+    pub fn refused(e: impl std::fmt::Display) -> Self {
+        BuildError::Refused(e.to_string())
+    }
+}
+
+/// Why a run stopped early.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The simulation failed.
+    #[error("the simulation failed at frame {frame}: {message}")]
+    Step {
+        /// The frame being made.
+        frame: u32,
+        /// Why.
+        message: String,
+    },
+    /// The sink could not take a frame.
+    #[error("frame {frame}: {source}")]
+    Sink {
+        /// The frame.
+        frame: u32,
+        /// Why.
+        source: SinkError,
+    },
+    /// The observer asked to stop.
+    #[error("stopped after {frames} frame(s)")]
+    Cancelled {
+        /// Frames finished.
+        frames: u32,
+    },
+    /// The frames asked for start before the simulation's current frame.
+    #[error("frame {asked} is already past: the simulation is at frame {at}")]
+    Past {
+        /// The first frame asked for.
+        asked: u32,
+        /// Frames already simulated.
+        at: u32,
+    },
+}
+
+/// Why a sink could not take a frame.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct SinkError(pub String);
+
+/// What one frame did: timings (0 unless the runner has a clock), the phenomenon's
+/// counters, and what happened to its image. One JSON object per frame in `--stats`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FrameRecord {
+    /// The frame (the state after `frame + 1` steps).
+    pub frame: u32,
+    /// Time of the step, ms.
+    pub step_ms: f64,
+    /// Time of the render, ms (`None`: not rendered).
+    pub render_ms: Option<f64>,
+    /// The renderer's own breakdown of `render_ms`, where it has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub render_detail: Option<Value>,
+    /// Time the sink took, ms.
+    pub write_ms: Option<f64>,
+    /// The sink already had this frame (`--resume`).
+    pub skipped: bool,
+    /// The phenomenon's counters (particles, passes, ...).
+    #[serde(flatten)]
+    pub counters: Value,
+}
+
+/// A rendered frame handed to a sink.
+pub struct Output<'a> {
+    /// Its frame number.
+    pub index: u32,
+    /// Linear (scene-referred) RGB.
+    pub frame: &'a Frame,
+    /// Extra images (EXR layers).
+    pub layers: &'a [Layer<'a>],
+    /// The scene's exposure and tone map (for display encodings).
+    pub exposure: Exposure,
+    /// The frame's record so far (step and render timings, counters).
+    pub record: &'a FrameRecord,
+}
+
+/// Where rendered frames go.
+pub trait FrameSink {
+    /// Whether frame `index` is to be rendered and written (`false`: the sink has it
+    /// already, e.g. a finished file when resuming).
+    fn wants(&mut self, _index: u32) -> bool {
+        true
+    }
+
+    /// Take one frame.
+    fn write(&mut self, output: &Output<'_>) -> Result<(), SinkError>;
+}
+
+/// A sink that takes nothing: the frames are simulated, not rendered.
+pub struct Simulate;
+
+impl FrameSink for Simulate {
+    fn wants(&mut self, _index: u32) -> bool {
+        false
+    }
+
+    fn write(&mut self, _output: &Output<'_>) -> Result<(), SinkError> {
+        Ok(())
+    }
+}
+
+/// Told about every frame as it finishes; may stop the run.
+pub trait Observer {
+    /// Frame `record.frame` is done (stepped, and rendered if it was wanted).
+    fn frame(&mut self, record: &FrameRecord) -> ControlFlow<()>;
+}
+
+impl Observer for () {
+    fn frame(&mut self, _record: &FrameRecord) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+}
+
+/// A phenomenon's simulation and renderer, stepped together.
+pub struct Runner {
+    run: Box<dyn Run>,
+    clock: SharedClock,
+    exposure: Exposure,
+    preview: bool,
+}
+
+impl Runner {
+    /// Build the simulation and renderer of `scene` (validated first), reading its
+    /// files through `assets`.
+    pub fn new(scene: &Scene, assets: &Assets) -> Result<Self, BuildError> {
+        let issues = scene.validate();
+        if !issues.is_empty() {
+            return Err(BuildError::Invalid(issues));
+        }
+        let run = scene.build(assets)?;
+        Ok(Self { run, clock: SharedClock::default(), exposure: scene.settings().exposure(), preview: false })
+    }
+
+    /// Time steps, renders and writes (and the phenomena's own breakdowns) with
+    /// `clock`; without one every timing is 0.
+    pub fn set_clock(&mut self, clock: SharedClock) {
+        self.run.set_clock(&clock);
+        self.clock = clock;
+    }
+
+    /// Render fast previews (the studio) instead of final frames, where the phenomenon
+    /// has a preview mode.
+    pub fn set_preview(&mut self, preview: bool) {
+        self.preview = preview;
+    }
+
+    /// Warnings found while building (each a sentence).
+    pub fn warnings(&self) -> &[String] {
+        self.run.warnings()
+    }
+
+    /// Frames simulated so far.
+    pub fn frames_done(&self) -> u32 {
+        u32::try_from(self.run.frames_done()).unwrap_or(u32::MAX)
+    }
+
+    /// The frame of the last render.
+    pub fn frame(&self) -> &Frame {
+        self.run.frame()
+    }
+
+    /// Simulate one frame.
+    pub fn step(&mut self) -> Result<FrameRecord, RunError> {
+        let frame = self.frames_done();
+        let t = self.clock.stopwatch();
+        let counters = self.run.step().map_err(|message| RunError::Step { frame, message })?;
+        Ok(FrameRecord { frame, step_ms: t.ms(), counters, ..FrameRecord::default() })
+    }
+
+    /// Render the current state and give it to `sink` (if it wants this frame),
+    /// completing `record`.
+    pub fn output(&mut self, record: &mut FrameRecord, sink: &mut dyn FrameSink) -> Result<(), RunError> {
+        if !sink.wants(record.frame) {
+            record.skipped = true;
+            return Ok(());
+        }
+        let t = self.clock.stopwatch();
+        self.run.render(self.preview.then_some(record.frame));
+        record.render_ms = Some(t.ms());
+        record.render_detail = self.run.render_detail();
+        let t = self.clock.stopwatch();
+        let layers = self.run.layers();
+        let output = Output {
+            index: record.frame,
+            frame: self.run.frame(),
+            layers: &layers,
+            exposure: self.exposure,
+            record,
+        };
+        sink.write(&output).map_err(|source| RunError::Sink { frame: record.frame, source })?;
+        record.write_ms = Some(t.ms());
+        Ok(())
+    }
+
+    /// Simulate up to frame `frames.end` (not included), rendering each frame of
+    /// `frames` that `sink` wants into it; every simulated frame is reported to
+    /// `observer`.
+    pub fn run(
+        &mut self,
+        frames: Range<u32>,
+        sink: &mut dyn FrameSink,
+        observer: &mut dyn Observer,
+    ) -> Result<(), RunError> {
+        let at = self.frames_done();
+        if frames.start < at && !frames.is_empty() {
+            return Err(RunError::Past { asked: frames.start, at });
+        }
+        while self.frames_done() < frames.end {
+            let mut record = self.step()?;
+            if frames.contains(&record.frame) {
+                self.output(&mut record, sink)?;
+            }
+            if observer.frame(&record).is_break() {
+                return Err(RunError::Cancelled { frames: record.frame + 1 });
+            }
+        }
+        Ok(())
+    }
+
+    /// Export `name` of the current state in `format` (see the phenomenon's exports).
+    pub fn export(&self, name: &str, format: &str) -> Result<Exported, String> {
+        self.run.export(name, format)
+    }
+
+    /// Change `path` to `value` in the running simulation, if it can change live.
+    pub fn steer(&mut self, path: &str, value: &Value) -> Steer {
+        self.run.steer(path, value)
+    }
+}
+
+/// A built phenomenon without its types.
+pub(crate) trait Run: Send {
+    fn step(&mut self) -> Result<Value, String>;
+    fn render(&mut self, preview: Option<u32>);
+    fn frame(&self) -> &Frame;
+    fn layers(&self) -> Vec<Layer<'_>>;
+    fn render_detail(&self) -> Option<Value>;
+    fn set_clock(&mut self, clock: &SharedClock);
+    fn export(&self, name: &str, format: &str) -> Result<Exported, String>;
+    fn steer(&mut self, path: &str, value: &Value) -> Steer;
+    fn warnings(&self) -> &[String];
+    fn frames_done(&self) -> u64;
+}
+
+/// Build `scene`'s simulation and renderer.
+pub(crate) fn live<P: Phenomenon>(scene: &P, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
+    Ok(Box::new(Live(scene.build(assets)?)))
+}
+
+struct Live<P: Phenomenon>(Built<P>);
+
+impl<P: Phenomenon> Run for Live<P> {
+    fn step(&mut self) -> Result<Value, String> {
+        let stats = self.0.sim.step().map_err(|e| e.to_string())?;
+        serde_json::to_value(stats).map_err(|e| e.to_string())
+    }
+
+    fn render(&mut self, preview: Option<u32>) {
+        P::before_render(&mut self.0, preview);
+        let Built { sim, renderer, .. } = &mut self.0;
+        renderer.render(sim);
+    }
+
+    fn frame(&self) -> &Frame {
+        self.0.renderer.frame()
+    }
+
+    fn layers(&self) -> Vec<Layer<'_>> {
+        self.0.renderer.layers()
+    }
+
+    fn render_detail(&self) -> Option<Value> {
+        P::render_detail(&self.0)
+    }
+
+    fn set_clock(&mut self, clock: &SharedClock) {
+        P::set_clock(&mut self.0, clock)
+    }
+
+    fn export(&self, name: &str, format: &str) -> Result<Exported, String> {
+        P::export(&self.0, name, format)
+    }
+
+    fn steer(&mut self, path: &str, value: &Value) -> Steer {
+        P::steer(&mut self.0, path, value)
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.0.warnings
+    }
+
+    fn frames_done(&self) -> u64 {
+        self.0.sim.frames_done()
+    }
+}

@@ -1,0 +1,205 @@
+//! [`Scene`]: a parsed scene file of any phenomenon, with typed access for code that
+//! knows which one it holds.
+
+use std::any::Any;
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+
+use phenomena_core::validate::{Issue, Issues};
+use serde_json::Value;
+
+use crate::assets::Assets;
+use crate::parse::{Located, Source};
+use crate::phenomenon::{Phenomenon, View};
+use crate::registry::{self, Entry};
+use crate::runner::{BuildError, Run};
+use crate::settings::SceneSettings;
+
+/// A scene of any phenomenon.
+pub struct Scene {
+    inner: Box<dyn AnyScene>,
+    /// The file it was read from, to locate later problems (none once it is changed).
+    source: Option<Arc<Source>>,
+}
+
+impl Scene {
+    /// A scene holding `file`.
+    pub fn new<P: Phenomenon>(file: P) -> Self {
+        Self { inner: Box::new(file), source: None }
+    }
+
+    pub(crate) fn with_source(mut self, source: Source) -> Self {
+        self.source = Some(Arc::new(source));
+        self
+    }
+
+    /// Its phenomenon.
+    pub fn phenomenon(&self) -> &'static dyn Entry {
+        self.inner.entry()
+    }
+
+    /// The `[scene]` table.
+    pub fn settings(&self) -> &SceneSettings {
+        self.inner.settings()
+    }
+
+    /// The `[scene]` table, to change (the scene is no longer the file's).
+    pub fn settings_mut(&mut self) -> &mut SceneSettings {
+        self.source = None;
+        self.inner.settings_mut()
+    }
+
+    /// Every problem, with field paths from the file's root (`flame.sph.k`).
+    pub fn validate(&self) -> Vec<Issue> {
+        let mut i = Issues::default();
+        self.inner.settings().validate(&mut i);
+        self.inner.validate(&mut i);
+        i.into_result().err().unwrap_or_default()
+    }
+
+    /// The view drawn.
+    pub fn view(&self) -> &'static str {
+        self.inner.view()
+    }
+
+    /// Draw `view`; a view the phenomenon cannot draw is refused with the ones it can.
+    pub fn set_view(&mut self, view: &str) -> Result<(), String> {
+        let p = self.phenomenon();
+        if !p.views().iter().any(|v| v.name == view) {
+            let names: Vec<&str> = p.views().iter().map(|v: &View| v.name).collect();
+            return Err(format!("`{view}` is not a {} view: use {}", p.name(), names.join(" or ")));
+        }
+        self.source = None;
+        self.inner.set_view(view);
+        Ok(())
+    }
+
+    /// The scene as JSON (the form a front end edits; [`crate::registry::Entry::scene_from_json`] reads it).
+    pub fn to_json(&self) -> Value {
+        self.inner.to_json()
+    }
+
+    /// The scene as a TOML file that reads back to the same scene.
+    pub fn to_toml(&self) -> Result<String, String> {
+        self.inner.to_toml()
+    }
+
+    /// The phenomenon's file struct, when it is `P`.
+    pub fn get<P: Phenomenon>(&self) -> Option<&P> {
+        self.inner.as_any().downcast_ref()
+    }
+
+    /// The phenomenon's file struct, to change, when it is `P`.
+    pub fn get_mut<P: Phenomenon>(&mut self) -> Option<&mut P> {
+        self.source = None;
+        self.inner.as_any_mut().downcast_mut()
+    }
+
+    /// `message` about the value at `field` (a dotted path) at its line and column in
+    /// the file the scene was read from; `None` for a scene not read from a file.
+    pub fn locate(&self, field: &str, message: String) -> Option<Located> {
+        self.source.as_ref().map(|s| s.locate(field, message))
+    }
+
+    /// The file the scene was read from, as named when parsed.
+    pub fn file(&self) -> Option<&Path> {
+        self.source.as_ref().map(|s| s.file.as_path())
+    }
+
+    pub(crate) fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
+        self.inner.build(assets)
+    }
+}
+
+impl Clone for Scene {
+    fn clone(&self) -> Self {
+        Self { inner: self.inner.clone_box(), source: self.source.clone() }
+    }
+}
+
+impl PartialEq for Scene {
+    /// Scenes are equal when their contents are (wherever they were read from).
+    fn eq(&self, other: &Self) -> bool {
+        self.inner.eq_dyn(&*other.inner)
+    }
+}
+
+impl fmt::Debug for Scene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.inner.fmt(f)
+    }
+}
+
+/// A phenomenon's file struct without its type.
+trait AnyScene: Send + Sync + fmt::Debug {
+    fn entry(&self) -> &'static dyn Entry;
+    fn settings(&self) -> &SceneSettings;
+    fn settings_mut(&mut self) -> &mut SceneSettings;
+    fn validate(&self, issues: &mut Issues);
+    fn view(&self) -> &'static str;
+    fn set_view(&mut self, view: &str);
+    fn to_json(&self) -> Value;
+    fn to_toml(&self) -> Result<String, String>;
+    fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError>;
+    fn clone_box(&self) -> Box<dyn AnyScene>;
+    fn eq_dyn(&self, other: &dyn AnyScene) -> bool;
+    fn as_any(&self) -> &dyn Any;
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
+
+impl<P: Phenomenon> AnyScene for P {
+    fn entry(&self) -> &'static dyn Entry {
+        // Every implementation of `Phenomenon` is listed in the registry (a test checks
+        // each module's name is there).
+        registry::phenomenon(P::NAME).unwrap_or(registry::PHENOMENA[0])
+    }
+
+    fn settings(&self) -> &SceneSettings {
+        Phenomenon::settings(self)
+    }
+
+    fn settings_mut(&mut self) -> &mut SceneSettings {
+        Phenomenon::settings_mut(self)
+    }
+
+    fn validate(&self, issues: &mut Issues) {
+        Phenomenon::validate(self, issues)
+    }
+
+    fn view(&self) -> &'static str {
+        Phenomenon::view(self)
+    }
+
+    fn set_view(&mut self, view: &str) {
+        Phenomenon::set_view(self, view)
+    }
+
+    fn to_json(&self) -> Value {
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
+
+    fn to_toml(&self) -> Result<String, String> {
+        toml::to_string(self).map_err(|e| e.to_string())
+    }
+
+    fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
+        crate::runner::live(self, assets)
+    }
+
+    fn clone_box(&self) -> Box<dyn AnyScene> {
+        Box::new(self.clone())
+    }
+
+    fn eq_dyn(&self, other: &dyn AnyScene) -> bool {
+        other.as_any().downcast_ref::<P>().is_some_and(|o| o == self)
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
