@@ -25,6 +25,7 @@
 //! rows, chunk by chunk in order, so the result does not depend on the thread count.
 
 use glam::{DVec3, Vec3};
+use phenomena_core::bands::Filed;
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::clock::SharedClock;
 use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
@@ -302,7 +303,7 @@ impl SkySettings {
 }
 
 /// One emission projected to the image.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Splat {
     x: f32,
     y: f32,
@@ -520,7 +521,7 @@ impl SkyRenderer {
         let clock = self.clock.clone();
         let t = clock.stopwatch();
         let particles = sim.particles();
-        let chunks: Vec<(Vec<Splat>, Vec<u32>)> = (0..particles.len().div_ceil(CHUNK))
+        let chunks: Vec<Filed<Splat>> = (0..particles.len().div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
                 let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
@@ -540,7 +541,7 @@ impl SkyRenderer {
             })
             .collect();
         self.timings.emit_ms = t.ms();
-        self.timings.points = chunks.iter().map(|c| c.0.len()).sum();
+        self.timings.points = chunks.iter().map(Filed::len).sum();
         let t = clock.stopwatch();
         let planes = deposit_banded(&chunks, self.width, self.height);
         self.timings.deposit_ms = t.ms();
@@ -765,39 +766,20 @@ fn floor_i32(v: f32) -> i32 {
     i - i32::from(i as f32 > v)
 }
 
-/// Counting sort of splats by the band of their first row; returns the splats and the
-/// start offset of each band's bucket (bands + 1 entries). Splats entirely outside the
-/// image (or with a non-finite weight) are dropped.
-fn bucket_by_band(splats: Vec<Splat>, height: usize) -> (Vec<Splat>, Vec<u32>) {
+/// Splats filed by the band of their first row (their second may spill into the next
+/// band: see [`deposit_banded`]). Splats entirely outside the image (or with a
+/// non-finite weight) are dropped.
+fn bucket_by_band(splats: Vec<Splat>, height: usize) -> Filed<Splat> {
     let bands = height.div_ceil(BAND_ROWS);
-    let band_of = |s: &Splat| -> Option<usize> {
+    let band_of = |s: &Splat| -> Option<(u32, u32)> {
         let fy = s.y - 0.5;
         if !(fy >= -1.0 && fy < height as f32 && s.weight.is_finite()) {
             return None;
         }
-        Some((floor_i32(fy).max(0) as usize) / BAND_ROWS)
+        let b = ((floor_i32(fy).max(0) as usize) / BAND_ROWS) as u32;
+        Some((b, b))
     };
-    let mut offsets = vec![0u32; bands + 1];
-    let mut keys = Vec::with_capacity(splats.len());
-    for s in &splats {
-        let b = band_of(s);
-        if let Some(b) = b {
-            offsets[b + 1] += 1;
-        }
-        keys.push(b);
-    }
-    for b in 0..bands {
-        offsets[b + 1] += offsets[b];
-    }
-    let mut cursor = offsets.clone();
-    let mut sorted = vec![Splat { x: 0.0, y: 0.0, weight: 0.0, line: 0 }; offsets[bands] as usize];
-    for (s, b) in splats.into_iter().zip(keys) {
-        if let Some(b) = b {
-            sorted[cursor[b] as usize] = s;
-            cursor[b] += 1;
-        }
-    }
-    (sorted, offsets)
+    Filed::file(bands, &splats, band_of, |&s| s)
 }
 
 /// Deposit every chunk's bucketed splats into five line images. Bands of rows run in
@@ -805,7 +787,7 @@ fn bucket_by_band(splats: Vec<Splat>, height: usize) -> (Vec<Splat>, Vec<u32>) {
 /// band's first, which goes to the band's spill row and is added after all bands, in
 /// band order. So every pixel sums the same terms in the same order for any thread
 /// count.
-fn deposit_banded(chunks: &[(Vec<Splat>, Vec<u32>)], w: usize, h: usize) -> [Plane; 5] {
+fn deposit_banded(chunks: &[Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
     let mut planes: [Plane; 5] = std::array::from_fn(|_| Plane::new(w, h));
     let [p0, p1, p2, p3, p4] = &mut planes;
     let n = w * BAND_ROWS;
@@ -822,8 +804,8 @@ fn deposit_banded(chunks: &[(Vec<Splat>, Vec<u32>)], w: usize, h: usize) -> [Pla
             let rows = a.len() / w;
             let mut spill = vec![0.0f32; 5 * w];
             let mut dst: [&mut [f32]; 5] = [a, b, c, d, e];
-            for (splats, offsets) in chunks {
-                for s in &splats[offsets[band] as usize..offsets[band + 1] as usize] {
+            for filed in chunks {
+                for s in filed.band(band) {
                     deposit(&mut dst, &mut spill, w, r_lo, rows, s);
                 }
             }

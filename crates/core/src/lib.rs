@@ -8,6 +8,7 @@
 //! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
 //! - [`noise`]: Perlin / simplex noise over space and time.
 //! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
+//! - [`bands`]: work filed by bands of image rows for deterministic parallel drawing.
 //! - [`camera`]: look-at cameras: perspective, orthographic, fisheye, equirectangular.
 //! - [`raster`]: triangle z-buffer rasteriser for depth and shadow maps, with ids.
 //! - [`validate`]: configuration problems that name the field, the value and the valid range.
@@ -30,6 +31,7 @@
 //! # Feature flags
 //! None yet.
 
+pub mod bands;
 pub mod camera;
 pub mod clock;
 mod cmf_data;

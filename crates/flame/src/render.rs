@@ -11,6 +11,7 @@
 //! thread count.
 
 use glam::{DVec3, Vec3};
+use phenomena_core::bands::Filed;
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::color::{Observer, blackbody_srgb_normalized, blackbody_xyz, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
@@ -280,7 +281,7 @@ impl BlackbodyLut {
 }
 
 /// One particle prepared for splatting, in splat-buffer pixels.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Splat {
     x: f32,
     y: f32,
@@ -305,7 +306,7 @@ pub struct FlameRenderer {
     lut: BlackbodyLut,
     background: Frame,
     splats: Vec<Option<Splat>>,
-    bins: Vec<Vec<u32>>,
+    bins: Filed<Splat>,
     planes: [Plane; 5],
     /// Per splat-buffer row, the columns any splat touched (start..end; empty if none),
     /// so that compositing only works where the flame or its shimmer is.
@@ -341,7 +342,6 @@ impl FlameRenderer {
             }
             other => procedural_background(other, width, height),
         };
-        let bands = splat_h.div_ceil(BAND_ROWS);
         Ok(Self {
             lut: BlackbodyLut::new(settings.brightness, settings.reference_temperature_k),
             settings,
@@ -353,7 +353,7 @@ impl FlameRenderer {
             splat_h,
             background,
             splats: Vec::new(),
-            bins: vec![Vec::new(); bands],
+            bins: Filed::default(),
             planes: std::array::from_fn(|_| Plane::new(splat_w, splat_h)),
             spans: vec![(0, 0); splat_h],
             frame: Frame::new(width, height),
@@ -441,22 +441,18 @@ impl FlameRenderer {
             .collect_into_vec(&mut self.splats);
     }
 
-    /// Assign each splat to the bands its footprint touches, in particle order.
+    /// File each splat under the bands its footprint touches, in particle order.
     fn bin_splats(&mut self) {
-        for b in &mut self.bins {
-            b.clear();
-        }
-        let last = self.bins.len() - 1;
-        for (i, s) in self.splats.iter().enumerate() {
-            if let Some(s) = s {
+        let last = self.splat_h.div_ceil(BAND_ROWS) - 1;
+        let span = |s: &Option<Splat>| {
+            s.map(|s| {
                 let reach = if s.shimmer_px > 0.0 { s.radius.max(s.shimmer_radius) } else { s.radius };
                 let y0 = ((s.y - reach).max(0.0) as usize / BAND_ROWS).min(last);
                 let y1 = ((s.y + reach).max(0.0) as usize / BAND_ROWS).min(last);
-                for b in &mut self.bins[y0..=y1] {
-                    b.push(i as u32);
-                }
-            }
-        }
+                (y0 as u32, y1 as u32)
+            })
+        };
+        self.bins.refile(last + 1, &self.splats, span, |s| s.unwrap_or_default());
     }
 
     /// Accumulate flame radiance (Fig 2 profile) and refraction offsets (Fig 3
@@ -465,7 +461,7 @@ impl FlameRenderer {
         let w = self.splat_w;
         let chunk = BAND_ROWS * w;
         let [r, g, b, ox, oy] = &mut self.planes;
-        let (splats, bins) = (&self.splats, &self.bins);
+        let bins = &self.bins;
         r.data_mut()
             .par_chunks_mut(chunk)
             .zip(g.data_mut().par_chunks_mut(chunk))
@@ -479,10 +475,8 @@ impl FlameRenderer {
                 let rows = r.len() / w;
                 let mut out = BandBuffers { w, row0, rows, r, g, b, ox, oy, spans, dx: Vec::new() };
                 out.clear();
-                for &i in &bins[band] {
-                    if let Some(s) = &splats[i as usize] {
-                        out.splat(s);
-                    }
+                for s in bins.band(band) {
+                    out.splat(s);
                 }
             });
     }

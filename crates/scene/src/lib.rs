@@ -32,6 +32,9 @@
 //! assert_eq!(peaks.0.len(), 2); // frames 1 and 2 (frame 0 is simulated, not drawn)
 //! ```
 //!
+//! # Feature flags
+//! - `dxf` (default): DXF snow meshes (off for `wasm32-unknown-unknown` builds).
+//!
 //! Unlike the phenomenon crates, this crate touches files: [`Assets`] reads them and
 //! [`output`] writes them. It never prints and reads no clock (timings come from the
 //! clock the caller gives [`Runner::set_clock`]).

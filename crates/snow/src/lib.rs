@@ -16,6 +16,10 @@
 //! let stats = sim.step().unwrap();
 //! assert!(stats.volume_m3 > 0.0 && stats.stable);
 //! ```
+//!
+//! # Feature flags
+//! - `dxf` (default): read DXF meshes ([`load::dxf`]). Off for `wasm32-unknown-unknown`,
+//!   where the `dxf` crate's `uuid` dependency has no source of randomness.
 
 pub mod export;
 pub mod groups;

@@ -182,7 +182,20 @@ pub fn gltf(
 }
 
 /// Parse a DXF drawing's bytes: its 3DFACE entities (a fourth corner different from the
-/// third makes a quad: two triangles), one object per layer, z-up turned to y-up.
+/// third makes a quad: two triangles), one object per layer, z-up turned to y-up. Needs
+/// the `dxf` feature (on by default).
+#[cfg(not(feature = "dxf"))]
+pub fn dxf(_bytes: &[u8], _scale: f32) -> Result<Loaded, LoadError> {
+    Err(LoadError::Parse {
+        format: "DXF",
+        message: "this build reads no DXF files (phenomena-snow was built without its `dxf` feature)".into(),
+    })
+}
+
+/// Parse a DXF drawing's bytes: its 3DFACE entities (a fourth corner different from the
+/// third makes a quad: two triangles), one object per layer, z-up turned to y-up. Needs
+/// the `dxf` feature (on by default).
+#[cfg(feature = "dxf")]
 pub fn dxf(bytes: &[u8], scale: f32) -> Result<Loaded, LoadError> {
     let drawing = dxf::Drawing::load(&mut std::io::Cursor::new(bytes))
         .map_err(|e| LoadError::Parse { format: "DXF", message: e.to_string() })?;
@@ -242,6 +255,7 @@ mod tests {
         }
     }
 
+    #[cfg(feature = "dxf")]
     #[test]
     fn a_dxf_3dface_is_turned_to_y_up() {
         // One square 3DFACE in the z = 1 plane (DXF is z-up), written by hand.
@@ -271,6 +285,7 @@ mod tests {
             gltf(external.as_bytes(), |_| Err("not here".into()), 1.0).unwrap_err().to_string(),
             "the glTF buffer `data.bin` cannot be used: not here"
         );
+        #[cfg(feature = "dxf")]
         assert!(matches!(
             dxf(b"0\nSECTION\n2\nENTITIES\n0\nENDSEC\n0\nEOF\n", 1.0),
             Err(LoadError::Empty { .. })

@@ -11,6 +11,7 @@ use phenomena_core::camera::{CameraView, NEAR_M, Pinhole};
 use wide::{f32x8, i32x8, u32x8};
 
 use crate::batch::{LANES, V8};
+use phenomena_core::bands::Filed;
 use phenomena_core::image::Frame;
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
@@ -265,33 +266,16 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
         size: (w, h),
         last_band: bands as u32 - 1,
     };
-    let chunks: Vec<(Vec<Dot>, Vec<u32>)> = g
+    let chunks: Vec<Filed<Dot>> = g
         .position_m
         .par_chunks(PROJECT_CHUNK)
         .zip(g.intensity.par_chunks(PROJECT_CHUNK))
         .map(|(xs, is)| {
             let mut dots = Vec::with_capacity(xs.len());
-            let mut start = vec![0u32; bands + 1];
             for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
-                screen.place(view, xc, ic, |d, lo, hi| {
-                    for b in lo..=hi {
-                        start[b as usize + 1] += 1;
-                    }
-                    dots.push((d, lo, hi));
-                });
+                screen.place(view, xc, ic, |d, lo, hi| dots.push((d, lo, hi)));
             }
-            for b in 0..bands {
-                start[b + 1] += start[b];
-            }
-            let mut fill = start.clone();
-            let mut filed = vec![Dot::default(); start[bands] as usize];
-            for &(d, lo, hi) in &dots {
-                for b in lo..=hi {
-                    filed[fill[b as usize] as usize] = d;
-                    fill[b as usize] += 1;
-                }
-            }
-            (filed, start)
+            Filed::file(bands, &dots, |&(_, lo, hi)| Some((lo, hi)), |&(d, _, _)| d)
         })
         .collect();
     let glare_strength = s.glare_strength;
@@ -320,8 +304,8 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
                     sum[jj as usize * wu + i as usize] += v;
                 }
             };
-            for (filed, start) in &chunks {
-                for group in filed[start[b] as usize..start[b + 1] as usize].chunks(LANES) {
+            for filed in &chunks {
+                for group in filed.band(b).chunks(LANES) {
                     let four = Bilinear::of(group);
                     for (k, d) in group.iter().enumerate() {
                         let (x, y, v, len) = (d.x, d.y, d.value, d.len);

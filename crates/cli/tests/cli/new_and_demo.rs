@@ -14,8 +14,32 @@ fn new_writes_a_valid_commented_scene_and_refuses_to_overwrite() {
     ok(dir.path(), &["new", "flame", "scenes/my-flame.toml", "--force"]);
 }
 
+/// `new` knows every registered phenomenon, and each starter validates and renders.
+#[test]
+fn every_phenomenon_has_a_starter_that_validates_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    for p in phenomena_scene::registry::PHENOMENA {
+        let name = p.name();
+        let out = ok(dir.path(), &["new", name]);
+        let file = format!("{name}.toml");
+        assert!(out.contains(&format!("wrote {file}")), "{out}");
+        ok(dir.path(), &["validate", &file]);
+        ok(dir.path(), &["render", &file, "--out", name, "--frames", "0", "--width", "64", "--height", "36"]);
+        assert_eq!(png_size(&dir.path().join(name).join("frame_00000.png")), (64, 36), "{name}");
+    }
+    // A phenomenon that does not exist is a malformed command line (exit 2) listing
+    // the registered ones.
+    let out = crate::run(dir.path(), &["new", "lava"]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("[possible values: flame, aurora, snow, sparkle]"), "{e}");
+}
+
 #[test]
 fn demo_renders_every_system() {
+    if !crate::slow_tests() {
+        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
+    }
     let dir = tempfile::tempdir().unwrap();
     let stdout = ok(dir.path(), &["demo", "--out", "d"]);
     assert!(stdout.contains("demo written to d"), "{stdout}");
