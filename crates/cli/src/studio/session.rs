@@ -115,6 +115,7 @@ pub(crate) fn hello(id: &str, controls: &super::controls::Catalogue) -> String {
     json!({
         "type": "hello",
         "session": id,
+        "phenomena": registry::PHENOMENA.iter().map(|p| json!({"name": p.name(), "about": p.about()})).collect::<Vec<_>>(),
         "builtins": registry::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
         "featured": controls.featured(),
         "limits": { "upload_bytes": super::MAX_UPLOAD_BYTES, "message_bytes": super::MAX_MESSAGE_BYTES },

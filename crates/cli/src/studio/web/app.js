@@ -210,7 +210,8 @@ function onMessage(msg) {
       hello = msg;
       studio.session = msg.session;
       $('connection').textContent = `session ${msg.session.slice(0, 6)}`;
-      selectTab(location.hash.slice(1) || 'aurora');
+      buildTabs(msg.phenomena);
+      selectTab(msg.phenomena.some((p) => p.name === location.hash.slice(1)) ? location.hash.slice(1) : 'aurora');
       break;
     case 'scene': onScene(msg); markIssues($('form'), []); break;
     case 'frame': onCounters(msg); break;
@@ -282,8 +283,19 @@ function sendWind(e) {
   send({ type: 'wind', force: [fx, fy, 0] });
 }
 
-for (const b of document.querySelectorAll('#tabs button')) {
-  b.addEventListener('click', () => selectTab(b.dataset.phenomenon));
+// One tab per phenomenon the server has, in its registry's order.
+function buildTabs(phenomena) {
+  const nav = $('tabs');
+  nav.replaceChildren();
+  for (const p of phenomena) {
+    const b = document.createElement('button');
+    b.setAttribute('role', 'tab');
+    b.dataset.phenomenon = p.name;
+    b.title = p.about;
+    b.textContent = p.name[0].toUpperCase() + p.name.slice(1);
+    b.addEventListener('click', () => selectTab(p.name));
+    nav.append(b);
+  }
 }
 $('play').addEventListener('click', () => send({ type: 'play' }));
 $('pause').addEventListener('click', () => send({ type: 'pause' }));
