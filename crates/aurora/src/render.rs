@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::plane::{PlaneView, render_plane};
 use crate::sim::AuroraSim;
-use crate::sky::{SkyError, SkyRenderer, SkySettings, SkyTimings};
+use crate::sky::{SkyRenderer, SkySettings, SkyTimings};
+pub use phenomena_core::phenomenon::RenderError;
 
 /// What an aurora scene's frames show.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -33,9 +34,6 @@ pub struct RenderSettings {
     /// The sky view.
     pub sky: SkySettings,
 }
-
-/// Why a renderer cannot be built.
-pub type RenderError = SkyError;
 
 /// EXR channel names of the five line images, in [`crate::emission::Line::ALL`] order
 /// (`aurora_557_7.Y`, ...).
@@ -67,9 +65,7 @@ impl AuroraRenderer {
                 Target::Sky(Box::new(SkyRenderer::new(settings.sky.clone(), width, height, background)?))
             }
             AuroraView::Plane => {
-                if width == 0 || height == 0 {
-                    return Err(SkyError::Size(width, height));
-                }
+                phenomena_core::phenomenon::check_size(width, height)?;
                 Target::Plane(Frame::new(width, height))
             }
         };

@@ -30,6 +30,7 @@ use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::clock::SharedClock;
 use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
+use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
@@ -362,20 +363,6 @@ enum Model {
     Physical { column: Box<ColumnModel>, sampler: AltitudeSampler, points: [u32; 5], photons: [f64; 5] },
 }
 
-/// Why a sky renderer cannot be made.
-#[derive(Debug, thiserror::Error)]
-pub enum SkyError {
-    /// Settings out of range.
-    #[error(transparent)]
-    Invalid(#[from] InvalidConfig),
-    /// The image size.
-    #[error("cannot render a {0}×{1} image")]
-    Size(usize, usize),
-    /// `background.kind = "image"` but no image was supplied.
-    #[error("the background is an image file but none was loaded")]
-    MissingBackground,
-}
-
 impl SkyRenderer {
     /// A renderer for `width × height` images; `background` is the loaded image (linear
     /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
@@ -385,15 +372,12 @@ impl SkyRenderer {
         width: usize,
         height: usize,
         background: Option<&Frame>,
-    ) -> Result<Self, SkyError> {
+    ) -> Result<Self, RenderError> {
         settings.validate().map_err(InvalidConfig::from)?;
-        let view = settings.camera.camera().view(width, height).ok_or(SkyError::Size(width, height))?;
-        let background = match &settings.background {
-            SkyBackground::Image { .. } => {
-                Some(background.ok_or(SkyError::MissingBackground)?.resized(width, height))
-            }
-            SkyBackground::Night => None,
-        };
+        check_size(width, height)?;
+        let view = settings.camera.camera().view(width, height).ok_or(RenderError::Size { width, height })?;
+        let wanted = matches!(settings.background, SkyBackground::Image { .. });
+        let background = image_background(wanted, background, width, height)?;
         let air = Atmosphere::msis21();
         let model = match settings.mode {
             ColourMode::Paper => {

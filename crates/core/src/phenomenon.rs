@@ -9,6 +9,7 @@
 //! them the same way; each library also offers the same methods inherently.
 
 use crate::image::{Frame, Plane};
+use crate::validate::InvalidConfig;
 
 /// A simulation advanced one frame at a time.
 pub trait Simulation: Send {
@@ -45,5 +46,71 @@ pub trait Renderer<S>: Send {
     /// Extra images of the last render, for EXR output (none by default).
     fn layers(&self) -> Vec<Layer<'_>> {
         Vec::new()
+    }
+}
+
+/// Why a renderer cannot be built: the one error of every phenomenon's renderer.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RenderError {
+    /// Settings out of range; every problem listed.
+    #[error(transparent)]
+    Invalid(#[from] InvalidConfig),
+    /// The camera cannot make an image of this size (empty, too large, or a degenerate
+    /// camera).
+    #[error(
+        "cannot render a {width}x{height} image: each side must be in 1..=16384 and the camera not degenerate"
+    )]
+    Size {
+        /// Width asked for, pixels.
+        width: usize,
+        /// Height asked for, pixels.
+        height: usize,
+    },
+    /// The settings ask for an image background but none was given.
+    #[error("the background is an image file but none was loaded")]
+    MissingBackground,
+}
+
+/// Largest frame side a renderer accepts, pixels.
+pub const MAX_SIDE_PX: usize = 16384;
+
+/// `Ok` for a frame of `width × height` with each side in `1..=MAX_SIDE_PX`.
+pub fn check_size(width: usize, height: usize) -> Result<(), RenderError> {
+    if (1..=MAX_SIDE_PX).contains(&width) && (1..=MAX_SIDE_PX).contains(&height) {
+        Ok(())
+    } else {
+        Err(RenderError::Size { width, height })
+    }
+}
+
+/// The user's background image at the frame's size when the settings ask for one
+/// (`wanted`): stretched by [`Frame::resized`], the rule of every phenomenon; `None`
+/// when they do not.
+pub fn image_background(
+    wanted: bool,
+    given: Option<&Frame>,
+    width: usize,
+    height: usize,
+) -> Result<Option<Frame>, RenderError> {
+    if !wanted {
+        return Ok(None);
+    }
+    Ok(Some(given.ok_or(RenderError::MissingBackground)?.resized(width, height)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_and_backgrounds() {
+        assert!(check_size(1, 16384).is_ok());
+        assert_eq!(check_size(0, 5), Err(RenderError::Size { width: 0, height: 5 }));
+        assert!(check_size(16385, 5).is_err());
+        let img = Frame::new(4, 2);
+        assert_eq!(image_background(false, Some(&img), 8, 4), Ok(None));
+        assert_eq!(image_background(true, None, 8, 4), Err(RenderError::MissingBackground));
+        let bg = image_background(true, Some(&img), 8, 4).unwrap().unwrap();
+        assert_eq!((bg.width(), bg.height()), (8, 4));
     }
 }

@@ -39,8 +39,8 @@ mod sim;
 pub use config::{
     Domain, Emitter, Extended, FlameConfig, MAX_EMITTED_PER_FRAME, Mode, SphParams, Wind, WindKey,
 };
+pub use phenomena_core::phenomenon::RenderError;
 pub use render::{
-    BAND_ROWS, Background, BlackbodyLut, Brightness, FlameRenderer, RenderError, RenderSettings, Shimmer,
-    View,
+    BAND_ROWS, Background, BlackbodyLut, Brightness, FlameRenderer, RenderSettings, Shimmer, View,
 };
 pub use sim::{FlameError, FlameSim, FlameState, MAX_NEIGHBORS, Particles, StepStats};

@@ -15,6 +15,7 @@ use phenomena_core::bands::Filed;
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::color::{Observer, blackbody_srgb_normalized, blackbody_xyz, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
+use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -218,20 +219,6 @@ impl RenderSettings {
     }
 }
 
-/// Why a renderer could not be created.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    /// Invalid settings; every problem listed.
-    #[error(transparent)]
-    Invalid(#[from] InvalidConfig),
-    /// The frame size is zero or too large.
-    #[error("frame size {0}x{1} is outside 1x1 ..= 16384x16384")]
-    Size(usize, usize),
-    /// `background.kind = "image"` but no image was supplied.
-    #[error("the background is an image file but none was loaded")]
-    MissingBackground,
-}
-
 /// The paper's Fig 1 texture: linear sRGB of a blackbody by temperature, precomputed
 /// from 0 to 10,000 K every [`BlackbodyLut::STEP_K`] and interpolated linearly.
 #[derive(Clone, Debug)]
@@ -329,18 +316,16 @@ impl FlameRenderer {
         background_image: Option<&Frame>,
     ) -> Result<Self, RenderError> {
         settings.validate().map_err(InvalidConfig::from)?;
-        if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
-            return Err(RenderError::Size(width, height));
-        }
-        let view = settings.camera.view(width, height).ok_or(RenderError::Size(width, height))?;
+        check_size(width, height)?;
+        let size = RenderError::Size { width, height };
+        let view = settings.camera.view(width, height).ok_or(size.clone())?;
         let splat_w = ((width as f32 * settings.resolution_scale).round() as usize).max(1);
         let splat_h = ((height as f32 * settings.resolution_scale).round() as usize).max(1);
-        let splat_view = settings.camera.view(splat_w, splat_h).ok_or(RenderError::Size(width, height))?;
-        let background = match &settings.background {
-            Background::Image { .. } => {
-                background_image.ok_or(RenderError::MissingBackground)?.resized(width, height)
-            }
-            other => procedural_background(other, width, height),
+        let splat_view = settings.camera.view(splat_w, splat_h).ok_or(size)?;
+        let wanted = matches!(settings.background, Background::Image { .. });
+        let background = match image_background(wanted, background_image, width, height)? {
+            Some(image) => image,
+            None => procedural_background(&settings.background, width, height),
         };
         Ok(Self {
             lut: BlackbodyLut::new(settings.brightness, settings.reference_temperature_k),

@@ -29,5 +29,6 @@ pub mod reference;
 pub mod render;
 mod sim;
 
-pub use render::{Background, Flakes, RenderError, SnowRenderSettings, SnowRenderer, SnowView};
+pub use phenomena_core::phenomenon::RenderError;
+pub use render::{Background, Flakes, SnowRenderSettings, SnowRenderer, SnowView};
 pub use sim::{Footprint, SnowConfig, SnowError, SnowMap, SnowSim, StepStats, snowfall_directions};

@@ -6,6 +6,7 @@ use glam::Vec3;
 use phenomena_core::camera::Camera;
 use phenomena_core::camera::Projection;
 use phenomena_core::image::Frame;
+use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::raster::{Cull, NO_ID, rasterize};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use serde::{Deserialize, Serialize};
@@ -140,20 +141,6 @@ fn object_albedo(o: u32) -> Vec3 {
     PALETTE[o as usize % PALETTE.len()]
 }
 
-/// Why a renderer cannot be built.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    /// Settings out of range.
-    #[error(transparent)]
-    Invalid(#[from] InvalidConfig),
-    /// The frame size is zero or too large.
-    #[error("frame size {0}x{1} is outside 1x1 ..= 16384x16384")]
-    Size(usize, usize),
-    /// `background.kind = "image"` but no image was supplied.
-    #[error("the background is an image file but none was loaded")]
-    MissingBackground,
-}
-
 /// Draws a [`SnowSim`] frame by frame into linear RGB.
 #[derive(Clone, Debug)]
 pub struct SnowRenderer {
@@ -174,15 +161,9 @@ impl SnowRenderer {
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
         settings.validate().map_err(InvalidConfig::from)?;
-        if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
-            return Err(RenderError::Size(width, height));
-        }
-        let background = match &settings.background {
-            Background::Image { .. } => {
-                Some(background.ok_or(RenderError::MissingBackground)?.resized(width, height))
-            }
-            Background::Sky => None,
-        };
+        check_size(width, height)?;
+        let wanted = matches!(settings.background, Background::Image { .. });
+        let background = image_background(wanted, background, width, height)?;
         Ok(Self { settings, background, frame: Frame::new(width, height) })
     }
 

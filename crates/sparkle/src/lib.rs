@@ -38,5 +38,6 @@ pub use config::{
     Dust, Leaves, Light, LightAt, MAX_BRUTE_FORCE, MAX_CANDIDATES, MAX_EXPECTED_VISIBLE, MAX_VIRTUAL,
     MIN_CONE_DEG, Method, Normals, Phong, Population, SparkleConfig,
 };
-pub use render::{Background, GlareShape, RenderError, RenderSettings, SparkleRenderer};
+pub use phenomena_core::phenomenon::RenderError;
+pub use render::{Background, GlareShape, RenderSettings, SparkleRenderer};
 pub use sim::{Glints, SparkleError, SparkleSim, StepStats};

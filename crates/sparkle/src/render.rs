@@ -13,10 +13,10 @@ use wide::{f32x8, i32x8, u32x8};
 use crate::batch::{LANES, V8};
 use phenomena_core::bands::Filed;
 use phenomena_core::image::Frame;
+use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
 use crate::config::{LightAt, Population};
 use crate::sim::SparkleSim;
@@ -151,20 +151,6 @@ impl RenderSettings {
     }
 }
 
-/// Why a renderer cannot be built.
-#[derive(Debug, Error)]
-pub enum RenderError {
-    /// Settings out of range.
-    #[error(transparent)]
-    Invalid(#[from] InvalidConfig),
-    /// The camera cannot make an image of this size.
-    #[error("the camera cannot make a {0}×{1} image (degenerate camera or empty image)")]
-    Camera(usize, usize),
-    /// `background.kind = "image"` but no image was supplied.
-    #[error("the background is an image file but none was loaded")]
-    MissingBackground,
-}
-
 /// Renders a [`SparkleSim`] frame by frame into linear RGB.
 #[derive(Clone, Debug)]
 pub struct SparkleRenderer {
@@ -186,15 +172,9 @@ impl SparkleRenderer {
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
         settings.validate().map_err(InvalidConfig::from)?;
-        if width == 0 || height == 0 {
-            return Err(RenderError::Camera(width, height));
-        }
-        let user_background = match &settings.background {
-            Background::Image { .. } => {
-                Some(background.ok_or(RenderError::MissingBackground)?.resized(width, height))
-            }
-            _ => None,
-        };
+        check_size(width, height)?;
+        let wanted = matches!(settings.background, Background::Image { .. });
+        let user_background = image_background(wanted, background, width, height)?;
         Ok(Self { settings, user_background, cached: None, frame: Frame::new(width, height) })
     }
 
