@@ -113,6 +113,11 @@ enum Command {
         /// Most browser tabs served at once.
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
         max_sessions: u16,
+        /// Another host name the page may be reached by (besides 127.0.0.1, localhost,
+        /// [::1] and the --bind address); repeat for more. Requests naming any other
+        /// host are refused (a defence against DNS rebinding).
+        #[arg(long = "allow-host", value_name = "HOST")]
+        allow_hosts: Vec<String>,
     },
     /// Check a scene file and report every problem with file:line:column.
     Validate {
@@ -258,6 +263,10 @@ enum ExportWhat {
 }
 
 fn run(cli: Cli) -> anyhow::Result<String> {
+    // The studio shuts down on these signals itself.
+    if !matches!(cli.command, Command::Studio { .. }) {
+        render::handle_signals();
+    }
     match cli.command {
         Command::Render { scene, out, frames, width, height, seed, threads, format, resume, stats, view } => {
             let format = match format {
@@ -337,8 +346,15 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             ))
         }
         #[cfg(feature = "studio")]
-        Command::Studio { bind, port, open, out, max_sessions } => {
-            studio::serve(studio::Options { bind, port, open, out, max_sessions: usize::from(max_sessions) })
+        Command::Studio { bind, port, open, out, max_sessions, allow_hosts } => {
+            studio::serve(studio::Options {
+                bind,
+                port,
+                open,
+                out,
+                max_sessions: usize::from(max_sessions),
+                allow_hosts,
+            })
         }
         #[cfg(not(feature = "studio"))]
         Command::Studio { .. } => anyhow::bail!(

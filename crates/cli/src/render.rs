@@ -4,13 +4,35 @@
 use std::fmt::Write as _;
 use std::ops::{ControlFlow, Range};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use phenomena_core::clock::{Clock, SharedClock};
 use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, write_bytes_atomic};
-use phenomena_scene::{Assets, BuildError, FrameRecord, Observer, Runner, Scene};
+use phenomena_scene::{Assets, BuildError, FrameRecord, Observer, RunError, Runner, Scene};
+
+/// Set by SIGINT or SIGTERM while a render runs: the render stops after its frame.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+/// Whether a render that can stop between frames is running.
+static CANCELLABLE: AtomicBool = AtomicBool::new(false);
+
+/// Handle SIGINT and SIGTERM (what `timeout`, CI runners and container runtimes send):
+/// a render stops after the frame it is on, its finished frames whole and no temporary
+/// file left; anything else, or a second signal, exits at once (every file is written
+/// under a temporary name and renamed, so no output is ever half-written).
+pub(crate) fn handle_signals() {
+    let installed = ctrlc::set_handler(|| {
+        if CANCELLABLE.load(Ordering::SeqCst) && !INTERRUPTED.swap(true, Ordering::SeqCst) {
+            return;
+        }
+        std::process::exit(130);
+    });
+    if let Err(e) = installed {
+        tracing::warn!("cannot handle SIGINT/SIGTERM: {e}");
+    }
+}
 
 /// Options of one render, after the command line has been read.
 #[derive(Clone, Debug)]
@@ -143,13 +165,20 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         warn(&runner);
         runner.set_clock(wall_clock());
         let mut progress = Progress::new(range.clone(), job.quiet, job.stats.is_some());
+        CANCELLABLE.store(true, Ordering::SeqCst);
         let result = runner.run(range.clone(), &mut sink, &mut progress);
+        CANCELLABLE.store(false, Ordering::SeqCst);
         progress.bar.finish_and_clear();
         // The stats of the frames done are written even when a later frame failed.
         if let Some(path) = &job.stats {
             write_bytes_atomic(path, progress.stats.as_bytes())?;
         }
-        Ok(result?)
+        match result {
+            Err(RunError::Cancelled { frames }) => bail!(
+                "interrupted by a signal after simulating {frames} frame(s): the frames written are whole; render again with --resume to go on"
+            ),
+            other => Ok(other?),
+        }
     })?;
     let (written, kept) = (sink.written(), sink.kept());
     Ok(format!(
@@ -193,6 +222,9 @@ impl Progress {
 
 impl Observer for Progress {
     fn frame(&mut self, record: &FrameRecord) -> ControlFlow<()> {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            return ControlFlow::Break(());
+        }
         let wanted = self.range.contains(&record.frame);
         self.bar.set_message(match (wanted, record.skipped) {
             (false, _) => "simulating",

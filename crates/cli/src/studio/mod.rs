@@ -48,6 +48,32 @@ pub(crate) struct Options {
     pub(crate) out: PathBuf,
     /// Most sessions (browser tabs) at once.
     pub(crate) max_sessions: usize,
+    /// Host names accepted besides the loopback names and the bind address.
+    pub(crate) allow_hosts: Vec<String>,
+}
+
+impl Options {
+    /// Every host name a request may name (lowercase, without port or brackets).
+    fn hosts(&self) -> Vec<String> {
+        let mut hosts: Vec<String> = ["127.0.0.1", "localhost", "::1"].map(String::from).to_vec();
+        if !self.bind.is_unspecified() {
+            hosts.push(self.bind.to_string());
+        }
+        hosts.extend(self.allow_hosts.iter().map(|h| h.trim_matches(['[', ']']).to_ascii_lowercase()));
+        hosts
+    }
+}
+
+/// The host name of a `Host` header value (`name`, `name:port`, `[v6]:port`), lowercase.
+fn host_name(value: &str) -> String {
+    let name = if let Some(rest) = value.strip_prefix('[') {
+        rest.split(']').next().unwrap_or_default()
+    } else {
+        value
+            .rsplit_once(':')
+            .map_or(value, |(name, port)| if port.parse::<u16>().is_ok() { name } else { value })
+    };
+    name.to_ascii_lowercase()
 }
 
 /// One live session as the HTTP side sees it.
@@ -65,6 +91,8 @@ pub(crate) struct Shared {
     counter: AtomicU64,
     key: std::hash::RandomState,
     controls: controls::Catalogue,
+    /// Host names requests may name ([`Options::hosts`]).
+    hosts: Vec<String>,
 }
 
 impl Shared {
@@ -111,20 +139,41 @@ pub(crate) fn serve(options: Options) -> Result<String> {
         }
         let shared = Arc::new(Shared {
             controls: controls::Catalogue::build(),
+            hosts: options.hosts(),
             options,
             sessions: Mutex::new(HashMap::new()),
             counter: AtomicU64::new(0),
             key: std::hash::RandomState::new(),
         });
         axum::serve(listener, router(shared))
-            .with_graceful_shutdown(async {
-                let _ = tokio::signal::ctrl_c().await;
-            })
+            .with_graceful_shutdown(shutdown_signal())
             .await
             .context("the studio server failed")?;
         Ok::<_, anyhow::Error>(())
     })?;
     Ok("phenomena studio stopped".into())
+}
+
+/// Ctrl-C, or SIGTERM (what `timeout`, service managers and container runtimes send).
+async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(t) => t,
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+                return;
+            }
+        };
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
 }
 
 fn open_browser(url: &str) {
@@ -134,7 +183,7 @@ fn open_browser(url: &str) {
     }
 }
 
-/// The routes.
+/// The routes, every one behind the `Host` check.
 pub(crate) fn router(shared: Arc<Shared>) -> Router {
     Router::new()
         .route("/ws", get(websocket))
@@ -144,7 +193,27 @@ pub(crate) fn router(shared: Arc<Shared>) -> Router {
         .route("/api/session/{id}/snow.glb", get(snow_glb))
         .fallback(get(asset))
         .layer(DefaultBodyLimit::max(MAX_MESSAGE_BYTES))
+        .layer(axum::middleware::from_fn_with_state(shared.clone(), known_host))
         .with_state(shared)
+}
+
+/// Refuse requests that name a host this studio is not served as: a page of another
+/// site whose name was rebound to 127.0.0.1 (DNS rebinding) names its own host.
+async fn known_host(
+    State(shared): State<Arc<Shared>>,
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let host = request.headers().get(header::HOST).and_then(|h| h.to_str().ok()).map(host_name);
+    match host {
+        Some(h) if shared.hosts.contains(&h) => next.run(request).await,
+        Some(h) => (
+            StatusCode::FORBIDDEN,
+            format!("this studio is not served as `{h}`: open it by 127.0.0.1 or localhost, or start it with --allow-host {h}"),
+        )
+            .into_response(),
+        None => (StatusCode::BAD_REQUEST, "the request names no host").into_response(),
+    }
 }
 
 async fn asset(uri: axum::http::Uri) -> Response {

@@ -92,6 +92,9 @@ pub(crate) enum Incoming {
     RenderFinal {
         frames: Option<u32>,
     },
+    /// Tests only: a command that fails inside the session thread.
+    #[cfg(test)]
+    Panic,
 }
 
 /// A command to the session thread.
@@ -331,24 +334,46 @@ impl Session {
                 Some(inbox.recv().map_err(|_| Closed)?)
             };
             match command {
-                Some(c) => self.command(c)?,
-                None => {
-                    self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
-                    let generation = self.generation;
-                    let Some(mut record) = self.step()? else { continue };
-                    // What came in during the step goes first: a change makes this
-                    // frame stale, and the change's own frame is then the next shown.
-                    loop {
-                        match inbox.try_recv() {
-                            Ok(c) => self.command(c)?,
-                            Err(TryRecvError::Empty) => break,
-                            Err(TryRecvError::Disconnected) => return Err(Closed),
-                        }
-                    }
-                    if self.generation == generation {
-                        self.show(&mut record)?;
-                    }
-                }
+                Some(c) => self.guarded(|s| s.command(c))?,
+                None => self.guarded(|s| s.tick(inbox))?,
+            }
+        }
+    }
+
+    /// One preview frame when it is due: step, then handle what came in during the
+    /// step (a change makes this frame stale, and the change's own frame is then the
+    /// next shown), then show it.
+    fn tick(&mut self, inbox: &Receiver<Command>) -> Result<(), Closed> {
+        self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
+        let generation = self.generation;
+        let Some(mut record) = self.step()? else { return Ok(()) };
+        loop {
+            match inbox.try_recv() {
+                Ok(c) => self.command(c)?,
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => return Err(Closed),
+            }
+        }
+        if self.generation == generation { self.show(&mut record) } else { Ok(()) }
+    }
+
+    /// Run `f`; if it panics (a bug), stop the simulation, keep the scene and tell the
+    /// page, so the session stays usable (reset or load a scene) instead of vanishing.
+    fn guarded(&mut self, f: impl FnOnce(&mut Self) -> Result<(), Closed>) -> Result<(), Closed> {
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(self))) {
+            Ok(result) => result,
+            Err(payload) => {
+                let what = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| (*s).to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "no message".into());
+                tracing::error!("a studio session recovered from a panic: {what}");
+                self.runner = None;
+                self.playing = false;
+                self.error(format!(
+                    "the session hit an internal error and stopped its simulation ({what}); the scene is kept: press reset or load a scene to go on"
+                ))
             }
         }
     }
@@ -449,6 +474,8 @@ impl Session {
                 None => self.error("no scene to save: load one first")?,
             },
             Incoming::RenderFinal { frames } => self.render_final(frames)?,
+            #[cfg(test)]
+            Incoming::Panic => panic!("a test asked for a panic"),
         }
         Ok(())
     }

@@ -24,15 +24,18 @@ async fn start(max_sessions: usize) -> (SocketAddr, tempfile::TempDir) {
 /// A studio on a free loopback port; returns its address and its shared state.
 async fn start_shared(max_sessions: usize) -> (SocketAddr, tempfile::TempDir, Arc<Shared>) {
     let out = tempfile::tempdir().unwrap();
+    let options = Options {
+        bind: IpAddr::from([127, 0, 0, 1]),
+        port: 0,
+        open: false,
+        out: out.path().to_path_buf(),
+        max_sessions,
+        allow_hosts: vec!["Studio.Example".into()],
+    };
     let shared = Arc::new(Shared {
         controls: controls::Catalogue::build(),
-        options: Options {
-            bind: IpAddr::from([127, 0, 0, 1]),
-            port: 0,
-            open: false,
-            out: out.path().to_path_buf(),
-            max_sessions,
-        },
+        hosts: options.hosts(),
+        options,
         sessions: Mutex::new(HashMap::new()),
         counter: AtomicU64::new(0),
         key: std::hash::RandomState::new(),
@@ -47,7 +50,7 @@ async fn start_shared(max_sessions: usize) -> (SocketAddr, tempfile::TempDir, Ar
 /// Upload `bytes` as `name` to session `id`; the status code.
 async fn upload_file(addr: SocketAddr, id: &str, name: &str, bytes: &[u8]) -> u16 {
     let head = format!(
-        "POST /api/session/{id}/upload/{name} HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        "POST /api/session/{id}/upload/{name} HTTP/1.1\r\nHost: {addr}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
         bytes.len()
     );
     raw(addr, &head, bytes).await.0
@@ -68,7 +71,7 @@ async fn raw(addr: SocketAddr, head: &str, body: &[u8]) -> (u16, String) {
 }
 
 async fn get(addr: SocketAddr, path: &str) -> (u16, String) {
-    raw(addr, &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"), &[]).await
+    raw(addr, &format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"), &[]).await
 }
 
 async fn connect(addr: SocketAddr) -> (Client, String) {
@@ -136,20 +139,20 @@ fn oversized_uploads_get_413_and_small_ones_land() {
         let (_ws, id) = connect(addr).await;
         let big = vec![b'x'; MAX_UPLOAD_BYTES + 1];
         let head = format!(
-            "POST /api/session/{id}/upload/big.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            "POST /api/session/{id}/upload/big.obj HTTP/1.1\r\nHost: {addr}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
             big.len()
         );
         let (code, text) = raw(addr, &head, &big).await;
         assert_eq!(code, 413, "{}", &text[..text.len().min(300)]);
         let small = b"v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n";
         let head = format!(
-            "POST /api/session/{id}/upload/tri.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            "POST /api/session/{id}/upload/tri.obj HTTP/1.1\r\nHost: {addr}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
             small.len()
         );
         let (code, text) = raw(addr, &head, small).await;
         assert_eq!(code, 200, "{text}");
         let head = format!(
-            "POST /api/session/{id}/upload/..%2fx.obj HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            "POST /api/session/{id}/upload/..%2fx.obj HTTP/1.1\r\nHost: {addr}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
             small.len()
         );
         assert_eq!(raw(addr, &head, small).await.0, 400, "names with a path are refused");
@@ -249,7 +252,7 @@ fn snow_glb_download_is_a_gltf_binary() {
         next_json(&mut ws, "frame").await;
         let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
         s.write_all(
-            format!("GET /api/session/{id}/snow.glb HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+            format!("GET /api/session/{id}/snow.glb HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n")
                 .as_bytes(),
         )
         .await
@@ -350,5 +353,74 @@ fn scene_files_are_read_only_from_the_session_uploads() {
             let why = if path == "missing.png" { "no such file" } else { "plain name" };
             assert!(message.contains(why), "{message}");
         }
+    });
+}
+
+/// Issue 19: a page of another site whose name was rebound to 127.0.0.1 names its own
+/// host: refused on every route, with a message saying how to allow a name. The
+/// loopback names, the bind address and `--allow-host` names are served.
+#[test]
+fn only_the_hosts_the_studio_is_served_as_are_answered() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let port = addr.port();
+        let request = |host: &str, path: &str| {
+            format!("GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n")
+        };
+        for host in [format!("evil.example:{port}"), "evil.example".into(), format!("127.0.0.2:{port}")] {
+            for path in ["/", "/static/app.js", "/api/sessions", "/api/controls", "/api/session/x/snow.glb"] {
+                let (code, text) = raw(addr, &request(&host, path), &[]).await;
+                assert_eq!(code, 403, "{host} {path}: {text}");
+                assert!(text.contains("--allow-host"), "{text}");
+            }
+        }
+        // The WebSocket handshake of a rebound page: its Origin matches its Host.
+        let handshake = format!(
+            "GET /ws HTTP/1.1\r\nHost: evil.example:{port}\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n\
+             Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nOrigin: http://evil.example:{port}\r\n\r\n"
+        );
+        assert_eq!(raw(addr, &handshake, &[]).await.0, 403);
+        let (code, _) = raw(addr, "GET / HTTP/1.0\r\n\r\n", &[]).await;
+        assert_eq!(code, 400, "no Host at all");
+        for host in [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("LOCALHOST:{port}"), format!("[::1]:{port}"), format!("studio.example:{port}")] {
+            assert_eq!(raw(addr, &request(&host, "/"), &[]).await.0, 200, "{host}");
+        }
+        assert_eq!(super::host_name("[::1]:80"), "::1");
+        assert_eq!(super::host_name("Example.COM"), "example.com");
+    });
+}
+
+/// Issue 19: a session that fails tells its page why and stays usable; the sequence
+/// that used to panic (keyframes set behind the editor's back, then a stroke on the
+/// new keyframe) is an ordinary edit now.
+#[test]
+fn a_failing_session_says_why_and_goes_on() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        let (mut other, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "builtin", "name": "aurora-scene1"})).await;
+        let scene = next_json(&mut ws, "scene").await;
+        let mut keyframes = scene["scene"]["aurora"]["keyframes"].as_array().unwrap().clone();
+        let mut added = keyframes.last().unwrap().clone();
+        added["frame"] = json!(added["frame"].as_u64().unwrap() + 100);
+        keyframes.push(added);
+        send(&mut ws, json!({"type": "set", "path": "aurora.keyframes", "value": keyframes})).await;
+        next_json(&mut ws, "scene").await;
+        let stroke: Vec<[f32; 2]> = (0..10).map(|i| [60.0 + 20.0 * i as f32, 390.0]).collect();
+        send(&mut ws, json!({"type": "aurora", "op": "stroke", "keyframe": 2, "points": stroke})).await;
+        let answer = next_json(&mut ws, "refused").await;
+        assert!(
+            answer["message"].as_str().unwrap().contains("every sheet of keyframe 2 is drawn"),
+            "{answer}"
+        );
+        // A bug inside the session thread: the page is told, the session goes on.
+        send(&mut ws, json!({"type": "panic"})).await;
+        let e = next_json(&mut ws, "error").await;
+        assert!(e["message"].as_str().unwrap().contains("internal error"), "{e}");
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut ws, "frame").await;
+        send(&mut other, json!({"type": "builtin", "name": "sparkle-paper"})).await;
+        next_json(&mut other, "frame").await;
     });
 }

@@ -108,3 +108,31 @@ fn bad_sky_settings_name_the_field_and_the_range() {
     let err = fails(dir.path(), &["render", &scene, "--out", "o"]);
     assert!(err.contains("typo.toml:5:1: unknown field `afterglo`"), "{err}");
 }
+
+/// Issue 19: the shape export of every thesis scene with splits or merges, at the
+/// frames before and after they happen, is a consistent table: every `next` names a
+/// point of the same sheet that exists.
+#[test]
+fn shape_exports_after_splits_and_merges_are_consistent() {
+    let dir = tempfile::tempdir().unwrap();
+    for k in [2, 3, 4, 5] {
+        let scene = small_copy(dir.path(), &format!("aurora-scene{k}.toml"));
+        for frame in ["0", "1"] {
+            let out = format!("shape{k}-{frame}.csv");
+            ok(dir.path(), &["export", "shape", &scene, "--frame", frame, "--out", &out]);
+            let text = std::fs::read_to_string(dir.path().join(&out)).unwrap();
+            let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+            assert!(!rows.is_empty(), "{out}");
+            for row in &rows {
+                assert_eq!(row.len(), 5, "{out}: {row:?}");
+                if !row[4].is_empty() {
+                    let (sheet, next) = (row[0], row[4]);
+                    assert!(
+                        rows.iter().any(|r| r[0] == sheet && r[1] == next),
+                        "{out}: next {next} of sheet {sheet} is no point"
+                    );
+                }
+            }
+        }
+    }
+}
