@@ -9,6 +9,10 @@ use serde::{Deserialize, Serialize};
 use crate::field::{Poisson, Sampler};
 use crate::shape::{Keyframe, Merge, Resample, Split};
 
+/// Largest keyframe frame: shapes are interpolated in `f32`, which counts whole frames
+/// exactly up to 2²⁴ (about 6.5 days at 30 frames per second).
+pub(crate) const MAX_KEYFRAME: u64 = 1 << 24;
+
 /// Complete aurora configuration (part 1: shapes, field, motion, redistribution).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -294,6 +298,8 @@ impl AuroraConfig {
             i.push("keyframes", self.keyframes.len(), "a source and at least one target keyframe");
         }
         for (k, kf) in self.keyframes.iter().enumerate() {
+            // Frames are interpolated in f32, exact for whole numbers up to 2²⁴.
+            i.count(&format!("keyframes[{k}].frame"), u64::from(kf.frame), 0..=MAX_KEYFRAME);
             for (s, sheet) in kf.sheets.iter().enumerate() {
                 for (p, pt) in sheet.iter().enumerate() {
                     i.vector(&format!("keyframes[{k}].sheets[{s}][{p}]"), pt, 1e5);

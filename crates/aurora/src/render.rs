@@ -52,6 +52,15 @@ enum Target {
 }
 
 impl AuroraRenderer {
+    /// Whether [`AuroraRenderer::new`] accepts `settings` at `width × height` (besides
+    /// the background image), without building anything.
+    pub fn check(settings: &RenderSettings, width: usize, height: usize) -> Result<(), RenderError> {
+        match settings.view {
+            AuroraView::Sky => SkyRenderer::check(&settings.sky, width, height),
+            AuroraView::Plane => phenomena_core::phenomenon::check_size(width, height),
+        }
+    }
+
     /// A renderer of `width × height` frames; `background` is the loaded image when the
     /// sky view's settings ask for one (see [`SkyRenderer::new`]).
     pub fn new(

@@ -188,6 +188,29 @@ pub enum ShapeError {
         /// Its link count.
         links: usize,
     },
+    /// A merge names the same point twice.
+    #[error("merge {index} joins sheet {sheet} point {point} with itself: name two different chain ends")]
+    SelfMerge {
+        /// Operation number.
+        index: usize,
+        /// Sheet.
+        sheet: u32,
+        /// Point.
+        point: u32,
+    },
+    /// The same operation is listed twice.
+    #[error("{op} {index} repeats {op} {first} (same keyframe and points): list each once")]
+    Repeated {
+        /// "split" or "merge".
+        op: &'static str,
+        /// The repeat's number.
+        index: usize,
+        /// The first's number.
+        first: usize,
+    },
+    /// No keyframe has a sheet.
+    #[error("the keyframes have no sheets: draw at least one stroke (of two points or more) per keyframe")]
+    NoSheets,
 }
 
 impl ShapeError {
@@ -207,7 +230,11 @@ impl ShapeError {
                 format!("{op}s[{index}]")
             }
             ShapeError::NoSegment { index, .. } => format!("splits[{index}]"),
-            ShapeError::NotAnEnd { index, .. } => format!("merges[{index}]"),
+            ShapeError::NotAnEnd { index, .. } | ShapeError::SelfMerge { index, .. } => {
+                format!("merges[{index}]")
+            }
+            ShapeError::Repeated { op, index, .. } => format!("{op}s[{index}]"),
+            ShapeError::NoSheets => "keyframes[0].sheets".into(),
         }
     }
 }
@@ -343,6 +370,25 @@ impl Animation {
             return Err(ShapeError::TooFewKeyframes(keyframes.len()));
         }
         let sheets = keyframes[0].sheets.len();
+        if sheets == 0 && keyframes.iter().all(|k| k.sheets.is_empty()) {
+            return Err(ShapeError::NoSheets);
+        }
+        for (index, sp) in splits.iter().enumerate() {
+            if let Some(first) = splits[..index].iter().position(|o| o == sp) {
+                return Err(ShapeError::Repeated { op: "split", index, first });
+            }
+        }
+        for (index, mg) in merges.iter().enumerate() {
+            if mg.a == mg.b {
+                return Err(ShapeError::SelfMerge { index, sheet: mg.a.sheet, point: mg.a.point });
+            }
+            let same = |o: &Merge| {
+                o.keyframe == mg.keyframe && ((o.a, o.b) == (mg.a, mg.b) || (o.a, o.b) == (mg.b, mg.a))
+            };
+            if let Some(first) = merges[..index].iter().position(same) {
+                return Err(ShapeError::Repeated { op: "merge", index, first });
+            }
+        }
         for (k, kf) in keyframes.iter().enumerate() {
             if k > 0 && kf.frame <= keyframes[k - 1].frame {
                 return Err(ShapeError::KeyframeOrder {
@@ -724,6 +770,30 @@ mod tests {
             assert!(s.next.iter().flatten().all(|&j| (j as usize) < s.points.len()));
         }
         assert_eq!(anim.shape_at(0.0).next[4..], [None, None], "not yet split: unlinked");
+    }
+
+    /// Issue 19: operations that would quietly do something else are refused, each at
+    /// its place in the scene.
+    #[test]
+    fn repeated_self_and_empty_operations_are_refused() {
+        let kf = |frame| Keyframe { frame, sheets: vec![line(0.0, 0.0, 30.0, 0.0, 4)] };
+        let build = |splits: &[Split], merges: &[Merge]| {
+            Animation::build(&[kf(0), kf(50)], splits, merges, 4, Resample::Endpoints).unwrap_err()
+        };
+        let split = Split { keyframe: 1, start: PointRef { sheet: 0, point: 1 } };
+        let e = build(&[split, split], &[]);
+        assert_eq!(e, ShapeError::Repeated { op: "split", index: 1, first: 0 });
+        assert_eq!(e.field(), "splits[1]");
+        let end = PointRef { sheet: 0, point: 3 };
+        let e = build(&[], &[Merge { keyframe: 1, a: end, b: end }]);
+        assert_eq!(e.field(), "merges[0]");
+        assert!(e.to_string().contains("with itself"), "{e}");
+        let empty = |frame| Keyframe { frame, sheets: vec![] };
+        let e = Animation::build(&[empty(0), empty(9)], &[], &[], 4, Resample::Endpoints).unwrap_err();
+        assert_eq!(
+            (e, ShapeError::NoSheets.field()),
+            (ShapeError::NoSheets, "keyframes[0].sheets".to_string())
+        );
     }
 
     #[test]

@@ -373,9 +373,7 @@ impl SkyRenderer {
         height: usize,
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
-        settings.validate().map_err(InvalidConfig::from)?;
-        check_size(width, height)?;
-        let view = settings.camera.camera().view(width, height).ok_or(RenderError::Size { width, height })?;
+        let view = Self::view(&settings, width, height)?;
         let wanted = matches!(settings.background, SkyBackground::Image { .. });
         let background = image_background(wanted, background, width, height)?;
         let air = Atmosphere::msis21();
@@ -411,6 +409,18 @@ impl SkyRenderer {
             stride: 1,
             phase: 0,
         })
+    }
+
+    /// Whether [`SkyRenderer::new`] accepts `settings` at `width × height` (besides the
+    /// background image), without building its tables or images.
+    pub fn check(settings: &SkySettings, width: usize, height: usize) -> Result<(), RenderError> {
+        Self::view(settings, width, height).map(|_| ())
+    }
+
+    fn view(settings: &SkySettings, width: usize, height: usize) -> Result<CameraView, RenderError> {
+        settings.validate().map_err(InvalidConfig::from)?;
+        check_size(width, height)?;
+        settings.camera.camera().view(width, height).ok_or(RenderError::Size { width, height })
     }
 
     /// Time the parts of each render with `clock` (the library reads no clock itself).

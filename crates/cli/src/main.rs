@@ -44,9 +44,14 @@ enum FormatArg {
 #[derive(Parser, Debug)]
 #[command(name = "phenomena", version, about, long_about = None)]
 struct Cli {
-    /// Log more (-v: info, -vv: debug) to standard error.
+    /// Log more (-v: info, with each scene's memory and work estimate; -vv: debug) to
+    /// standard error.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
+    /// Refuse a scene whose estimated memory is above this many GiB (default: three
+    /// quarters of this machine's memory).
+    #[arg(long, global = true, value_name = "GIB", value_parser = parse_gib)]
+    max_memory_gib: Option<f64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -363,21 +368,38 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
         Command::Validate { scene } => {
             let s = phenomena_scene::load(&scene)?;
-            // Everything `render` checks before its first frame: assets load and the
-            // simulation and renderer accept the scene.
-            let runner = render::runner(&s, &Assets::beside(&scene))?;
-            render::warn(&runner);
+            // Everything `render` checks before its first frame, without building the
+            // simulation: the files load, the simulation and renderer would accept the
+            // scene, and its estimated memory is within the budget.
+            let report =
+                s.check(&Assets::beside(&scene), &render::limits()).map_err(|e| render::located(&s, e))?;
+            for w in &report.warnings {
+                eprintln!("warning: {w}");
+            }
+            for u in &report.estimate.unchecked {
+                eprintln!("note: not checked before rendering: {u}");
+            }
+            render::log_estimate(&report.estimate);
             let st = s.settings();
             Ok(format!(
-                "{}: ok ({} scene, {} frames at {}x{}, seed {})",
+                "{}: ok ({} scene, {} frames at {}x{}, seed {}; about {} of memory)",
                 scene.display(),
                 s.phenomenon().name(),
                 st.frames,
                 st.width,
                 st.height,
-                st.seed
+                st.seed,
+                phenomena_scene::gib(report.estimate.memory_bytes)
             ))
         }
+    }
+}
+
+/// A memory budget in GiB: positive and finite.
+fn parse_gib(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a positive number of GiB")),
     }
 }
 
@@ -439,6 +461,7 @@ fn main() -> ExitCode {
         return ExitCode::FAILURE;
     }
     let cli = Cli::parse();
+    render::set_budget(cli.max_memory_gib);
     let level = match cli.verbose {
         0 => "warn",
         1 => "info",

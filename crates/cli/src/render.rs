@@ -11,7 +11,7 @@ use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use phenomena_core::clock::{Clock, SharedClock};
 use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, write_bytes_atomic};
-use phenomena_scene::{Assets, BuildError, FrameRecord, Observer, RunError, Runner, Scene};
+use phenomena_scene::{Assets, BuildError, FrameRecord, Limits, Observer, RunError, Runner, Scene};
 
 /// Set by SIGINT or SIGTERM while a render runs: the render stops after its frame.
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
@@ -83,14 +83,67 @@ pub(crate) fn wall_clock() -> SharedClock {
     SharedClock::new(WallClock(Instant::now()))
 }
 
-/// Build `scene`'s runner; a problem with a file the scene names is reported at that
-/// key's line and column when the scene came from a file.
-pub(crate) fn runner(scene: &Scene, assets: &Assets) -> Result<Runner> {
-    Runner::new(scene, assets).map_err(|e| located(scene, e))
+/// The memory budget of this run, GiB (`--max-memory-gib`), when given.
+static BUDGET_GIB: std::sync::OnceLock<Option<f64>> = std::sync::OnceLock::new();
+
+/// Take `--max-memory-gib`.
+pub(crate) fn set_budget(gib: Option<f64>) {
+    let _ = BUDGET_GIB.set(gib);
 }
 
-/// A build error, located in the scene file where it has a key.
+/// The memory budget: `--max-memory-gib`, or three quarters of the machine's memory
+/// (`MemTotal` of /proc/meminfo; no limit where that cannot be read).
+pub(crate) fn limits() -> Limits {
+    let gib = BUDGET_GIB.get().copied().flatten();
+    let bytes = match gib {
+        Some(g) => (g * f64::from(1u32 << 30)) as u64,
+        None => machine_memory_bytes().map_or(u64::MAX, |m| m / 4 * 3),
+    };
+    Limits { memory_bytes: bytes }
+}
+
+/// The machine's memory, bytes, from /proc/meminfo.
+fn machine_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// With `-v`: a scene's memory estimate by part and its work per frame.
+pub(crate) fn log_estimate(estimate: &phenomena_scene::Estimate) {
+    tracing::info!(
+        "estimate: {} of memory; per frame: {}",
+        phenomena_scene::gib(estimate.memory_bytes),
+        estimate.work
+    );
+    for (what, bytes) in &estimate.parts {
+        tracing::info!("  {what}: {}", phenomena_scene::gib(*bytes));
+    }
+}
+
+/// Build `scene`'s runner within the memory budget; a problem with a file the scene
+/// names is reported at that key's line and column when the scene came from a file.
+pub(crate) fn runner(scene: &Scene, assets: &Assets) -> Result<Runner> {
+    Runner::with_limits(scene, assets, &limits()).map_err(|e| located(scene, e))
+}
+
+/// A build error, located in the scene file where it has a key (each problem of an
+/// invalid configuration at its own key).
 pub(crate) fn located(scene: &Scene, e: BuildError) -> anyhow::Error {
+    if let BuildError::OverBudget { estimate, .. } = &e {
+        log_estimate(estimate);
+        return anyhow::anyhow!(
+            "{e}: lower the scene's size or counts, or raise the budget with --max-memory-gib (-v shows the estimate by part)"
+        );
+    }
+    if let BuildError::Invalid(issues) = &e {
+        let lines: Vec<String> = issues
+            .iter()
+            .map(|i| scene.locate(&i.field, i.to_string()).map_or_else(|| i.to_string(), |at| at.to_string()))
+            .collect();
+        return anyhow::anyhow!("{}", lines.join("\n"));
+    }
     match e.key().and_then(|key| scene.locate(key, e.to_string())) {
         Some(at) => anyhow::anyhow!("{at}"),
         None => anyhow::anyhow!("{e}"),
@@ -162,6 +215,7 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
     let started = Instant::now();
     pool.install(|| -> Result<()> {
         let mut runner = runner(&scene, assets)?;
+        log_estimate(runner.estimate());
         warn(&runner);
         runner.set_clock(wall_clock());
         let mut progress = Progress::new(range.clone(), job.quiet, job.stats.is_some());

@@ -238,6 +238,24 @@ fn burner_inside(e: &Emitter, d: &Domain) -> bool {
 }
 
 impl FlameConfig {
+    /// The largest emission rate the SPH step can take at this burner, per second, or
+    /// `None` when it cannot be predicted (a point burner or gas born at rest).
+    ///
+    /// Gas leaves a burner disk of radius r at speed v, so at steady state the number
+    /// density just above it is n = rate / (π r² v) (continuity); a particle there has
+    /// about n · (4/3) π d³ neighbours within the support radius d. The step refuses more
+    /// than [`crate::MAX_NEIGHBORS`], so the rate must stay below
+    /// MAX_NEIGHBORS · π r² v / ((4/3) π d³). Buoyancy and jitter only spread the gas,
+    /// so the bound errs towards accepting what then runs (tested at 0.9 of it).
+    pub fn max_burner_rate_per_s(&self) -> Option<f64> {
+        let e = &self.emitter;
+        let (r, v, d) =
+            (f64::from(e.radius_m), f64::from(e.velocity_m_s.length()), f64::from(self.sph.support_radius_m));
+        let ball = 4.0 / 3.0 * std::f64::consts::PI * d.powi(3);
+        let disk_flow = std::f64::consts::PI * r * r * v;
+        (disk_flow > 0.0 && ball > 0.0).then(|| crate::sim::MAX_NEIGHBORS as f64 * disk_flow / ball)
+    }
+
     /// Every problem with this configuration, each naming the field (relative to the
     /// `[flame]` table), the value and the valid range.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
@@ -273,6 +291,19 @@ impl FlameConfig {
                 e.rate_per_s,
                 format!(
                     "at most {MAX_EMITTED_PER_FRAME} particles per frame (rate × frame_time_s is {per_frame:.0})"
+                ),
+            );
+        }
+
+        if let Some(limit) = self.max_burner_rate_per_s()
+            && f64::from(e.rate_per_s) > limit
+        {
+            i.push(
+                "emitter.rate_per_s",
+                e.rate_per_s,
+                format!(
+                    "at most about {limit:.0} for this burner: faster, each new particle near the burner would have more than {} neighbours within sph.support_radius_m (widen emitter.radius_m, raise emitter.velocity_m_s or lower the rate)",
+                    crate::sim::MAX_NEIGHBORS
                 ),
             );
         }

@@ -280,6 +280,14 @@ struct Splat {
     depth: f32,
 }
 
+/// The cameras of a renderer: at the frame's size and at the splat buffers'.
+struct Views {
+    view: CameraView,
+    splat_view: CameraView,
+    splat_w: usize,
+    splat_h: usize,
+}
+
 /// Renders a flame simulation to linear HDR frames.
 #[derive(Clone, Debug)]
 pub struct FlameRenderer {
@@ -307,6 +315,24 @@ pub struct FlameRenderer {
 }
 
 impl FlameRenderer {
+    /// Whether [`FlameRenderer::new`] accepts `settings` at `width × height` (besides
+    /// the background image), without allocating any image.
+    pub fn check(settings: &RenderSettings, width: usize, height: usize) -> Result<(), RenderError> {
+        settings.validate().map_err(InvalidConfig::from)?;
+        Self::views(settings, width, height).map(|_| ())
+    }
+
+    /// The camera at the frame's size and at the splat buffers' size.
+    fn views(settings: &RenderSettings, width: usize, height: usize) -> Result<Views, RenderError> {
+        check_size(width, height)?;
+        let size = RenderError::Size { width, height };
+        let view = settings.camera.view(width, height).ok_or(size.clone())?;
+        let splat_w = ((width as f32 * settings.resolution_scale).round() as usize).max(1);
+        let splat_h = ((height as f32 * settings.resolution_scale).round() as usize).max(1);
+        let splat_view = settings.camera.view(splat_w, splat_h).ok_or(size)?;
+        Ok(Views { view, splat_view, splat_w, splat_h })
+    }
+
     /// A renderer for `width × height` frames. `background_image` is used when the
     /// settings ask for an image background (linear RGB, any size: it is stretched).
     pub fn new(
@@ -316,12 +342,7 @@ impl FlameRenderer {
         background_image: Option<&Frame>,
     ) -> Result<Self, RenderError> {
         settings.validate().map_err(InvalidConfig::from)?;
-        check_size(width, height)?;
-        let size = RenderError::Size { width, height };
-        let view = settings.camera.view(width, height).ok_or(size.clone())?;
-        let splat_w = ((width as f32 * settings.resolution_scale).round() as usize).max(1);
-        let splat_h = ((height as f32 * settings.resolution_scale).round() as usize).max(1);
-        let splat_view = settings.camera.view(splat_w, splat_h).ok_or(size)?;
+        let Views { view, splat_view, splat_w, splat_h } = Self::views(&settings, width, height)?;
         let wanted = matches!(settings.background, Background::Image { .. });
         let background = match image_background(wanted, background_image, width, height)? {
             Some(image) => image,

@@ -3,14 +3,18 @@
 
 use std::fmt::Write as _;
 
-use phenomena_aurora::{AuroraConfig, AuroraRenderer, AuroraSim, AuroraView, RenderSettings, SkyBackground};
+use phenomena_aurora::{
+    AuroraConfig, AuroraError, AuroraRenderer, AuroraSim, AuroraView, ColourMode, RenderSettings,
+    SkyBackground,
+};
 use phenomena_core::clock::SharedClock;
+use phenomena_core::image::Frame;
 use phenomena_core::validate::{Issue, Issues};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
-use crate::phenomenon::{Built, ExportKind, Exported, Phenomenon, View};
+use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, View};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -57,6 +61,7 @@ impl Phenomenon for AuroraScene {
     const STARTER: &'static str = include_str!("../starters/aurora.toml");
     type Sim = AuroraSim;
     type Renderer = AuroraRenderer;
+    type Loaded = Option<Frame>;
 
     fn settings(&self) -> &SceneSettings {
         &self.scene
@@ -91,17 +96,71 @@ impl Phenomenon for AuroraScene {
         self.render.view = if view == "plane" { AuroraView::Plane } else { AuroraView::Sky };
     }
 
-    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError> {
-        let background = match (&self.render.view, &self.render.sky.background) {
+    fn load(&self, assets: &Assets) -> Result<Option<Frame>, BuildError> {
+        match (&self.render.view, &self.render.sky.background) {
             (AuroraView::Sky, SkyBackground::Image { path }) => {
-                Some(assets.image("render.sky.background.path", path)?)
+                Ok(Some(assets.image("render.sky.background.path", path)?))
             }
-            _ => None,
+            _ => Ok(None),
+        }
+    }
+
+    fn check(&self, _background: &Option<Frame>) -> Result<Vec<String>, BuildError> {
+        // The simulation checks what validation already did (parameters, shapes).
+        let (w, h) = self.scene.size();
+        AuroraRenderer::check(&self.render, w, h).map_err(|e| BuildError::render("render.sky", e))?;
+        Ok(Vec::new())
+    }
+
+    /// Particles (up to twice the start after redistribution: scene 2 grows by 1.6x),
+    /// the field's grid and charges, and in the sky view the emission points of a frame
+    /// (filed by band: twice) and the line images.
+    fn estimate(&self, _background: &Option<Frame>) -> Estimate {
+        let a = &self.aurora;
+        let particles = f64::from(a.motion.particles) * if a.redistribution.enabled { 2.0 } else { 1.0 };
+        let cells = f64::from(a.plane.cells[0]) * f64::from(a.plane.cells[1]);
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let sky = &self.render.sky;
+        let per_particle = match sky.mode {
+            ColourMode::Physical => f64::from(sky.points_per_particle),
+            ColourMode::Paper => f64::from(sky.paper.collisions),
         };
-        let sim = AuroraSim::new(self.aurora.clone(), self.scene.seed).map_err(BuildError::refused)?;
+        let mut parts = vec![
+            ("particles", particles * 96.0),
+            ("field grid", cells * 48.0),
+            ("charges", f64::from(a.field.charges) * 16.0),
+        ];
+        let work = match self.render.view {
+            AuroraView::Sky => {
+                parts.push(("emission points of a frame", particles * per_particle * 32.0));
+                parts.push(("line images and frame", w * h * (10.0 * 4.0 + 12.0)));
+                format!(
+                    "{particles:.0} particles at most × {per_particle:.0} emission points; a {}x{} field every {} frames; {w}x{h} pixels",
+                    a.plane.cells[0], a.plane.cells[1], a.shape.renew_every_frames
+                )
+            }
+            AuroraView::Plane => {
+                parts.push(("frame", w * h * 16.0));
+                format!(
+                    "{particles:.0} particles at most; a {}x{} field; {w}x{h} pixels",
+                    a.plane.cells[0], a.plane.cells[1]
+                )
+            }
+        };
+        Estimate::of(work, parts)
+    }
+
+    fn build(&self, background: Option<Frame>) -> Result<Built<Self>, BuildError> {
+        let sim = AuroraSim::new(self.aurora.clone(), self.scene.seed).map_err(|e| match e {
+            AuroraError::Invalid(c) => BuildError::invalid("aurora", c),
+            AuroraError::Shape(s) => {
+                BuildError::Invalid(vec![Issue::described(format!("aurora.{}", s.field()), s.to_string())])
+            }
+            other => BuildError::refused(other),
+        })?;
         let (w, h) = self.scene.size();
         let renderer = AuroraRenderer::new(self.render.clone(), w, h, background.as_ref())
-            .map_err(BuildError::refused)?;
+            .map_err(|e| BuildError::render("render.sky", e))?;
         Ok(Built { sim, renderer, warnings: Vec::new() })
     }
 

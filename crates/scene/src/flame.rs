@@ -1,13 +1,16 @@
 //! Flame scenes: `[flame]` (the SPH gas of Inagaki et al., §4) and its `[render]`
 //! (§5: blackbody splats, heat shimmer, background).
 
+use phenomena_core::image::Frame;
 use phenomena_core::validate::Issues;
-use phenomena_flame::{Background, FlameConfig, FlameRenderer, FlameSim, RenderSettings, View as FlameView};
+use phenomena_flame::{
+    Background, FlameConfig, FlameError, FlameRenderer, FlameSim, RenderSettings, View as FlameView,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
-use crate::phenomenon::{Built, Phenomenon, Steer, View};
+use crate::phenomenon::{Built, Estimate, Phenomenon, Steer, View};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -39,6 +42,7 @@ impl Phenomenon for FlameScene {
     const STARTER: &'static str = include_str!("../starters/flame.toml");
     type Sim = FlameSim;
     type Renderer = FlameRenderer;
+    type Loaded = Option<Frame>;
 
     fn settings(&self) -> &SceneSettings {
         &self.scene
@@ -68,15 +72,59 @@ impl Phenomenon for FlameScene {
         self.render.view = if view == "density" { FlameView::Density } else { FlameView::Flame };
     }
 
-    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError> {
-        let background = match &self.render.background {
-            Background::Image { path } => Some(assets.image("render.background.path", path)?),
-            _ => None,
-        };
-        let sim = FlameSim::new(self.flame.clone(), self.scene.seed).map_err(BuildError::refused)?;
+    fn load(&self, assets: &Assets) -> Result<Option<Frame>, BuildError> {
+        match &self.render.background {
+            Background::Image { path } => Ok(Some(assets.image("render.background.path", path)?)),
+            _ => Ok(None),
+        }
+    }
+
+    fn check(&self, _background: &Option<Frame>) -> Result<Vec<String>, BuildError> {
+        let (w, h) = self.scene.size();
+        FlameRenderer::check(&self.render, w, h).map_err(|e| BuildError::render("render", e))?;
+        Ok(Vec::new())
+    }
+
+    /// Particles at the peak (rate × the longest lifetime, capped by `max_particles`)
+    /// with their attributes, sorting copies and neighbour lists; the neighbour grid of
+    /// the domain box; the frame, its background and the splat planes.
+    fn estimate(&self, _background: &Option<Frame>) -> Estimate {
+        let f = &self.flame;
+        let e = &f.emitter;
+        let born = f64::from(e.rate_per_s) * f64::from(e.lifetime_s) * (1.0 + f64::from(e.lifetime_jitter));
+        let particles = born.min(f64::from(f.max_particles)).ceil();
+        let d = f64::from(f.sph.support_radius_m);
+        let size = (f.domain.max_m - f.domain.min_m).as_dvec3() / d.max(1e-9) + glam::DVec3::ONE;
+        let cells = size.x.ceil() * size.y.ceil() * size.z.ceil();
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let k = f64::from(self.render.resolution_scale);
+        let mut estimate = Estimate::of(
+            format!("{particles:.0} particles at the peak; {w}x{h} pixels"),
+            vec![
+                // ~80 B of attributes, doubled for the reorder into cell order, plus
+                // neighbour lists of ~64 entries of 4 B and a splat (~40 B) filed ~1.5x.
+                ("particles", particles * (160.0 + 256.0 + 60.0)),
+                ("neighbour grid", cells * 8.0),
+                ("frame and background", 2.0 * w * h * 12.0),
+                ("splat planes", 5.0 * w * h * k * k * 4.0),
+            ],
+        );
+        if f.max_burner_rate_per_s().is_none() {
+            estimate.unchecked.push(
+                "the density at the burner (a point burner or gas born at rest): a render may stop with \"too dense\"".into(),
+            );
+        }
+        estimate
+    }
+
+    fn build(&self, background: Option<Frame>) -> Result<Built<Self>, BuildError> {
+        let sim = FlameSim::new(self.flame.clone(), self.scene.seed).map_err(|e| match e {
+            FlameError::Invalid(c) => BuildError::invalid("flame", c),
+            other => BuildError::refused(other),
+        })?;
         let (w, h) = self.scene.size();
         let renderer = FlameRenderer::new(self.render.clone(), w, h, background.as_ref())
-            .map_err(BuildError::refused)?;
+            .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings: Vec::new() })
     }
 

@@ -54,9 +54,10 @@ pub mod sparkle;
 
 pub use assets::{AssetError, Assets};
 pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
-pub use phenomenon::{Built, ExportKind, Exported, Phenomenon, Steer, View};
+pub use phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, Steer, View};
 pub use runner::{
-    BuildError, FrameRecord, FrameSink, Observer, Output, RunError, Runner, Simulate, SinkError,
+    BuildError, FrameRecord, FrameSink, Limits, Observer, Output, Report, RunError, Runner, Simulate,
+    SinkError, gib,
 };
 pub use scene::Scene;
 pub use settings::{MAX_SIDE_PX, SceneSettings};

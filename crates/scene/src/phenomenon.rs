@@ -67,6 +67,36 @@ pub struct Built<P: Phenomenon> {
     pub warnings: Vec<String>,
 }
 
+/// What running a scene will cost, estimated from its settings (and its files) before
+/// anything is built. Memory counts the large buffers (particles, maps, images, splat
+/// lists) at their peak, so it is a floor more than a ceiling; `work` says what one
+/// frame does in the phenomenon's own terms.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Estimate {
+    /// Memory held at the peak, bytes.
+    pub memory_bytes: u64,
+    /// The memory by part: (what, bytes).
+    pub parts: Vec<(String, u64)>,
+    /// The work of one frame.
+    pub work: String,
+    /// What cannot be checked before running, each a sentence.
+    pub unchecked: Vec<String>,
+}
+
+impl Estimate {
+    /// An estimate of `work` from memory parts (what, bytes).
+    pub fn of(work: String, parts: Vec<(&str, f64)>) -> Self {
+        let parts: Vec<(String, u64)> =
+            parts.into_iter().map(|(what, bytes)| (what.to_string(), bytes.max(0.0).ceil() as u64)).collect();
+        Self {
+            memory_bytes: parts.iter().map(|p| p.1).fold(0, u64::saturating_add),
+            parts,
+            work,
+            unchecked: Vec::new(),
+        }
+    }
+}
+
 /// One phenomenon's scene file.
 pub trait Phenomenon:
     Serialize + DeserializeOwned + Default + Clone + PartialEq + Debug + Send + Sync + 'static
@@ -86,6 +116,8 @@ pub trait Phenomenon:
     type Sim: Simulation;
     /// Its renderer.
     type Renderer: Renderer<Self::Sim>;
+    /// The scene's files, read and decoded (a mesh, a background image).
+    type Loaded: Send;
 
     /// The `[scene]` table.
     fn settings(&self) -> &SceneSettings;
@@ -98,9 +130,15 @@ pub trait Phenomenon:
     fn view(&self) -> &'static str;
     /// Draw `view` (one of [`Phenomenon::VIEWS`]; others are refused by the caller).
     fn set_view(&mut self, view: &str);
-    /// Read the scene's files through `assets` (the only way a scene reads a file) and
-    /// build the simulation and its renderer at the scene's size.
-    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError>;
+    /// Read the scene's files through `assets` (the only way a scene reads a file).
+    fn load(&self, assets: &Assets) -> Result<Self::Loaded, BuildError>;
+    /// Every check the simulation and renderer make before they start, without
+    /// building them (quick: what `validate` runs); warnings for the user.
+    fn check(&self, loaded: &Self::Loaded) -> Result<Vec<String>, BuildError>;
+    /// Memory and work, estimated from the settings and the files read.
+    fn estimate(&self, loaded: &Self::Loaded) -> Estimate;
+    /// Build the simulation and its renderer at the scene's size.
+    fn build(&self, loaded: Self::Loaded) -> Result<Built<Self>, BuildError>;
 
     /// Give the simulation and renderer a clock for their timing breakdowns.
     fn set_clock(_built: &mut Built<Self>, _clock: &SharedClock) {}

@@ -8,14 +8,15 @@ use std::ops::{ControlFlow, Range};
 
 use phenomena_core::clock::SharedClock;
 use phenomena_core::image::Frame;
+use phenomena_core::phenomenon::RenderError;
 use phenomena_core::phenomenon::{Layer, Renderer, Simulation};
 use phenomena_core::tonemap::Exposure;
-use phenomena_core::validate::Issue;
+use phenomena_core::validate::{InvalidConfig, Issue};
 use serde::Serialize;
 use serde_json::Value;
 
 use crate::assets::{AssetError, Assets};
-use crate::phenomenon::{Built, Exported, Phenomenon, Steer};
+use crate::phenomenon::{Built, Estimate, Exported, Phenomenon, Steer};
 use crate::scene::Scene;
 
 /// Why a scene's simulation or renderer could not be built.
@@ -38,6 +39,46 @@ pub enum BuildError {
     /// The simulation or renderer refused the scene.
     #[error("{0}")]
     Refused(String),
+    /// The scene would need more memory than the budget allows.
+    #[error(
+        "the scene needs about {} of memory ({}), more than the budget of {}",
+        gib(.estimate.memory_bytes),
+        .estimate.work,
+        gib(*.limit_bytes)
+    )]
+    OverBudget {
+        /// What it would need.
+        estimate: Box<Estimate>,
+        /// The budget, bytes.
+        limit_bytes: u64,
+    },
+}
+
+/// Bytes as GiB, for messages.
+pub fn gib(bytes: u64) -> String {
+    format!("{:.2} GiB", bytes as f64 / f64::from(1u32 << 30))
+}
+
+/// How much a run may take. The CLI's default is three quarters of the machine's
+/// memory; a library caller sets its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Most memory the scene's estimate may reach, bytes.
+    pub memory_bytes: u64,
+}
+
+impl Limits {
+    /// No limit.
+    pub const NONE: Limits = Limits { memory_bytes: u64::MAX };
+}
+
+/// What checking a scene found: warnings and the estimate of its cost.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Warnings, each a sentence.
+    pub warnings: Vec<String>,
+    /// Memory and work.
+    pub estimate: Estimate,
 }
 
 impl BuildError {
@@ -47,13 +88,27 @@ impl BuildError {
             BuildError::Asset(e) => Some(&e.key),
             BuildError::Unusable { key, .. } => Some(key),
             BuildError::Invalid(issues) => issues.first().map(|i| i.field.as_str()),
-            BuildError::Refused(_) => None,
+            BuildError::Refused(_) | BuildError::OverBudget { .. } => None,
         }
     }
 
     /// A simulation's or renderer's refusal.
     pub fn refused(e: impl std::fmt::Display) -> Self {
         BuildError::Refused(e.to_string())
+    }
+
+    /// A constructor's invalid configuration, its fields put under `table` (the key the
+    /// configuration sits at in the scene file, e.g. `sparkle` or `render.sky`).
+    pub fn invalid(table: &str, config: InvalidConfig) -> Self {
+        BuildError::Invalid(config.prefixed(table).issues)
+    }
+
+    /// A renderer's refusal: its invalid settings under `table`, anything else as is.
+    pub fn render(table: &str, e: RenderError) -> Self {
+        match e {
+            RenderError::Invalid(c) => Self::invalid(table, c),
+            other => Self::refused(other),
+        }
     }
 }
 
@@ -173,6 +228,7 @@ impl Observer for () {
 /// A phenomenon's simulation and renderer, stepped together.
 pub struct Runner {
     run: Box<dyn Run>,
+    estimate: Estimate,
     clock: SharedClock,
     exposure: Exposure,
     preview: bool,
@@ -180,14 +236,26 @@ pub struct Runner {
 
 impl Runner {
     /// Build the simulation and renderer of `scene` (validated first), reading its
-    /// files through `assets`.
+    /// files through `assets`, with no memory limit.
     pub fn new(scene: &Scene, assets: &Assets) -> Result<Self, BuildError> {
+        Self::with_limits(scene, assets, &Limits::NONE)
+    }
+
+    /// As [`Runner::new`], refusing a scene whose estimated memory is over `limits`
+    /// before building anything.
+    pub fn with_limits(scene: &Scene, assets: &Assets, limits: &Limits) -> Result<Self, BuildError> {
         let issues = scene.validate();
         if !issues.is_empty() {
             return Err(BuildError::Invalid(issues));
         }
-        let run = scene.build(assets)?;
-        Ok(Self { run, clock: SharedClock::default(), exposure: scene.settings().exposure(), preview: false })
+        let (run, estimate) = scene.build(assets, limits)?;
+        Ok(Self {
+            run,
+            estimate,
+            clock: SharedClock::default(),
+            exposure: scene.settings().exposure(),
+            preview: false,
+        })
     }
 
     /// Time steps, renders and writes (and the phenomena's own breakdowns) with
@@ -201,6 +269,11 @@ impl Runner {
     /// has a preview mode.
     pub fn set_preview(&mut self, preview: bool) {
         self.preview = preview;
+    }
+
+    /// The estimate of the scene's memory and work the runner was built under.
+    pub fn estimate(&self) -> &Estimate {
+        &self.estimate
     }
 
     /// Warnings found while building (each a sentence).
@@ -301,9 +374,51 @@ pub(crate) trait Run: Send {
     fn frames_done(&self) -> u64;
 }
 
-/// Build `scene`'s simulation and renderer.
-pub(crate) fn live<P: Phenomenon>(scene: &P, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
-    Ok(Box::new(Live(scene.build(assets)?)))
+/// Build `scene`'s simulation and renderer: read its files, refuse it when its
+/// estimate is over `limits`, build.
+pub(crate) fn live<P: Phenomenon>(
+    scene: &P,
+    assets: &Assets,
+    limits: &Limits,
+) -> Result<(Box<dyn Run>, Estimate), BuildError> {
+    let loaded = scene.load(assets)?;
+    let estimate = scene.estimate(&loaded);
+    if estimate.memory_bytes > limits.memory_bytes {
+        return Err(BuildError::OverBudget {
+            estimate: Box::new(estimate),
+            limit_bytes: limits.memory_bytes,
+        });
+    }
+    Ok((Box::new(Live(scene.build(loaded)?)), estimate))
+}
+
+/// The phenomenon's estimate plus writing a frame: the frame interleaved as f32 and as
+/// 8-bit sRGB for PNG (EXR copies the planes, the same order of size).
+fn estimate<P: Phenomenon>(scene: &P, loaded: &P::Loaded) -> Estimate {
+    let mut e = scene.estimate(loaded);
+    let (w, h) = scene.settings().size();
+    let bytes = (w as u64) * (h as u64) * 15;
+    e.parts.push(("writing a frame".into(), bytes));
+    e.memory_bytes = e.memory_bytes.saturating_add(bytes);
+    e
+}
+
+/// Read `scene`'s files and run its checks without building anything.
+pub(crate) fn check<P: Phenomenon>(
+    scene: &P,
+    assets: &Assets,
+    limits: &Limits,
+) -> Result<Report, BuildError> {
+    let loaded = scene.load(assets)?;
+    let warnings = scene.check(&loaded)?;
+    let estimate = estimate(scene, &loaded);
+    if estimate.memory_bytes > limits.memory_bytes {
+        return Err(BuildError::OverBudget {
+            estimate: Box::new(estimate),
+            limit_bytes: limits.memory_bytes,
+        });
+    }
+    Ok(Report { warnings, estimate })
 }
 
 struct Live<P: Phenomenon>(Built<P>);

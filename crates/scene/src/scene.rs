@@ -11,9 +11,9 @@ use serde_json::Value;
 
 use crate::assets::Assets;
 use crate::parse::{Located, Source};
-use crate::phenomenon::{Phenomenon, View};
+use crate::phenomenon::{Estimate, Phenomenon, View};
 use crate::registry::{self, Entry};
-use crate::runner::{BuildError, Run};
+use crate::runner::{BuildError, Limits, Report, Run};
 use crate::settings::SceneSettings;
 
 /// A scene of any phenomenon.
@@ -107,8 +107,23 @@ impl Scene {
         self.source.as_ref().map(|s| s.file.as_path())
     }
 
-    pub(crate) fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
-        self.inner.build(assets)
+    pub(crate) fn build(
+        &self,
+        assets: &Assets,
+        limits: &Limits,
+    ) -> Result<(Box<dyn Run>, Estimate), BuildError> {
+        self.inner.build(assets, limits)
+    }
+
+    /// Read the scene's files and make every check its simulation and renderer would
+    /// make, and estimate its cost, without building them (quick: what `validate`
+    /// does). Refused like [`crate::Runner::with_limits`] when invalid or over `limits`.
+    pub fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError> {
+        let issues = self.validate();
+        if !issues.is_empty() {
+            return Err(BuildError::Invalid(issues));
+        }
+        self.inner.check(assets, limits)
     }
 }
 
@@ -141,7 +156,8 @@ trait AnyScene: Send + Sync + fmt::Debug {
     fn set_view(&mut self, view: &str);
     fn to_json(&self) -> Value;
     fn to_toml(&self) -> Result<String, String>;
-    fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError>;
+    fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError>;
+    fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError>;
     fn clone_box(&self) -> Box<dyn AnyScene>;
     fn eq_dyn(&self, other: &dyn AnyScene) -> bool;
     fn as_any(&self) -> &dyn Any;
@@ -183,8 +199,12 @@ impl<P: Phenomenon> AnyScene for P {
         toml::to_string(self).map_err(|e| e.to_string())
     }
 
-    fn build(&self, assets: &Assets) -> Result<Box<dyn Run>, BuildError> {
-        crate::runner::live(self, assets)
+    fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError> {
+        crate::runner::live(self, assets, limits)
+    }
+
+    fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError> {
+        crate::runner::check(self, assets, limits)
     }
 
     fn clone_box(&self) -> Box<dyn AnyScene> {

@@ -4,23 +4,27 @@
 use std::cell::RefCell;
 use std::path::PathBuf;
 
-use phenomena_core::validate::Issues;
+use phenomena_core::image::Frame;
+use phenomena_core::validate::{Expected, Issue, Issues};
 use phenomena_snow::mesh::{Builtin, Mesh};
-use phenomena_snow::{Background, SnowConfig, SnowRenderSettings, SnowRenderer, SnowSim, SnowView, load};
+use phenomena_snow::{
+    Background, SnowConfig, SnowError, SnowRenderSettings, SnowRenderer, SnowSim, SnowView, load,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::assets::{AssetError, Assets};
-use crate::phenomenon::{Built, ExportKind, Exported, Phenomenon, View};
+use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, View};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
 /// Where a snow scene's geometry comes from (`[geometry]`): a built-in scene or a mesh
-/// file (OBJ, glTF/GLB or DXF by extension, relative to the scene file).
+/// file (OBJ, glTF/GLB or DXF by extension, relative to the scene file), not both.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SnowGeometry {
-    /// A built-in scene (used when `mesh` is not given).
-    pub builtin: Builtin,
+    /// A built-in scene; with neither this nor `mesh`, the table (the paper's Fig 7).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub builtin: Option<Builtin>,
     /// A mesh file instead.
     pub mesh: Option<PathBuf>,
     /// Scale from the file's units to metres.
@@ -29,7 +33,7 @@ pub struct SnowGeometry {
 
 impl Default for SnowGeometry {
     fn default() -> Self {
-        Self { builtin: Builtin::Table, mesh: None, scale: 1.0 }
+        Self { builtin: None, mesh: None, scale: 1.0 }
     }
 }
 
@@ -51,15 +55,42 @@ pub struct SnowScene {
     pub render: SnowRenderSettings,
 }
 
+/// A snow scene's files, read: its triangles (and the warnings from reading them) and
+/// its background image.
+pub struct SnowFiles {
+    mesh: Mesh,
+    warnings: Vec<String>,
+    background: Option<Frame>,
+}
+
 /// The scene key of the mesh file.
 const MESH_KEY: &str = "geometry.mesh";
 
 impl SnowScene {
+    /// A simulation's refusal at the scene key it is about.
+    fn refusal(&self, e: SnowError) -> BuildError {
+        let geometry = if self.geometry.mesh.is_some() { "geometry.mesh" } else { "geometry.builtin" };
+        match e {
+            SnowError::Invalid(c) => BuildError::invalid("snow", c),
+            SnowError::ObjectGroups { given, objects } => BuildError::Invalid(vec![Issue {
+                field: "snow.object_groups".into(),
+                value: format!("{given} entries"),
+                expected: Expected::Text(format!(
+                    "one group number per object of the scene: {objects} entries"
+                )),
+            }]),
+            e @ (SnowError::NoSnowSurface | SnowError::ZeroArea) => {
+                BuildError::Unusable { key: geometry.into(), message: e.to_string() }
+            }
+            other => BuildError::refused(other),
+        }
+    }
+
     /// The triangles: the built-in scene, or the mesh file read through `assets` and
     /// parsed (degenerate triangles dropped, counted in the warnings).
     pub fn mesh(&self, assets: &Assets) -> Result<(Mesh, Vec<String>), BuildError> {
         let Some(file) = &self.geometry.mesh else {
-            let mut mesh = self.geometry.builtin.mesh();
+            let mut mesh = self.geometry.builtin.unwrap_or(Builtin::Table).mesh();
             mesh.clean(1e-12);
             return Ok((mesh, Vec::new()));
         };
@@ -109,6 +140,11 @@ impl SnowScene {
     }
 }
 
+/// A built-in scene's name in scene files.
+fn builtin_name(b: Builtin) -> String {
+    serde_json::to_value(b).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default()
+}
+
 impl Phenomenon for SnowScene {
     const NAME: &'static str = "snow";
     const ABOUT: &'static str =
@@ -125,6 +161,7 @@ impl Phenomenon for SnowScene {
     const STARTER: &'static str = include_str!("../starters/snow.toml");
     type Sim = SnowSim;
     type Renderer = SnowRenderer;
+    type Loaded = SnowFiles;
 
     fn settings(&self) -> &SceneSettings {
         &self.scene
@@ -136,6 +173,16 @@ impl Phenomenon for SnowScene {
 
     fn validate(&self, i: &mut Issues) {
         i.range_open_low("geometry.scale", self.geometry.scale, 0.0, 1e6);
+        if let (Some(builtin), Some(mesh)) = (&self.geometry.builtin, &self.geometry.mesh) {
+            i.push(
+                "geometry.mesh",
+                format!("{:?}", mesh.display().to_string()),
+                format!(
+                    "either a mesh file or builtin = {:?}, not both: remove one of them",
+                    builtin_name(*builtin)
+                ),
+            );
+        }
         if let Err(e) = self.snow.validate() {
             i.extend_prefixed("snow", e);
         }
@@ -155,16 +202,56 @@ impl Phenomenon for SnowScene {
         self.render.view = if view == "probability" { SnowView::Probability } else { SnowView::Scene };
     }
 
-    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError> {
+    fn load(&self, assets: &Assets) -> Result<SnowFiles, BuildError> {
         let (mesh, warnings) = self.mesh(assets)?;
         let background = match &self.render.background {
             Background::Image { path } => Some(assets.image("render.background.path", path)?),
             Background::Sky => None,
         };
-        let sim = SnowSim::new(mesh, self.snow.clone(), self.scene.seed).map_err(BuildError::refused)?;
+        Ok(SnowFiles { mesh, warnings, background })
+    }
+
+    fn check(&self, files: &SnowFiles) -> Result<Vec<String>, BuildError> {
+        SnowSim::check(&files.mesh, &self.snow).map_err(|e| self.refusal(e))?;
         let (w, h) = self.scene.size();
-        let renderer =
-            SnowRenderer::new(self.render.clone(), w, h, background.as_ref()).map_err(BuildError::refused)?;
+        SnowRenderer::check(&self.render, w, h).map_err(|e| BuildError::render("render", e))?;
+        Ok(files.warnings.clone())
+    }
+
+    /// The snow maps (one per polygon group: ground, snow, probability and the
+    /// stabilisation's scratch per texel), one depth map per worker thread for the
+    /// probability (depth and id per pixel, the rasteriser's parts), the scene's
+    /// triangles twice (as given and ordered for culling), the snow mesh drawn each
+    /// frame, and the frame with its depth buffer.
+    fn estimate(&self, files: &SnowFiles) -> Estimate {
+        let c = &self.snow;
+        let maps = SnowSim::check(&files.mesh, c).unwrap_or(1) as f64;
+        let n2 = f64::from(c.map_resolution).powi(2);
+        let s2 = f64::from(c.shadow_resolution).powi(2);
+        let threads = rayon::current_num_threads() as f64;
+        let triangles = files.mesh.len() as f64;
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        Estimate::of(
+            format!(
+                "{} directions × {}² depth-map pixels per probability; {maps:.0} maps of {}² texels, up to {} stabilisation passes a step; {triangles:.0} triangles; {w}x{h} pixels",
+                c.directions, c.shadow_resolution, c.map_resolution, c.max_passes
+            ),
+            vec![
+                ("snow maps", maps * n2 * 32.0),
+                ("depth maps (one per thread)", threads * s2 * 16.0),
+                ("scene triangles", triangles * 2.0 * 40.0),
+                ("snow mesh drawn each frame", maps * n2 * 2.0 * 40.0),
+                ("frame and depth buffer", w * h * 20.0),
+            ],
+        )
+    }
+
+    fn build(&self, files: SnowFiles) -> Result<Built<Self>, BuildError> {
+        let SnowFiles { mesh, warnings, background } = files;
+        let sim = SnowSim::new(mesh, self.snow.clone(), self.scene.seed).map_err(|e| self.refusal(e))?;
+        let (w, h) = self.scene.size();
+        let renderer = SnowRenderer::new(self.render.clone(), w, h, background.as_ref())
+            .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings })
     }
 

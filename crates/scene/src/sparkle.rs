@@ -1,12 +1,15 @@
 //! Sparkle scenes: `[sparkle]` (the glints of Hwang and Noma's stochastic model, §2-3:
 //! diamond dust or leaf glitter) and its `[render]`.
 
+use phenomena_core::image::Frame;
 use phenomena_core::validate::Issues;
-use phenomena_sparkle::{Background, RenderSettings, SparkleConfig, SparkleRenderer, SparkleSim};
+use phenomena_sparkle::{
+    Background, Method, RenderSettings, SparkleConfig, SparkleError, SparkleRenderer, SparkleSim,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::assets::Assets;
-use crate::phenomenon::{Built, Phenomenon, View};
+use crate::phenomenon::{Built, Estimate, Phenomenon, View};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -34,6 +37,7 @@ impl Phenomenon for SparkleScene {
     const STARTER: &'static str = include_str!("../starters/sparkle.toml");
     type Sim = SparkleSim;
     type Renderer = SparkleRenderer;
+    type Loaded = Option<Frame>;
 
     fn settings(&self) -> &SceneSettings {
         &self.scene
@@ -58,24 +62,79 @@ impl Phenomenon for SparkleScene {
 
     fn set_view(&mut self, _view: &str) {}
 
-    fn build(&self, assets: &Assets) -> Result<Built<Self>, BuildError> {
-        let background = match &self.render.background {
-            Background::Image { path } => Some(assets.image("render.background.path", path)?),
-            _ => None,
-        };
-        let sim = SparkleSim::new(self.sparkle, self.scene.seed).map_err(BuildError::refused)?;
-        let mut warnings = Vec::new();
-        if sim.cone_is_empty() {
-            let p = &self.sparkle.phong;
-            warnings.push(format!(
-                "no facet can be seen: threshold_i_e {} is not below k_s I_l = {}; the frames show the background only",
-                p.threshold_i_e,
-                p.specular_k_s * p.light_intensity
-            ));
+    fn load(&self, assets: &Assets) -> Result<Option<Frame>, BuildError> {
+        match &self.render.background {
+            Background::Image { path } => Ok(Some(assets.image("render.background.path", path)?)),
+            _ => Ok(None),
         }
+    }
+
+    fn check(&self, _background: &Option<Frame>) -> Result<Vec<String>, BuildError> {
+        SparkleSim::check(&self.sparkle).map_err(sim_refusal)?;
+        let (w, h) = self.scene.size();
+        SparkleRenderer::check(&self.render, w, h).map_err(|e| BuildError::render("render", e))?;
+        Ok(self.warnings())
+    }
+
+    /// The facets seen (and the ghosts followed for `memory_frames`), in two sets of
+    /// arrays (this frame's and the last, kept for reuse); brute force: every facet; the
+    /// frame, its background and the band sums.
+    fn estimate(&self, _background: &Option<Frame>) -> Estimate {
+        let c = &self.sparkle;
+        let n = c.virtual_count() as f64;
+        let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let images = ("frame, background and band sums", 3.0 * w * h * 12.0);
+        if c.method == Method::BruteForce {
+            return Estimate::of(
+                format!("{n:.0} facets stepped (brute force); {w}x{h} pixels"),
+                vec![("every facet", n * 40.0), images],
+            );
+        }
+        let mut unchecked = Vec::new();
+        let seen = c.expected_visible().unwrap_or_else(|| {
+            unchecked.push(format!(
+                "how many facets of a normal lobe are seen: known frame by frame (at most {:e} candidates)",
+                phenomena_sparkle::MAX_CANDIDATES
+            ));
+            0.0
+        });
+        let ghosts = seen * 0.3 * f64::from(c.memory_frames);
+        let mut estimate = Estimate::of(
+            format!("{n:.0} virtual facets, about {seen:.0} seen; {w}x{h} pixels"),
+            vec![("glints and ghosts (two sets of arrays)", 2.0 * (seen + ghosts) * 48.0), images],
+        );
+        estimate.unchecked = unchecked;
+        estimate
+    }
+
+    fn build(&self, background: Option<Frame>) -> Result<Built<Self>, BuildError> {
+        let sim = SparkleSim::new(self.sparkle, self.scene.seed).map_err(sim_refusal)?;
         let (w, h) = self.scene.size();
         let renderer = SparkleRenderer::new(self.render.clone(), w, h, background.as_ref())
-            .map_err(BuildError::refused)?;
-        Ok(Built { sim, renderer, warnings })
+            .map_err(|e| BuildError::render("render", e))?;
+        Ok(Built { sim, renderer, warnings: self.warnings() })
+    }
+}
+
+impl SparkleScene {
+    /// A scene that can show nothing says so.
+    fn warnings(&self) -> Vec<String> {
+        let p = &self.sparkle.phong;
+        if p.cos_theta().is_some() {
+            return Vec::new();
+        }
+        vec![format!(
+            "no facet can be seen: threshold_i_e {} is not below k_s I_l = {}; the frames show the background only",
+            p.threshold_i_e,
+            p.specular_k_s * p.light_intensity
+        )]
+    }
+}
+
+/// The simulation's refusal, its invalid settings at their keys.
+fn sim_refusal(e: SparkleError) -> BuildError {
+    match e {
+        SparkleError::Invalid(c) => BuildError::invalid("sparkle", c),
+        other => BuildError::refused(other),
     }
 }

@@ -151,6 +151,13 @@ pub struct SnowRenderer {
 }
 
 impl SnowRenderer {
+    /// Whether [`SnowRenderer::new`] accepts `settings` at `width × height` (besides
+    /// the background image), without allocating any image.
+    pub fn check(settings: &SnowRenderSettings, width: usize, height: usize) -> Result<(), RenderError> {
+        settings.validate().map_err(InvalidConfig::from)?;
+        check_size(width, height)
+    }
+
     /// A renderer of `width × height` frames; `background` is the loaded image (linear
     /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
     /// settings ask for one.
@@ -160,8 +167,7 @@ impl SnowRenderer {
         height: usize,
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
-        settings.validate().map_err(InvalidConfig::from)?;
-        check_size(width, height)?;
+        Self::check(&settings, width, height)?;
         let wanted = matches!(settings.background, Background::Image { .. });
         let background = image_background(wanted, background, width, height)?;
         Ok(Self { settings, background, frame: Frame::new(width, height) })

@@ -207,9 +207,24 @@ pub struct SnowSim {
     top_y: f32,
 }
 
+/// The polygon groups and footprint of a scene, before any map is drawn.
+struct Layout {
+    groups: Groups,
+    lo: Vec3,
+    hi: Vec3,
+    extent: f32,
+}
+
 impl SnowSim {
-    /// Snow maps for `mesh` (cleaned by the caller), with the probability computed once.
-    pub fn new(mesh: Mesh, params: SnowConfig, seed: u64) -> Result<Self, SnowError> {
+    /// Whether [`SnowSim::new`] accepts `mesh` and `params`, without drawing a map or a
+    /// depth map: the parameters, the object groups, a surface to hold snow and a
+    /// footprint with area (cheap: one pass over the triangles). Gives the number of
+    /// snow maps (polygon groups) it would make.
+    pub fn check(mesh: &Mesh, params: &SnowConfig) -> Result<usize, SnowError> {
+        Self::layout(mesh, params).map(|l| l.groups.count as usize)
+    }
+
+    fn layout(mesh: &Mesh, params: &SnowConfig) -> Result<Layout, SnowError> {
         params.validate().map_err(InvalidConfig::from)?;
         let groups = match &params.object_groups {
             Some(og) => {
@@ -217,9 +232,9 @@ impl SnowSim {
                 if og.len() < objects {
                     return Err(SnowError::ObjectGroups { given: og.len(), objects });
                 }
-                groups_by_object(&mesh, og)
+                groups_by_object(mesh, og)
             }
-            None => auto_groups(&mesh),
+            None => auto_groups(mesh),
         };
         if groups.count == 0 {
             return Err(SnowError::NoSnowSurface);
@@ -229,6 +244,12 @@ impl SnowSim {
         if !(extent > 0.0) {
             return Err(SnowError::ZeroArea);
         }
+        Ok(Layout { groups, lo, hi, extent })
+    }
+
+    /// Snow maps for `mesh` (cleaned by the caller), with the probability computed once.
+    pub fn new(mesh: Mesh, params: SnowConfig, seed: u64) -> Result<Self, SnowError> {
+        let Layout { groups, lo, hi, extent } = Self::layout(&mesh, &params)?;
         let n = params.map_resolution as usize;
         let centre = Vec2::new(0.5 * (lo.x + hi.x), 0.5 * (lo.z + hi.z));
         let footprint =

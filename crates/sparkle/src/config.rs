@@ -434,6 +434,14 @@ impl SparkleConfig {
         }
     }
 
+    /// Facets expected in view, where known in advance (uniform normals: N times the
+    /// cone's fraction); `None` for normal lobes, whose share depends on the geometry
+    /// frame by frame (the simulation bounds it by its candidate guard).
+    pub fn expected_visible(&self) -> Option<f64> {
+        let f = self.upper_fraction();
+        (f > 0.0).then(|| self.virtual_count() as f64 * f)
+    }
+
     /// The visible fraction where it is known in advance (uniform normals); lobes are
     /// checked by `SparkleSim::new` against their candidate bound for the scene's geometry.
     fn upper_fraction(&self) -> f64 {

@@ -162,6 +162,13 @@ pub struct SparkleRenderer {
 }
 
 impl SparkleRenderer {
+    /// Whether [`SparkleRenderer::new`] accepts `settings` at `width × height` (besides
+    /// the background image), without allocating any image.
+    pub fn check(settings: &RenderSettings, width: usize, height: usize) -> Result<(), RenderError> {
+        settings.validate().map_err(InvalidConfig::from)?;
+        check_size(width, height)
+    }
+
     /// A renderer of `width × height` frames; `background` is the loaded image (linear
     /// RGB, any size: it is stretched to the frame by [`Frame::resized`]) when the
     /// settings ask for one.
@@ -171,8 +178,7 @@ impl SparkleRenderer {
         height: usize,
         background: Option<&Frame>,
     ) -> Result<Self, RenderError> {
-        settings.validate().map_err(InvalidConfig::from)?;
-        check_size(width, height)?;
+        Self::check(&settings, width, height)?;
         let wanted = matches!(settings.background, Background::Image { .. });
         let user_background = image_background(wanted, background, width, height)?;
         Ok(Self { settings, user_background, cached: None, frame: Frame::new(width, height) })

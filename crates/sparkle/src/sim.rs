@@ -403,6 +403,20 @@ pub struct SparkleSim {
 impl SparkleSim {
     /// Build the simulation and generate frame 0's visible facets.
     pub fn new(config: SparkleConfig, seed: u64) -> Result<Self, SparkleError> {
+        let mut sim = Self::unstarted(config, seed)?;
+        sim.start();
+        Ok(sim)
+    }
+
+    /// Whether [`SparkleSim::new`] accepts `config`, without generating anything: its
+    /// validation and the bound on frame 0's birth candidates (cheap: per-cell tables
+    /// only).
+    pub fn check(config: &SparkleConfig) -> Result<(), SparkleError> {
+        Self::unstarted(*config, 0).map(|_| ())
+    }
+
+    /// The simulation before frame 0 is drawn, refused when its candidates would flood.
+    fn unstarted(config: SparkleConfig, seed: u64) -> Result<Self, SparkleError> {
         config.validate().map_err(InvalidConfig::from)?;
         let lobe = match config.population {
             Population::DiamondDust(Dust { normals: Normals::Uniform, .. }) => Lobe::new(0.0),
@@ -418,7 +432,7 @@ impl SparkleSim {
                 *p = std::f32::consts::TAU * rng.next_f32();
             }
         }
-        let mut sim = Self {
+        let sim = Self {
             space: Space::of(&config.population),
             virtual_count: config.virtual_count(),
             cos_theta: config.phong.cos_theta(),
@@ -453,7 +467,6 @@ impl SparkleSim {
             }])
             .into());
         }
-        sim.start();
         Ok(sim)
     }
 

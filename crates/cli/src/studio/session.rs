@@ -306,6 +306,16 @@ pub(crate) fn run(
     }
 }
 
+/// What keeps a scene out of the studio: its validation problems, except that an aurora
+/// with no sheets yet is where the editor starts (the preview waits for a stroke).
+fn studio_problems(scene: &Scene) -> Vec<phenomena_core::validate::Issue> {
+    let mut problems = scene.validate();
+    if scene.get::<AuroraScene>().is_some() {
+        problems.retain(|i| i.field != "aurora.keyframes[0].sheets");
+    }
+    problems
+}
+
 /// A list of problems as one line.
 fn joined(problems: &[phenomena_core::validate::Issue]) -> String {
     problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")
@@ -423,7 +433,7 @@ impl Session {
             }
             Incoming::Scene { phenomenon, scene } => match scene_from_json(&phenomenon, scene) {
                 Ok(s) => {
-                    let problems = s.validate();
+                    let problems = studio_problems(&s);
                     if problems.is_empty() {
                         self.replace(s)?;
                     } else {
@@ -511,7 +521,7 @@ impl Session {
                 "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
             }));
         }
-        match Runner::new(&scene, &sandbox(self.dir.path())) {
+        match Runner::with_limits(&scene, &sandbox(self.dir.path()), &crate::render::limits()) {
             Ok(mut runner) => {
                 runner.set_preview(true);
                 runner.set_clock(crate::render::wall_clock());
@@ -583,7 +593,7 @@ impl Session {
                 return self.send_scene();
             }
         };
-        let problems = candidate.validate();
+        let problems = studio_problems(&candidate);
         if !problems.is_empty() {
             self.send(json!({
                 "type": "error",
@@ -723,7 +733,7 @@ fn render_to(
     ensure_dir(dir)?;
     let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
     write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
-    let mut runner = Runner::new(scene, assets)?;
+    let mut runner = Runner::with_limits(scene, assets, &crate::render::limits())?;
     let mut sink = ImageSink::new(dir, ImageFormat::Png, false)?;
     runner.run(0..total, &mut sink, progress)?;
     Ok(())

@@ -89,3 +89,101 @@ fn studio_without_the_feature_says_how_to_build_it() {
     let e = fails(dir.path(), &["studio", "--port", "0"]);
     assert!(e.contains("--features studio"), "{e}");
 }
+
+/// Issue 19: scenes that were accepted but would do something questionable get an
+/// error at the key that causes it (items 6 and 8).
+#[test]
+fn questionable_scenes_are_refused_at_their_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = "[scene]\nframes = 2\nwidth = 32\nheight = 18\n";
+    let line = |z: f32| format!("[[0.0, {z}], [100.0, {z}], [200.0, {z}]]");
+    let two_keyframes = format!(
+        "[[aurora.keyframes]]\nframe = 0\nsheets = [{}]\n[[aurora.keyframes]]\nframe = 10\nsheets = [{}]\n",
+        line(100.0),
+        line(120.0)
+    );
+    let cases: Vec<(String, &str)> = vec![
+        // Snow: a group list that does not cover the objects; a mesh and a built-in scene.
+        (
+            format!("{head}[geometry]\nbuiltin = \"primitives\"\n[snow]\nobject_groups = []\n"),
+            "8:17: snow.object_groups = 0 entries: expected one group number per object of the scene: 5 entries",
+        ),
+        (
+            format!("{head}[geometry]\nbuiltin = \"table\"\nmesh = \"yard.obj\"\n[snow]\n"),
+            "7:8: geometry.mesh = \"yard.obj\": expected either a mesh file or builtin = \"table\", not both",
+        ),
+        // Aurora: no sheets; a merge of a point with itself; a split listed twice; a
+        // keyframe past what f32 frames count exactly.
+        (
+            format!(
+                "{head}[[aurora.keyframes]]\nframe = 0\nsheets = []\n[[aurora.keyframes]]\nframe = 10\nsheets = []\n"
+            ),
+            "aurora.keyframes[0].sheets: the keyframes have no sheets",
+        ),
+        (
+            format!(
+                "{head}{two_keyframes}[[aurora.merges]]\nkeyframe = 1\na = {{ sheet = 0, point = 31 }}\nb = {{ sheet = 0, point = 31 }}\n"
+            ),
+            "aurora.merges[0]: merge 0 joins sheet 0 point 31 with itself",
+        ),
+        (
+            format!(
+                "{head}{two_keyframes}[[aurora.splits]]\nkeyframe = 1\nstart = {{ sheet = 0, point = 3 }}\n[[aurora.splits]]\nkeyframe = 1\nstart = {{ sheet = 0, point = 3 }}\n"
+            ),
+            "aurora.splits[1]: split 1 repeats split 0",
+        ),
+        (
+            format!("{head}{}", two_keyframes.replace("frame = 10", "frame = 4294967295")),
+            "aurora.keyframes[1].frame = 4294967295: expected an integer in [0, 16777216]",
+        ),
+    ];
+    for (k, (text, expect)) in cases.iter().enumerate() {
+        let scene = write(dir.path(), &format!("q{k}.toml"), text);
+        let e = fails(dir.path(), &["validate", &scene]);
+        assert!(e.contains(&format!("q{k}.toml:")) && e.contains(expect), "case {k}: {e}");
+    }
+}
+
+/// Issue 19 item 5: `validate` builds no simulation, so a scene whose work runs away
+/// is checked at once; a scene over the memory budget is refused by `validate` and
+/// `render` alike, with the estimate and the flag that raises the budget.
+#[test]
+fn validate_is_quick_and_the_memory_budget_holds() {
+    let dir = tempfile::tempdir().unwrap();
+    let runaway = write(
+        dir.path(),
+        "runaway.toml",
+        "[scene]\nframes = 3\nwidth = 64\nheight = 36\n[geometry]\nbuiltin = \"table\"\n[snow]\ndirections = 4096\nmap_resolution = 4096\n",
+    );
+    let out = assert_cmd::cargo::cargo_bin_cmd!("phenomena")
+        .current_dir(dir.path())
+        .args(["validate", &runaway])
+        .timeout(std::time::Duration::from_secs(60))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("runaway.toml: ok (snow scene") && stdout.contains("GiB of memory"), "{stdout}");
+    // 8192² depth maps, one per worker thread: over a 1 GiB budget.
+    let deep = write(
+        dir.path(),
+        "deep.toml",
+        "[scene]\nframes = 3\nwidth = 64\nheight = 36\n[geometry]\nbuiltin = \"table\"\n[snow]\nshadow_resolution = 8192\n",
+    );
+    for args in [vec!["validate", &deep], vec!["render", &deep, "--out", "o"]] {
+        let mut args: Vec<&str> = args;
+        args.extend(["--max-memory-gib", "0.5", "--threads", "1"].iter().take(if args[0] == "render" {
+            4
+        } else {
+            2
+        }));
+        let e = fails(dir.path(), &args);
+        assert!(
+            e.contains("more than the budget of 0.50 GiB") && e.contains("--max-memory-gib"),
+            "{args:?}: {e}"
+        );
+    }
+    assert!(!dir.path().join("o").join("frame_00000.png").exists(), "nothing rendered over the budget");
+    let out = run(dir.path(), &["validate", &deep, "--max-memory-gib", "-1"]);
+    assert_eq!(out.status.code(), Some(2), "a budget must be positive");
+}

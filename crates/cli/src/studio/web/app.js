@@ -114,7 +114,8 @@ function buildExtras(phenomenon) {
     // with a mesh extension.
     upload('Mesh (OBJ, GLB, glTF + buffers, DXF)', '.obj,.glb,.gltf,.bin,.dxf', 'mesh-upload', (names) => {
       const mesh = names.find((n) => /\.(obj|glb|gltf|dxf)$/i.test(n));
-      if (mesh) setParam('geometry.mesh', mesh);
+      // The mesh replaces the built-in scene (a scene names one or the other).
+      if (mesh) setParam('geometry', { scale: (studio.scene.geometry || {}).scale ?? 1, mesh });
       else say('error', 'no mesh among the files: choose an .obj, .glb, .gltf or .dxf file (with the buffers a .gltf names)');
     }, true);
     background('render.background');
