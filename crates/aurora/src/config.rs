@@ -9,6 +9,15 @@ use serde::{Deserialize, Serialize};
 use crate::field::{Poisson, Sampler};
 use crate::shape::{Keyframe, Merge, Resample, Split};
 
+/// Most keyframes.
+pub(crate) const MAX_KEYFRAMES: u64 = 256;
+/// Most control points of one keyframe, all sheets together (e.g. 64 sheets of 32).
+pub(crate) const MAX_CONTROL_POINTS: u64 = 2048;
+/// Most splits, and most merges.
+pub(crate) const MAX_OPERATIONS: u64 = 1024;
+/// Most mouse samples of one stroke.
+pub(crate) const MAX_STROKE_SAMPLES: u64 = 100_000;
+
 /// Largest keyframe frame: shapes are interpolated in `f32`, which counts whole frames
 /// exactly up to 2²⁴ (about 6.5 days at 30 frames per second).
 pub(crate) const MAX_KEYFRAME: u64 = 1 << 24;
@@ -297,10 +306,32 @@ impl AuroraConfig {
         if self.keyframes.len() < 2 {
             i.push("keyframes", self.keyframes.len(), "a source and at least one target keyframe");
         }
+        // Bounds that keep building the shapes (a crossing test of every pair of
+        // segments per keyframe) within about a second whatever the file holds.
+        i.count("keyframes", self.keyframes.len() as u64, 0..=MAX_KEYFRAMES);
+        let n = u64::from(self.shape.control_points_per_sheet);
+        if let Some(kf) = self.keyframes.first()
+            && n * kf.sheets.len() as u64 > MAX_CONTROL_POINTS
+        {
+            i.push(
+                "keyframes[0].sheets",
+                format!("{} sheets of {n} control points", kf.sheets.len()),
+                format!("at most {MAX_CONTROL_POINTS} control points per keyframe in all"),
+            );
+        }
+        i.count("splits", self.splits.len() as u64, 0..=MAX_OPERATIONS);
+        i.count("merges", self.merges.len() as u64, 0..=MAX_OPERATIONS);
         for (k, kf) in self.keyframes.iter().enumerate() {
             // Frames are interpolated in f32, exact for whole numbers up to 2²⁴.
             i.count(&format!("keyframes[{k}].frame"), u64::from(kf.frame), 0..=MAX_KEYFRAME);
             for (s, sheet) in kf.sheets.iter().enumerate() {
+                if sheet.len() as u64 > MAX_STROKE_SAMPLES {
+                    i.push(
+                        format!("keyframes[{k}].sheets[{s}]"),
+                        format!("{} samples", sheet.len()),
+                        format!("at most {MAX_STROKE_SAMPLES} samples per stroke"),
+                    );
+                }
                 for (p, pt) in sheet.iter().enumerate() {
                     i.vector(&format!("keyframes[{k}].sheets[{s}][{p}]"), pt, 1e5);
                 }

@@ -135,6 +135,10 @@ fn apply(config: &mut AuroraConfig, drawn: &mut Drawn, op: EditOp) -> Result<Opt
             config.merges.push(Merge { keyframe, a, b });
             check_animation(config).map(|()| None)
         }
+        EditOp::AddKeyframe { frame } if u64::from(frame) > crate::config::MAX_KEYFRAME => Err(late(frame)),
+        EditOp::MoveKeyframe { frame, .. } if u64::from(frame) > crate::config::MAX_KEYFRAME => {
+            Err(late(frame))
+        }
         EditOp::AddKeyframe { frame } => {
             let prev = config.keyframes.last().map_or(0, |k| k.frame);
             if frame <= prev && !config.keyframes.is_empty() {
@@ -275,6 +279,11 @@ fn delete_keyframe(
         }
     }
     check_animation(config).map(|()| None)
+}
+
+/// The refusal of a keyframe past the last frame shapes are kept at.
+fn late(frame: u32) -> String {
+    format!("frame {frame} is past the last a keyframe may have ({})", crate::config::MAX_KEYFRAME)
 }
 
 fn check_animation(config: &AuroraConfig) -> Result<(), String> {
@@ -469,6 +478,8 @@ mod tests {
             EditOp::Split { keyframe: 9, sheet: 0, point: 1 },
             EditOp::DeleteKeyframe { keyframe: 0 },
             EditOp::MoveKeyframe { keyframe: 5, frame: 3 },
+            EditOp::AddKeyframe { frame: u32::MAX },
+            EditOp::MoveKeyframe { keyframe: 1, frame: u32::MAX },
         ] {
             assert!(edit(&mut c, &mut d, op.clone()).is_err(), "{op:?}");
             assert_eq!((&c, &d), (&c0, &d0), "{op:?} changed the shapes");

@@ -765,7 +765,8 @@ fn floor_i32(v: f32) -> i32 {
 /// non-finite weight) are dropped.
 fn bucket_by_band(splats: Vec<Splat>, height: usize) -> Filed<Splat> {
     let bands = height.div_ceil(BAND_ROWS);
-    let band_of = |s: &Splat| -> Option<(u32, u32)> {
+    let band_of = |i: usize| -> Option<(u32, u32)> {
+        let s = &splats[i];
         let fy = s.y - 0.5;
         if !(fy >= -1.0 && fy < height as f32 && s.weight.is_finite()) {
             return None;
@@ -773,7 +774,7 @@ fn bucket_by_band(splats: Vec<Splat>, height: usize) -> Filed<Splat> {
         let b = ((floor_i32(fy).max(0) as usize) / BAND_ROWS) as u32;
         Some((b, b))
     };
-    Filed::file(bands, &splats, band_of, |&s| s)
+    Filed::file(bands, splats.len(), band_of, |i| splats[i])
 }
 
 /// Deposit every chunk's bucketed splats into five line images. Bands of rows run in

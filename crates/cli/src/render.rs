@@ -276,9 +276,6 @@ impl Progress {
 
 impl Observer for Progress {
     fn frame(&mut self, record: &FrameRecord) -> ControlFlow<()> {
-        if INTERRUPTED.load(Ordering::SeqCst) {
-            return ControlFlow::Break(());
-        }
         let wanted = self.range.contains(&record.frame);
         self.bar.set_message(match (wanted, record.skipped) {
             (false, _) => "simulating",
@@ -292,6 +289,10 @@ impl Observer for Progress {
             let _ = writeln!(self.stats, "{line}");
         }
         self.bar.inc(1);
+        // Checked after the frame's stats are kept: the last frame written has them.
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            return ControlFlow::Break(());
+        }
         ControlFlow::Continue(())
     }
 }

@@ -12,7 +12,7 @@
 //! use phenomena_core::bands::Filed;
 //! // Items at rows 3, 9 and 4..=9, bands of 4 rows: bands 0 and 2, and 1..=2.
 //! let rows = [(3u32, 3u32), (9, 9), (4, 9)];
-//! let filed = Filed::file(3, &rows, |&(a, b)| Some((a / 4, b / 4)), |&(a, _)| a);
+//! let filed = Filed::file(3, rows.len(), |i| Some((rows[i].0 / 4, rows[i].1 / 4)), |i| rows[i].0);
 //! assert_eq!(filed.band(0), [3]);
 //! assert_eq!(filed.band(1), [4]);
 //! assert_eq!(filed.band(2), [9, 4]); // item order kept
@@ -27,33 +27,34 @@ pub struct Filed<T> {
 }
 
 impl<T: Copy + Default> Filed<T> {
-    /// File `items` into `bands` bands: `span(item)` gives the first and last band the
-    /// item touches (inclusive, each below `bands`), or `None` to leave it out; `keep`
-    /// makes what is filed. Within each band items keep their order.
-    pub fn file<S>(
+    /// File items `0..count` into `bands` bands: `span(i)` gives the first and last band
+    /// item `i` touches (inclusive, each below `bands`), or `None` to leave it out;
+    /// `keep(i)` makes what is filed (an index, or the item when it is small). Within
+    /// each band items keep their order.
+    pub fn file(
         bands: usize,
-        items: &[S],
-        span: impl Fn(&S) -> Option<(u32, u32)>,
-        keep: impl Fn(&S) -> T,
+        count: usize,
+        span: impl Fn(usize) -> Option<(u32, u32)>,
+        keep: impl Fn(usize) -> T,
     ) -> Self {
         let mut filed = Self::default();
-        filed.refile(bands, items, span, keep);
+        filed.refile(bands, count, span, keep);
         filed
     }
 
     /// As [`Filed::file`], into this one's memory (kept between frames).
-    pub fn refile<S>(
+    pub fn refile(
         &mut self,
         bands: usize,
-        items: &[S],
-        span: impl Fn(&S) -> Option<(u32, u32)>,
-        keep: impl Fn(&S) -> T,
+        count: usize,
+        span: impl Fn(usize) -> Option<(u32, u32)>,
+        keep: impl Fn(usize) -> T,
     ) {
         let start = &mut self.start;
         start.clear();
         start.resize(bands + 1, 0);
-        for s in items {
-            if let Some((lo, hi)) = span(s) {
+        for i in 0..count {
+            if let Some((lo, hi)) = span(i) {
                 for b in lo..=hi {
                     start[b as usize + 1] += 1;
                 }
@@ -65,9 +66,9 @@ impl<T: Copy + Default> Filed<T> {
         let mut next = start[..bands].to_vec();
         self.items.clear();
         self.items.resize(start[bands] as usize, T::default());
-        for s in items {
-            if let Some((lo, hi)) = span(s) {
-                let t = keep(s);
+        for i in 0..count {
+            if let Some((lo, hi)) = span(i) {
+                let t = keep(i);
                 for b in lo..=hi {
                     let at = &mut next[b as usize];
                     self.items[*at as usize] = t;
@@ -117,8 +118,11 @@ mod tests {
                 (i, lo, hi)
             })
             .collect();
-        let drop_every_fifth = |&(i, lo, hi): &(u32, u32, u32)| (i % 5 != 0).then_some((lo, hi));
-        let filed = Filed::file(bands as usize, &items, drop_every_fifth, |&(i, _, _)| i);
+        let drop_every_fifth = |k: usize| {
+            let (i, lo, hi) = items[k];
+            (i % 5 != 0).then_some((lo, hi))
+        };
+        let filed = Filed::file(bands as usize, items.len(), drop_every_fifth, |k| items[k].0);
         assert_eq!(filed.bands(), bands as usize);
         for b in 0..bands {
             let expect: Vec<u32> = items
@@ -128,7 +132,7 @@ mod tests {
                 .collect();
             assert_eq!(filed.band(b as usize), expect, "band {b}");
         }
-        let empty = Filed::<u32>::file(3, &[] as &[u32], |_| Some((0, 2)), |&x| x);
+        let empty = Filed::<u32>::file(3, 0, |_| Some((0, 2)), |k| k as u32);
         assert!(empty.is_empty() && empty.band(2).is_empty());
     }
 }

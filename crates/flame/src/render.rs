@@ -268,7 +268,7 @@ impl BlackbodyLut {
 }
 
 /// One particle prepared for splatting, in splat-buffer pixels.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct Splat {
     x: f32,
     y: f32,
@@ -301,7 +301,7 @@ pub struct FlameRenderer {
     lut: BlackbodyLut,
     background: Frame,
     splats: Vec<Option<Splat>>,
-    bins: Filed<Splat>,
+    bins: Filed<u32>,
     planes: [Plane; 5],
     /// Per splat-buffer row, the columns any splat touched (start..end; empty if none),
     /// so that compositing only works where the flame or its shimmer is.
@@ -447,18 +447,19 @@ impl FlameRenderer {
             .collect_into_vec(&mut self.splats);
     }
 
-    /// File each splat under the bands its footprint touches, in particle order.
+    /// File each splat's index under the bands its footprint touches, in particle order.
     fn bin_splats(&mut self) {
         let last = self.splat_h.div_ceil(BAND_ROWS) - 1;
-        let span = |s: &Option<Splat>| {
-            s.map(|s| {
+        let splats = &self.splats;
+        let span = |i: usize| {
+            splats[i].map(|s| {
                 let reach = if s.shimmer_px > 0.0 { s.radius.max(s.shimmer_radius) } else { s.radius };
                 let y0 = ((s.y - reach).max(0.0) as usize / BAND_ROWS).min(last);
                 let y1 = ((s.y + reach).max(0.0) as usize / BAND_ROWS).min(last);
                 (y0 as u32, y1 as u32)
             })
         };
-        self.bins.refile(last + 1, &self.splats, span, |s| s.unwrap_or_default());
+        self.bins.refile(last + 1, splats.len(), span, |i| i as u32);
     }
 
     /// Accumulate flame radiance (Fig 2 profile) and refraction offsets (Fig 3
@@ -467,7 +468,7 @@ impl FlameRenderer {
         let w = self.splat_w;
         let chunk = BAND_ROWS * w;
         let [r, g, b, ox, oy] = &mut self.planes;
-        let bins = &self.bins;
+        let (splats, bins) = (&self.splats, &self.bins);
         r.data_mut()
             .par_chunks_mut(chunk)
             .zip(g.data_mut().par_chunks_mut(chunk))
@@ -481,8 +482,10 @@ impl FlameRenderer {
                 let rows = r.len() / w;
                 let mut out = BandBuffers { w, row0, rows, r, g, b, ox, oy, spans, dx: Vec::new() };
                 out.clear();
-                for s in bins.band(band) {
-                    out.splat(s);
+                for &i in bins.band(band) {
+                    if let Some(s) = &splats[i as usize] {
+                        out.splat(s);
+                    }
                 }
             });
     }

@@ -30,6 +30,9 @@ pub const MAX_FILE_BYTES: u64 = 1 << 30;
 /// Largest side of an image asset, pixels.
 pub const MAX_IMAGE_SIDE_PX: u32 = 16384;
 
+/// Most pixels of an image asset (8192², about 0.8 GB once decoded to linear floats).
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
 /// Where a scene's files come from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Assets {
@@ -85,6 +88,14 @@ impl Assets {
         Assets::Memory(BTreeMap::new())
     }
 
+    /// The most bytes one file (and all files one asset refers to, together) may hold.
+    pub fn file_cap(&self) -> u64 {
+        match self {
+            Assets::Sandbox { max_bytes, .. } => *max_bytes,
+            _ => MAX_FILE_BYTES,
+        }
+    }
+
     /// Read the file scene key `key` names by `path` (as written in the scene).
     pub fn read(&self, key: &str, path: &Path) -> Result<Vec<u8>, AssetError> {
         let error = |problem: String| AssetError {
@@ -119,10 +130,7 @@ impl Assets {
             uri: Some(uri.to_string()),
             problem,
         };
-        let cap = match self {
-            Assets::Sandbox { max_bytes, .. } => *max_bytes,
-            _ => MAX_FILE_BYTES,
-        };
+        let cap = self.file_cap();
         if let Some(data) = uri.strip_prefix("data:") {
             return decode_data_uri(data, cap).map_err(error);
         }
@@ -151,7 +159,8 @@ impl Assets {
     }
 
     /// Read and decode an image file (PNG) named by `key` into a linear frame (sRGB
-    /// decoded); at most [`MAX_IMAGE_SIDE_PX`] per side.
+    /// decoded); at most [`MAX_IMAGE_SIDE_PX`] per side and [`MAX_IMAGE_PIXELS`] in all,
+    /// checked from the header before decoding.
     pub fn image(&self, key: &str, path: &Path) -> Result<Frame, AssetError> {
         let bytes = self.read(key, path)?;
         let error = |problem: String| AssetError {
@@ -160,8 +169,19 @@ impl Assets {
             uri: None,
             problem,
         };
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
-        reader = reader.with_guessed_format().map_err(|e| error(format!("cannot read the image: {e}")))?;
+        let reader = || {
+            image::ImageReader::new(std::io::Cursor::new(bytes.as_slice()))
+                .with_guessed_format()
+                .map_err(|e| error(format!("cannot read the image: {e}")))
+        };
+        // The size from the header first: a small file can hold a huge image.
+        let (w, h) = reader()?.into_dimensions().map_err(|e| error(format!("cannot read the image: {e}")))?;
+        if w > MAX_IMAGE_SIDE_PX || h > MAX_IMAGE_SIDE_PX || u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS {
+            return Err(error(format!(
+                "the image is {w}x{h}: at most {MAX_IMAGE_PIXELS} pixels and {MAX_IMAGE_SIDE_PX} per side"
+            )));
+        }
+        let mut reader = reader()?;
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_IMAGE_SIDE_PX);
         limits.max_image_height = Some(MAX_IMAGE_SIDE_PX);
@@ -209,23 +229,28 @@ fn relative_reference(uri: &str) -> Result<PathBuf, String> {
     Ok(PathBuf::from(decoded))
 }
 
-/// `%XX` sequences to bytes (RFC 3986 §2.1), read as UTF-8.
-fn percent_decode(s: &str) -> Option<String> {
+/// `%XX` sequences to bytes (RFC 3986 §2.1): exactly two hexadecimal digits each.
+fn percent_decode_bytes(s: &str) -> Option<Vec<u8>> {
     let bytes = s.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
     while i < bytes.len() {
         if bytes[i] == b'%' {
-            let hex = bytes.get(i + 1..i + 3)?;
-            let v = u8::from_str_radix(std::str::from_utf8(hex).ok()?, 16).ok()?;
-            out.push(v);
+            let digit = |k: usize| bytes.get(k).and_then(|&b| char::from(b).to_digit(16));
+            let (hi, lo) = (digit(i + 1)?, digit(i + 2)?);
+            out.push((hi * 16 + lo) as u8);
             i += 3;
         } else {
             out.push(bytes[i]);
             i += 1;
         }
     }
-    String::from_utf8(out).ok()
+    Some(out)
+}
+
+/// [`percent_decode_bytes`] read as UTF-8 (a path).
+fn percent_decode(s: &str) -> Option<String> {
+    String::from_utf8(percent_decode_bytes(s)?).ok()
 }
 
 /// The bytes of a `data:` URI's body (`[<mediatype>][;base64],<data>`, RFC 2397).
@@ -240,7 +265,7 @@ fn decode_data_uri(body: &str, cap: u64) -> Result<Vec<u8>, String> {
             .decode(data.trim_end())
             .map_err(|e| format!("the data: URI is not valid base64: {e}"))?
     } else {
-        percent_decode(data).ok_or("the data: URI's percent-encoding is not valid")?.into_bytes()
+        percent_decode_bytes(data).ok_or("the data: URI's percent-encoding is not valid")?
     };
     if bytes.len() as u64 > cap {
         return Err(format!("the data: URI holds more than {cap} bytes"));
@@ -271,6 +296,19 @@ pub(crate) fn read_file(path: &Path, cap: u64, no_symlinks: bool) -> Result<Vec<
         match meta {
             Ok(m) if m.is_file() => {}
             Ok(_) => return Err("not a regular file".into()),
+            Err(e) => return Err(io_problem(&e)),
+        }
+    }
+    // Look first, so a device is not even opened (opening some has effects); the type
+    // is checked again on the opened handle below.
+    #[cfg(unix)]
+    {
+        let meta = if no_symlinks { std::fs::symlink_metadata(path) } else { std::fs::metadata(path) };
+        match meta {
+            Ok(m) if m.is_dir() => return Err("a folder, not a file".into()),
+            Ok(m) if m.file_type().is_symlink() => return Err("a symlink, which is refused here".into()),
+            Ok(m) if !m.is_file() => return Err("not a regular file (a device, FIFO or socket)".into()),
+            Ok(_) => {}
             Err(e) => return Err(io_problem(&e)),
         }
     }
@@ -405,6 +443,10 @@ mod tests {
         assert_eq!(decode_data_uri("text/plain,a%20b", 10).unwrap(), b"a b");
         assert!(decode_data_uri(";base64,aGk=", 1).is_err());
         assert!(decode_data_uri("no comma", 10).is_err());
+        // Binary data percent-encoded (RFC 2397 allows any octets); digits only.
+        assert_eq!(decode_data_uri("application/octet-stream,%FF%00a", 10).unwrap(), [255, 0, b'a']);
+        assert!(decode_data_uri(",%+F", 10).is_err());
+        assert!(decode_data_uri(",%4", 10).is_err());
         assert!(decode_data_uri(";base64,!!!!", 10).is_err());
     }
 

@@ -102,7 +102,8 @@ impl Phenomenon for FlameScene {
             format!("{particles:.0} particles at the peak; {w}x{h} pixels"),
             vec![
                 // ~80 B of attributes, doubled for the reorder into cell order, plus
-                // neighbour lists of ~64 entries of 4 B and a splat (~40 B) filed ~1.5x.
+                // neighbour lists of ~64 entries of 4 B, a splat (~40 B) and its index
+                // filed by band.
                 ("particles", particles * (160.0 + 256.0 + 60.0)),
                 ("neighbour grid", cells * 8.0),
                 ("frame and background", 2.0 * w * h * 12.0),

@@ -59,5 +59,5 @@ pub use runner::{
     BuildError, FrameRecord, FrameSink, Limits, Observer, Output, Report, RunError, Runner, Simulate,
     SinkError, gib,
 };
-pub use scene::Scene;
+pub use scene::{Scene, set_path};
 pub use settings::{MAX_SIDE_PX, SceneSettings};

@@ -307,7 +307,9 @@ impl Runner {
             return Ok(());
         }
         let t = self.clock.stopwatch();
-        self.run.render(self.preview.then_some(record.frame));
+        // A preview's subset turns with the frames simulated (0 before the first step).
+        let done = self.frames_done();
+        self.run.render(self.preview.then_some(done));
         record.render_ms = Some(t.ms());
         record.render_detail = self.run.render_detail();
         let t = self.clock.stopwatch();
@@ -382,14 +384,19 @@ pub(crate) fn live<P: Phenomenon>(
     limits: &Limits,
 ) -> Result<(Box<dyn Run>, Estimate), BuildError> {
     let loaded = scene.load(assets)?;
-    let estimate = scene.estimate(&loaded);
+    let estimate = within(estimate(scene, &loaded), limits)?;
+    Ok((Box::new(Live(scene.build(loaded)?)), estimate))
+}
+
+/// `estimate` if it is within `limits`.
+fn within(estimate: Estimate, limits: &Limits) -> Result<Estimate, BuildError> {
     if estimate.memory_bytes > limits.memory_bytes {
         return Err(BuildError::OverBudget {
             estimate: Box::new(estimate),
             limit_bytes: limits.memory_bytes,
         });
     }
-    Ok((Box::new(Live(scene.build(loaded)?)), estimate))
+    Ok(estimate)
 }
 
 /// The phenomenon's estimate plus writing a frame: the frame interleaved as f32 and as
@@ -411,13 +418,7 @@ pub(crate) fn check<P: Phenomenon>(
 ) -> Result<Report, BuildError> {
     let loaded = scene.load(assets)?;
     let warnings = scene.check(&loaded)?;
-    let estimate = estimate(scene, &loaded);
-    if estimate.memory_bytes > limits.memory_bytes {
-        return Err(BuildError::OverBudget {
-            estimate: Box::new(estimate),
-            limit_bytes: limits.memory_bytes,
-        });
-    }
+    let estimate = within(estimate(scene, &loaded), limits)?;
     Ok(Report { warnings, estimate })
 }
 

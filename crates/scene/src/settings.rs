@@ -43,6 +43,8 @@ impl SceneSettings {
         i.count("scene.width", u64::from(self.width), 1..=u64::from(MAX_SIDE_PX));
         i.count("scene.height", u64::from(self.height), 1..=u64::from(MAX_SIDE_PX));
         i.range("scene.exposure_ev", self.exposure_ev, -32.0..=32.0);
+        // TOML integers are signed 64-bit: a larger seed could not be saved.
+        i.count("scene.seed", self.seed, 0..=i64::MAX as u64);
     }
 
     /// Width and height as sizes.

@@ -106,13 +106,28 @@ impl SnowScene {
         let scale = self.geometry.scale;
         // The first buffer the glTF could not have, with its scene key and URI.
         let refused: RefCell<Option<AssetError>> = RefCell::new(None);
+        // The buffers together hold at most one file's cap: a glTF naming one large file
+        // many times reads it once within the cap, not many times over.
+        let mut left = assets.file_cap();
         let loaded = match ext.as_str() {
             "obj" => load::obj(&bytes, scale),
             "dxf" => load::dxf(&bytes, scale),
             _ => load::gltf(
                 &bytes,
                 |uri| {
-                    assets.read_referenced(MESH_KEY, file, uri).map_err(|e| {
+                    let data = assets.read_referenced(MESH_KEY, file, uri).and_then(|data| {
+                        left = left.checked_sub(data.len() as u64).ok_or_else(|| AssetError {
+                            key: MESH_KEY.into(),
+                            written: file.display().to_string(),
+                            uri: Some(uri.to_string()),
+                            problem: format!(
+                                "the glTF's buffers hold more than {} bytes in all",
+                                assets.file_cap()
+                            ),
+                        })?;
+                        Ok(data)
+                    });
+                    data.map_err(|e| {
                         let problem = e.problem.clone();
                         refused.borrow_mut().get_or_insert(e);
                         problem

@@ -6,6 +6,7 @@
 //! our y (x stays, y becomes -z), keeping the handedness.
 
 use glam::{Mat4, Vec3};
+use gltf::accessor::{DataType, Dimensions};
 
 use crate::mesh::{Cleaned, Mesh};
 
@@ -50,6 +51,12 @@ pub struct Loaded {
     /// Object names, by object index.
     pub objects: Vec<String>,
 }
+
+/// Most triangles a mesh file may hold (about 1 GiB of vertices in a scene).
+pub const MAX_TRIANGLES: usize = 20_000_000;
+
+/// Most buffers a glTF file may name.
+pub const MAX_BUFFERS: usize = 1024;
 
 /// Triangles under this area are dropped as degenerate, m².
 const MIN_AREA_M2: f32 = 1e-12;
@@ -112,11 +119,52 @@ pub fn gltf(
     scale: f32,
 ) -> Result<Loaded, LoadError> {
     let parse = |e: gltf::Error| LoadError::Parse { format: "glTF", message: e.to_string() };
-    let doc = gltf::Gltf::from_slice(bytes).map_err(parse)?;
+    // glTF 2.0 §4.4.2: a GLB header's length counts the whole file, header included;
+    // gltf 1.4.1 subtracts the header's 12 bytes from it unchecked (found by the fuzzer).
+    if let Some(length) = bytes.strip_prefix(b"glTF").and_then(|rest| rest.get(4..8)) {
+        let length = u32::from_le_bytes(length.try_into().expect("four bytes"));
+        if length < 12 {
+            return Err(LoadError::Parse {
+                format: "glTF",
+                message: format!(
+                    "the GLB header gives a length of {length} bytes, less than the header itself (12)"
+                ),
+            });
+        }
+    }
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
+    // gltf-json 1.4.1's validation (mesh.rs, primitive_validate_hook) indexes the
+    // accessors with a primitive's POSITION index before checking it, and panics on
+    // one past the end (found by the glTF fuzzer): that index is checked here first.
+    let json = unchecked.document.as_json();
+    let positions = gltf::Semantic::Positions;
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position = prim.attributes.get(&gltf::json::validation::Checked::Valid(positions.clone()));
+            if let Some(a) = position.filter(|a| a.value() >= json.accessors.len()) {
+                return Err(LoadError::Parse {
+                    format: "glTF",
+                    message: format!(
+                        "meshes[{m}].primitives[{p}].attributes.POSITION names accessor {}, but the file has {}",
+                        a.value(),
+                        json.accessors.len()
+                    ),
+                });
+            }
+        }
+    }
+    let blob = unchecked.blob;
+    let doc = gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    if doc.buffers().len() > MAX_BUFFERS {
+        return Err(LoadError::Parse {
+            format: "glTF",
+            message: format!("{} buffers, more than the {MAX_BUFFERS} allowed", doc.buffers().len()),
+        });
+    }
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
         let data = match b.source() {
-            gltf::buffer::Source::Bin => doc.blob.clone().ok_or_else(|| LoadError::Buffer {
+            gltf::buffer::Source::Bin => blob.clone().ok_or_else(|| LoadError::Buffer {
                 uri: "(GLB BIN chunk)".into(),
                 reason: "the file has no BIN chunk".into(),
             })?,
@@ -142,13 +190,41 @@ pub fn gltf(
     let scene = doc.default_scene().or_else(|| doc.scenes().next());
     let mut stack: Vec<(gltf::Node, Mat4)> =
         scene.iter().flat_map(|s| s.nodes()).map(|n| (n, Mat4::IDENTITY)).collect();
+    // glTF 2.0 §3.5.3: the nodes form disjoint trees, so each is reached once. A node
+    // reached twice is a cycle (which would never end) or a shared subtree (which could
+    // multiply the triangles exponentially): refused.
+    let mut reached = vec![false; doc.nodes().len()];
+    let mut triangles = 0usize;
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut reached[node.index()], true) {
+            return Err(LoadError::Parse {
+                format: "glTF",
+                message: format!(
+                    "node {} is reached twice: glTF nodes form disjoint trees (no cycles, no shared children)",
+                    node.index()
+                ),
+            });
+        }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(m) = node.mesh() {
             let mut tris = Vec::new();
             for prim in m.primitives() {
                 if prim.mode() != gltf::mesh::Mode::Triangles {
                     continue;
+                }
+                let bad = |reason: String| LoadError::Parse {
+                    format: "glTF",
+                    message: format!("mesh `{}`: {reason}", m.name().unwrap_or("?")),
+                };
+                if let Some(a) = prim.get(&gltf::Semantic::Positions) {
+                    let vec3_f32 = a.dimensions() == Dimensions::Vec3 && a.data_type() == DataType::F32;
+                    readable(&a, "POSITION", vec3_f32, "VEC3 of FLOAT").map_err(bad)?;
+                }
+                if let Some(a) = prim.indices() {
+                    let unsigned = matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32);
+                    let scalar = a.dimensions() == Dimensions::Scalar && unsigned;
+                    readable(&a, "indices", scalar, "SCALAR of UNSIGNED_BYTE, _SHORT or _INT")
+                        .map_err(bad)?;
                 }
                 let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
                 let Some(positions) = reader.read_positions() else { continue };
@@ -173,12 +249,71 @@ pub fn gltf(
                     }
                 }
             }
+            triangles += tris.len();
+            if triangles > MAX_TRIANGLES {
+                return Err(LoadError::Parse {
+                    format: "glTF",
+                    message: format!("more than {MAX_TRIANGLES} triangles"),
+                });
+            }
             mesh.push_object(&tris, objects.len() as u32);
             objects.push(node.name().or(m.name()).unwrap_or("mesh").to_string());
         }
         stack.extend(node.children().map(|c| (c, world)));
     }
     finish(mesh, objects, scale)
+}
+
+/// Whether the `gltf` crate's accessor reader can read `a`: it trusts the element type,
+/// stride, count and offsets written in the file (it asserts, overflows or reaches
+/// `unreachable!` on bad ones), so they are checked here against glTF 2.0 §3.6.2
+/// (accessors lie within their buffer views; a stride is at least the element size;
+/// sparse counts between 1 and the accessor's count) and §3.7.2.1 (POSITION is VEC3
+/// float; indices are unsigned scalars). A count is also capped at three vertices per
+/// allowed triangle, since an accessor without a view is read as that many zeros.
+fn readable(a: &gltf::Accessor, what: &str, type_ok: bool, expected: &str) -> Result<(), String> {
+    let name = || format!("its {what} accessor ({})", a.index());
+    if !type_ok {
+        return Err(format!(
+            "{} is {:?} of {:?}, glTF requires {expected}",
+            name(),
+            a.dimensions(),
+            a.data_type()
+        ));
+    }
+    let count = a.count();
+    if count == 0 || count > 3 * MAX_TRIANGLES {
+        return Err(format!("{} has count {count}, expected 1 to {}", name(), 3 * MAX_TRIANGLES));
+    }
+    // Elements `count` of `size` bytes from `offset` in `view`, `stride` apart, all inside it.
+    let inside = |view: gltf::buffer::View, offset: usize, count: usize, size: usize| {
+        let stride = view.stride().unwrap_or(size);
+        let end = (count - 1)
+            .checked_mul(stride)
+            .and_then(|n| n.checked_add(size))
+            .and_then(|n| n.checked_add(offset));
+        stride >= size
+            && view.offset().checked_add(view.length()).is_some()
+            && end.is_some_and(|end| end <= view.length())
+    };
+    if a.view().is_some_and(|view| !inside(view, a.offset(), count, a.size())) {
+        return Err(format!(
+            "{} reaches past its buffer view or has a stride below its element size",
+            name()
+        ));
+    }
+    if let Some(sparse) = a.sparse() {
+        let n = sparse.count();
+        let (indices, values) = (sparse.indices(), sparse.values());
+        if n == 0
+            || n > count
+            || !inside(indices.view(), indices.offset(), n, indices.index_type().size())
+            || !inside(values.view(), values.offset(), n, a.size())
+        {
+            return Err(format!("{} has a sparse part that does not fit its count or buffer views", name()));
+        }
+    }
+    Ok(())
 }
 
 /// Parse a DXF drawing's bytes: its 3DFACE entities (a fourth corner different from the
@@ -268,6 +403,82 @@ mod tests {
         assert_eq!((lo.z, hi.z), (-1.0, 0.0), "DXF y becomes -z");
         // Counter-clockwise seen from +z in DXF stays counter-clockwise seen from +y.
         assert!(loaded.mesh.normal(0).y > 0.99);
+    }
+
+    /// A node graph with a cycle would be walked for ever; a shared child multiplies
+    /// the triangles: both refused (glTF nodes form disjoint trees).
+    #[test]
+    fn node_cycles_and_shared_children_are_refused() {
+        let glb = to_glb_json_with_nodes(r#"[{"mesh":0,"children":[0]}]"#);
+        let e = gltf(glb.as_bytes(), |_| Ok(tri_bytes()), 1.0).unwrap_err();
+        assert!(e.to_string().contains("reached twice"), "{e}");
+        let e = gltf(
+            to_glb_json_with_nodes(r#"[{"children":[1,1]},{"mesh":0}]"#).as_bytes(),
+            |_| Ok(tri_bytes()),
+            1.0,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("node 1 is reached twice"), "{e}");
+        assert!(
+            gltf(
+                to_glb_json_with_nodes(r#"[{"children":[1]},{"mesh":0}]"#).as_bytes(),
+                |_| Ok(tri_bytes()),
+                1.0
+            )
+            .is_ok()
+        );
+    }
+
+    /// Found by the glTF fuzzer: a POSITION index past the accessors panicked inside
+    /// gltf-json's own validation.
+    #[test]
+    fn a_position_past_the_accessors_is_refused() {
+        let file = to_glb_json_with_nodes(r#"[{"mesh":0}]"#).replace(r#""POSITION":0"#, r#""POSITION":3"#);
+        let e = gltf(file.as_bytes(), |_| Ok(tri_bytes()), 1.0).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("meshes[0].primitives[0].attributes.POSITION names accessor 3, but the file has 1"),
+            "{e}"
+        );
+        let e = gltf(b"glTF\x02\0\0\0\x08\0\0\0", |_| Ok(Vec::new()), 1.0).unwrap_err();
+        assert!(e.to_string().contains("length of 8 bytes"), "{e}");
+        // What the crate's reader trusts (found by the fuzzer: a debug assertion of its
+        // element size fired; `unreachable!` for float indices).
+        let base = to_glb_json_with_nodes(r#"[{"mesh":0}]"#);
+        for (from, to, says) in [
+            (
+                r#""componentType":5126"#,
+                r#""componentType":5121"#,
+                "is Vec3 of U8, glTF requires VEC3 of FLOAT",
+            ),
+            (r#""count":3"#, r#""count":0"#, "has count 0"),
+            (r#""count":3"#, r#""count":4"#, "reaches past its buffer view"),
+            (
+                r#""byteLength":36}],"buffers""#,
+                r#""byteLength":36,"byteStride":4}],"buffers""#,
+                "stride below",
+            ),
+            (r#""POSITION":0}"#, r#""POSITION":0},"indices":0"#, "its indices accessor (0) is Vec3 of F32"),
+        ] {
+            assert!(base.contains(from), "{from}");
+            let e = gltf(base.replace(from, to).as_bytes(), |_| Ok(tri_bytes()), 1.0).unwrap_err();
+            assert!(e.to_string().contains(says), "{to}: {e}");
+        }
+    }
+
+    fn tri_bytes() -> Vec<u8> {
+        [[0.0f32, 0.0, 0.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]]
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect()
+    }
+
+    /// One triangle mesh (buffer `b.bin`) under the nodes given, the scene's root node 0.
+    fn to_glb_json_with_nodes(nodes: &str) -> String {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":{nodes},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","max":[4,0,4],"min":[0,0,0]}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],"buffers":[{{"uri":"b.bin","byteLength":36}}]}}"#
+        )
     }
 
     #[test]

@@ -261,7 +261,7 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
             for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
                 screen.place(view, xc, ic, |d, lo, hi| dots.push((d, lo, hi)));
             }
-            Filed::file(bands, &dots, |&(_, lo, hi)| Some((lo, hi)), |&(d, _, _)| d)
+            Filed::file(bands, dots.len(), |i| Some((dots[i].1, dots[i].2)), |i| dots[i].0)
         })
         .collect();
     let glare_strength = s.glare_strength;

@@ -12,7 +12,7 @@ use phenomena_scene::registry::{self, Entry};
 use serde::Serialize;
 use serde_json::Value;
 
-use super::session::set_path;
+use phenomena_scene::set_path;
 
 /// Parameters each tab shows first (the rest follow, grouped by table).
 const FEATURED: &[(&str, &[&str])] = &[

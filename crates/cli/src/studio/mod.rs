@@ -59,7 +59,7 @@ impl Options {
         if !self.bind.is_unspecified() {
             hosts.push(self.bind.to_string());
         }
-        hosts.extend(self.allow_hosts.iter().map(|h| h.trim_matches(['[', ']']).to_ascii_lowercase()));
+        hosts.extend(self.allow_hosts.iter().map(|h| host_name(h)));
         hosts
     }
 }
@@ -131,6 +131,11 @@ pub(crate) fn serve(options: Options) -> Result<String> {
             println!("  bound to loopback only: other machines cannot reach it (use --bind to change)");
         } else {
             println!("  WARNING: bound to {}: other machines on the network can reach it", local.ip());
+            if local.ip().is_unspecified() {
+                println!(
+                    "  pages are served only as 127.0.0.1, localhost or the names given with --allow-host"
+                );
+            }
         }
         println!("  render-final outputs go to {}", options.out.display());
         println!("  press Ctrl-C to stop");
@@ -234,13 +239,15 @@ async fn controls_catalogue(State(shared): State<Arc<Shared>>) -> Response {
     axum::Json(&shared.controls).into_response()
 }
 
-/// A file name an upload may have: letters, digits, `-`, `_` and one `.` extension.
+/// A file name an upload may have: letters, digits, spaces, `-`, `_` and dots (a glTF's
+/// buffers keep the names it gives them), not starting with a dot or a space, without
+/// `..`, at most 100 bytes.
 fn safe_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 100
-        && !name.starts_with('.')
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
-        && name.matches('.').count() <= 1
+        && !name.starts_with(['.', ' '])
+        && !name.contains("..")
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.' | ' '))
 }
 
 async fn upload(
@@ -251,7 +258,7 @@ async fn upload(
     if !safe_name(&name) {
         return (
             StatusCode::BAD_REQUEST,
-            format!("upload name `{name}`: use letters, digits, - and _ with one extension"),
+            format!("upload name `{name}`: use letters, digits, spaces, - _ and dots (not first, no ..)"),
         )
             .into_response();
     }
@@ -366,9 +373,12 @@ async fn run_socket(shared: Arc<Shared>, socket: WebSocket) {
     let guard = Deregister { shared: shared.clone(), id: id.clone() };
     let hello = session::hello(&id, &shared.controls);
     let out_root = shared.options.out.clone();
+    // Each of the sessions the studio serves at once gets its share of the budget.
+    let budget = crate::render::limits().memory_bytes;
+    let limits = phenomena_scene::Limits { memory_bytes: budget / shared.options.max_sessions.max(1) as u64 };
     let thread = std::thread::Builder::new().name(format!("studio-{id}")).spawn(move || {
         let _guard = guard;
-        session::run(dir, out_root, inbox, outbox);
+        session::run(dir, out_root, limits, inbox, outbox);
     });
     if let Err(e) = thread {
         tracing::error!("cannot start a session thread: {e}");

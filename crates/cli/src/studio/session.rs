@@ -27,7 +27,7 @@ use phenomena_aurora::editor::{self, Drawn, EditOp};
 use phenomena_scene::aurora::AuroraScene;
 use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, to_srgb8, write_bytes_atomic};
 use phenomena_scene::{
-    Assets, FrameRecord, FrameSink, Observer, Output, Runner, Scene, SinkError, Steer, registry,
+    Assets, FrameRecord, FrameSink, Limits, Observer, Output, Runner, Scene, SinkError, Steer, registry,
 };
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -142,33 +142,6 @@ pub(crate) fn scene_toml(scene: &Scene) -> Result<String, String> {
     ))
 }
 
-/// Set `value` at a dotted path (`a.b.c`, no array indices) in a JSON object. Setting a
-/// tagged enum's `kind` replaces the whole table by `{kind = value}` so the new variant
-/// starts from its defaults.
-pub(crate) fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(), String> {
-    let keys: Vec<&str> = path.split('.').collect();
-    if keys.iter().any(|k| k.is_empty()) {
-        return Err(format!("bad parameter path `{path}`"));
-    }
-    let (last, parents) = keys.split_last().ok_or_else(|| format!("bad parameter path `{path}`"))?;
-    let mut at = root;
-    for k in parents {
-        at = at
-            .get_mut(*k)
-            .filter(|v| v.is_object())
-            .ok_or_else(|| format!("no parameter `{path}` in this scene"))?;
-    }
-    let obj = at.as_object_mut().ok_or_else(|| format!("no parameter `{path}` in this scene"))?;
-    if *last == "kind" {
-        obj.clear();
-        obj.insert("kind".into(), value);
-        return Ok(());
-    }
-    // A key the scene's type does not know is refused when the JSON is read back.
-    obj.insert((*last).to_string(), value);
-    Ok(())
-}
-
 /// The session's files: only what was uploaded to it, by plain name, each at most the
 /// upload cap.
 fn sandbox(dir: &Path) -> Assets {
@@ -188,7 +161,11 @@ struct Session {
     preview: (u32, u32),
     next_due: Instant,
     render_cancel: Option<Arc<AtomicBool>>,
+    /// The final render running, if any (one at a time per session).
+    render_thread: Option<std::thread::JoinHandle<()>>,
     renders: u32,
+    /// This session's share of the memory budget (previews and final renders).
+    limits: Limits,
     encoder: std::sync::mpsc::SyncSender<EncodeJob>,
 }
 
@@ -270,6 +247,7 @@ struct Closed;
 pub(crate) fn run(
     dir: tempfile::TempDir,
     out_root: PathBuf,
+    limits: Limits,
     inbox: Receiver<Command>,
     out: tokio::sync::mpsc::Sender<Out>,
 ) {
@@ -298,7 +276,9 @@ pub(crate) fn run(
         preview: (640, 360),
         next_due: Instant::now(),
         render_cancel: None,
+        render_thread: None,
         renders: 0,
+        limits,
     };
     let _ = s.loop_until_closed(&inbox);
     if let Some(cancel) = &s.render_cancel {
@@ -357,6 +337,7 @@ impl Session {
         self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
         let generation = self.generation;
         let Some(mut record) = self.step()? else { return Ok(()) };
+        let stepped = self.runner.as_ref().map(Runner::frames_done);
         loop {
             match inbox.try_recv() {
                 Ok(c) => self.command(c)?,
@@ -364,7 +345,9 @@ impl Session {
                 Err(TryRecvError::Disconnected) => return Err(Closed),
             }
         }
-        if self.generation == generation { self.show(&mut record) } else { Ok(()) }
+        // Shown unless a command changed the scene or stepped (and showed) again.
+        let same = self.generation == generation && self.runner.as_ref().map(Runner::frames_done) == stepped;
+        if same { self.show(&mut record) } else { Ok(()) }
     }
 
     /// Run `f`; if it panics (a bug), stop the simulation, keep the scene and tell the
@@ -521,7 +504,7 @@ impl Session {
                 "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
             }));
         }
-        match Runner::with_limits(&scene, &sandbox(self.dir.path()), &crate::render::limits()) {
+        match Runner::with_limits(&scene, &sandbox(self.dir.path()), &self.limits) {
             Ok(mut runner) => {
                 runner.set_preview(true);
                 runner.set_clock(crate::render::wall_clock());
@@ -581,12 +564,7 @@ impl Session {
 
     fn set(&mut self, path: &str, value: Value) -> Result<(), Closed> {
         let Some(scene) = &self.scene else { return self.error("no scene yet: load one first") };
-        let phenomenon = scene.phenomenon().name();
-        let mut v = scene.to_json();
-        if let Err(e) = set_path(&mut v, path, value.clone()) {
-            return self.error(e);
-        }
-        let candidate = match scene_from_json(phenomenon, v) {
+        let candidate = match scene.with_value(path, value.clone()) {
             Ok(c) => c,
             Err(e) => {
                 self.send(json!({"type": "error", "message": format!("{path} = {value}: {e}"), "issues": [{"field": path, "message": e}]}))?;
@@ -612,10 +590,9 @@ impl Session {
         use phenomena_scene::flame::WIND_PATH;
         let Some(scene) = &self.scene else { return self.error("wind applies to flame scenes") };
         let value = json!({ "force_n_m3": force });
-        let mut v = scene.to_json();
-        let updated = set_path(&mut v, WIND_PATH, value.clone())
-            .and_then(|()| scene_from_json(scene.phenomenon().name(), v));
-        let Ok(updated) = updated else { return self.error("wind applies to flame scenes") };
+        let Ok(updated) = scene.with_value(WIND_PATH, value.clone()) else {
+            return self.error("wind applies to flame scenes");
+        };
         if let Some(runner) = &mut self.runner {
             match runner.steer(WIND_PATH, &value) {
                 Steer::Applied => {}
@@ -646,8 +623,8 @@ impl Session {
         if !(1..=100_000).contains(&total) {
             return self.error(format!("render final: frames = {total}: expected [1, 100000]"));
         }
-        if let Some(c) = self.render_cancel.take() {
-            c.store(true, Ordering::Relaxed);
+        if self.render_thread.as_ref().is_some_and(|t| !t.is_finished()) {
+            return self.error("a final render is still running: wait for it to finish");
         }
         self.renders += 1;
         let stamp =
@@ -657,21 +634,32 @@ impl Session {
         self.render_cancel = Some(cancel.clone());
         let out = self.out.clone();
         let assets = sandbox(self.dir.path());
+        let limits = self.limits;
         let spawned = std::thread::Builder::new().name("studio-render".into()).spawn(move || {
             let send = |v: Value| out.blocking_send(Out::Text(v.to_string())).is_ok();
             let shown = dir.display().to_string();
             let mut progress = FinalProgress { send: &send, cancel: &cancel, total, dir: &shown };
-            match render_to(&scene, &assets, &dir, total, &mut progress) {
-                Ok(()) => {
+            // A bug in a render ends that render with a message, not silently.
+            let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                render_to(&scene, &assets, &limits, &dir, total, &mut progress)
+            }));
+            match rendered {
+                Ok(Ok(())) => {
                     send(json!({"type": "rendered", "dir": shown, "frames": total}));
                 }
-                Err(e) => {
+                Ok(Err(e)) => {
                     send(json!({"type": "error", "message": format!("render final failed: {e:#}")}));
+                }
+                Err(_) => {
+                    send(json!({"type": "error", "message": "render final failed: an internal error stopped it"}));
                 }
             }
         });
         match spawned {
-            Ok(_) => self.notice(format!("rendering {total} frames to {}", self.out_root.display())),
+            Ok(thread) => {
+                self.render_thread = Some(thread);
+                self.notice(format!("rendering {total} frames to {}", self.out_root.display()))
+            }
             Err(e) => self.error(format!("cannot start the render: {e}")),
         }
     }
@@ -726,6 +714,7 @@ impl Observer for FinalProgress<'_> {
 fn render_to(
     scene: &Scene,
     assets: &Assets,
+    limits: &Limits,
     dir: &Path,
     total: u32,
     progress: &mut FinalProgress<'_>,
@@ -733,7 +722,7 @@ fn render_to(
     ensure_dir(dir)?;
     let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
     write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
-    let mut runner = Runner::with_limits(scene, assets, &crate::render::limits())?;
+    let mut runner = Runner::with_limits(scene, assets, limits)?;
     let mut sink = ImageSink::new(dir, ImageFormat::Png, false)?;
     runner.run(0..total, &mut sink, progress)?;
     Ok(())
@@ -754,16 +743,5 @@ pub(super) mod tests {
             let json = scene.to_json();
             assert_eq!(scene_from_json(scene.phenomenon().name(), json).unwrap(), scene, "{}", b.name);
         }
-    }
-
-    #[test]
-    fn set_path_sets_leaves_and_resets_tagged_tables() {
-        let mut v =
-            json!({"render": {"background": {"kind": "checker", "light": [1, 1, 1]}, "intensity": 1}});
-        set_path(&mut v, "render.intensity", json!(2)).unwrap();
-        set_path(&mut v, "render.background.kind", json!("sky")).unwrap();
-        assert_eq!(v, json!({"render": {"background": {"kind": "sky"}, "intensity": 2}}));
-        assert!(set_path(&mut v, "render.nothing.x", json!(1)).is_err());
-        assert!(set_path(&mut v, "render..x", json!(1)).is_err());
     }
 }

@@ -30,7 +30,7 @@ async fn start_shared(max_sessions: usize) -> (SocketAddr, tempfile::TempDir, Ar
         open: false,
         out: out.path().to_path_buf(),
         max_sessions,
-        allow_hosts: vec!["Studio.Example".into()],
+        allow_hosts: vec!["Studio.Example:7878".into()],
     };
     let shared = Arc::new(Shared {
         controls: controls::Catalogue::build(),
@@ -156,6 +156,9 @@ fn oversized_uploads_get_413_and_small_ones_land() {
             small.len()
         );
         assert_eq!(raw(addr, &head, small).await.0, 400, "names with a path are refused");
+        for (name, code) in [("a%20b.v2.obj", 200), (".hidden", 400), ("%2Fetc%2Fx", 400), ("a%00b", 400)] {
+            assert_eq!(upload_file(addr, &id, name, small).await, code, "{name}");
+        }
     });
 }
 

@@ -90,7 +90,9 @@ function buildExtras(phenomenon) {
     input.addEventListener('change', async () => {
       const names = [];
       for (const file of input.files) {
-        const name = file.name.replace(/[^A-Za-z0-9._-]/g, '_');
+        // The names the server takes: letters, digits, spaces, - _ and dots (not
+        // leading, no '..'), so a glTF's buffers keep the names it gives them.
+        const name = file.name.replace(/[^A-Za-z0-9._ -]/g, '_').replace(/\.\.+/g, '.').replace(/^[. ]+/, '');
         const r = await fetch(`/api/session/${studio.session}/upload/${encodeURIComponent(name)}`, { method: 'POST', body: file });
         if (!r.ok) {
           say('error', `upload of ${file.name} failed (${r.status}): ${await r.text()}`);
