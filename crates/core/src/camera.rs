@@ -146,6 +146,32 @@ pub struct CameraView {
 pub const NEAR_M: f32 = 1e-4;
 
 impl Camera {
+    /// A three-quarter view from above of the box `lo..=hi` (metres, y up) for a
+    /// `width × height` image: a 45° perspective camera looking at the box's centre from
+    /// 40° of azimuth off +z towards +x and 30° above the horizon, at the distance where
+    /// the box's bounding sphere just fits the narrower of the two fields of view (a
+    /// sphere of radius r at distance d fills a cone of half-angle asin(r / d), and that
+    /// cone lies inside the view's pyramid), so every corner of the box is in the image.
+    /// For scenes whose file gives no camera.
+    pub fn framing(lo: Vec3, hi: Vec3, width: usize, height: usize) -> Camera {
+        const FOV_Y_DEG: f32 = 45.0;
+        let centre = 0.5 * (lo + hi);
+        let radius = (0.5 * (hi - lo).length()).max(1e-3);
+        let half_y = 0.5 * FOV_Y_DEG.to_radians();
+        let aspect = width.max(1) as f32 / height.max(1) as f32;
+        let half_x = (aspect * half_y.tan()).atan();
+        let distance = radius / half_y.min(half_x).sin();
+        let (azimuth, elevation) = (40f32.to_radians(), 30f32.to_radians());
+        let towards_eye =
+            Vec3::new(azimuth.sin() * elevation.cos(), elevation.sin(), azimuth.cos() * elevation.cos());
+        Camera {
+            position: centre + towards_eye * distance,
+            look_at: centre,
+            up: Vec3::Y,
+            projection: Projection::Perspective { fov_y_deg: FOV_Y_DEG },
+        }
+    }
+
     /// Check the camera: finite vectors, distinct eye and target, a usable up vector,
     /// a field of view in (0, 179] degrees or a positive orthographic height.
     pub fn validate(&self, issues: &mut Issues, prefix: &str) {
@@ -415,6 +441,42 @@ impl CameraView {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn framing_keeps_every_corner_of_the_box_in_the_image() {
+        let boxes = [
+            (Vec3::new(-20.0, 0.0, -15.0), Vec3::new(20.0, 8.0, 15.0)), // a yard
+            (Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 0.8, 0.5)),     // a table
+            (Vec3::new(100.0, 5.0, -3.0), Vec3::new(101.0, 60.0, -2.0)), // a tower, off centre
+            (Vec3::ZERO, Vec3::ZERO),                                   // a point
+        ];
+        for (lo, hi) in boxes {
+            for (w, h) in [(1280, 720), (256, 256), (360, 640)] {
+                let camera = Camera::framing(lo, hi, w, h);
+                let mut issues = Issues::default();
+                camera.validate_planar(&mut issues, "camera");
+                assert!(issues.into_result().is_ok(), "{camera:?}");
+                let view = camera.view(w, h).unwrap();
+                assert!(camera.position.y > hi.y, "from above: {camera:?}");
+                let (mut lo_px, mut hi_px) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+                for k in 0..8 {
+                    let corner = Vec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+                    let p = view.project(corner).unwrap();
+                    assert!(
+                        (0.0..=w as f32).contains(&p.x_px) && (0.0..=h as f32).contains(&p.y_px),
+                        "{corner} of {lo}..{hi} at {w}x{h}: ({}, {})",
+                        p.x_px,
+                        p.y_px
+                    );
+                    lo_px = [lo_px[0].min(p.x_px), lo_px[1].min(p.y_px)];
+                    hi_px = [hi_px[0].max(p.x_px), hi_px[1].max(p.y_px)];
+                }
+                // Not a speck: the box spans a good part of the image's width or height.
+                let fill = ((hi_px[0] - lo_px[0]) / w as f32).max((hi_px[1] - lo_px[1]) / h as f32);
+                assert!(hi == lo || fill > 0.3, "{lo}..{hi} at {w}x{h}: fills {fill}");
+            }
+        }
+    }
 
     #[test]
     fn the_orthographic_affine_maps_project_like_project() {

@@ -4,7 +4,6 @@
 
 use glam::Vec3;
 use phenomena_core::camera::Camera;
-use phenomena_core::camera::Projection;
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::raster::{Cull, NO_ID, rasterize};
@@ -47,8 +46,10 @@ pub enum Background {
 pub struct SnowRenderSettings {
     /// What to draw.
     pub view: SnowView,
-    /// The camera, metres.
-    pub camera: Camera,
+    /// The camera, metres. Without one (no `[render.camera]`), [`Camera::framing`] of
+    /// the scene's geometry: a three-quarter view from above with all of it in view.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera: Option<Camera>,
     /// Direction towards the sun (need not be unit length).
     #[serde(deserialize_with = "phenomena_core::serde_vec::vec3")]
     pub sun_direction: Vec3,
@@ -87,12 +88,7 @@ impl Default for SnowRenderSettings {
     fn default() -> Self {
         Self {
             view: SnowView::Scene,
-            camera: Camera {
-                position: Vec3::new(3.5, 2.5, 4.5),
-                look_at: Vec3::new(0.0, 0.4, 0.0),
-                up: Vec3::Y,
-                projection: Projection::Perspective { fov_y_deg: 45.0 },
-            },
+            camera: None,
             sun_direction: Vec3::new(-0.4, 1.0, 0.3),
             fog_per_m: 0.0,
             flakes: Flakes::default(),
@@ -105,7 +101,9 @@ impl SnowRenderSettings {
     /// Every problem, with fields relative to `[render]`.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
-        self.camera.validate_planar(&mut i, "camera");
+        if let Some(camera) = &self.camera {
+            camera.validate_planar(&mut i, "camera");
+        }
         i.vector("sun_direction", &self.sun_direction.to_array(), 1e6);
         if self.sun_direction.length() < 1e-6 {
             i.push("sun_direction", format!("{:?}", self.sun_direction.to_array()), "a non-zero direction");
@@ -213,14 +211,18 @@ fn render_scene(
     height: usize,
 ) -> Frame {
     let mut frame = Frame::new(width, height);
-    let Some(view) = settings.camera.view(width, height) else { return frame };
     let scene = &sim.mesh().triangles;
+    let camera = settings.camera.unwrap_or_else(|| {
+        let (lo, hi) = bounds(scene);
+        Camera::framing(lo, hi, width, height)
+    });
+    let Some(view) = camera.view(width, height) else { return frame };
     let snow = snow_mesh(sim);
     let mut tris = scene.clone();
     tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
     let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else { return frame };
     let sun = settings.sun_direction.normalize_or_zero();
-    let eye = settings.camera.position;
+    let eye = camera.position;
     for y in 0..height {
         for x in 0..width {
             let id = buf.id_at(x, y);
@@ -249,6 +251,16 @@ fn render_scene(
     frame
 }
 
+/// The box around `tris` (the origin for none).
+fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for p in tris.iter().flatten() {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if tris.is_empty() { (Vec3::ZERO, Vec3::ZERO) } else { (lo, hi) }
+}
+
 /// Purpose of the flakes' starting places.
 const FLAKE: phenomena_core::rng::Purpose = phenomena_core::rng::Purpose::named("snow.flake");
 
@@ -264,11 +276,7 @@ fn draw_flakes(
     if flakes.count == 0 || dirs.is_empty() || tris.is_empty() {
         return;
     }
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for p in tris.iter().flatten() {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
+    let (lo, mut hi) = bounds(tris);
     let extent = hi - lo;
     hi.y += 0.5 * extent.x.max(extent.z);
     let size = (hi - lo).max(Vec3::splat(1e-3));
@@ -340,7 +348,14 @@ mod tests {
         let params =
             SnowConfig { map_resolution: 40, directions: 8, rate_cm_per_h: 20.0, ..SnowConfig::default() };
         let mut sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 1).unwrap();
-        let settings = SnowRenderSettings::default();
+        // Close on the table, so the ground and the table top fill most of the picture.
+        let close = Camera {
+            position: Vec3::new(3.5, 2.5, 4.5),
+            look_at: Vec3::new(0.0, 0.4, 0.0),
+            up: Vec3::Y,
+            projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 45.0 },
+        };
+        let settings = SnowRenderSettings { camera: Some(close), ..SnowRenderSettings::default() };
         let mean = |f: &Frame| f.to_interleaved().iter().map(|&v| f64::from(v)).sum::<f64>();
         let bare = render(&sim, &settings, 96, 64);
         for _ in 0..10 {
@@ -363,6 +378,31 @@ mod tests {
         assert!(p.pixel(ground * 64 + 32, 32).x < 0.1, "under the table");
         assert!(p.pixel(ground * 64 + 4, 32).x > 0.95, "open ground");
         assert!(p.pixel(top * 64 + 32, 32).x > 0.95, "table top");
+    }
+
+    /// Without a camera the scene is framed: every corner of its box is in the picture,
+    /// so the scene's pixels reach close to each edge but the sky shows all round it.
+    #[test]
+    fn without_a_camera_the_geometry_is_framed() {
+        let params = SnowConfig { map_resolution: 32, directions: 8, ..SnowConfig::default() };
+        for (w, h) in [(160, 90), (90, 160)] {
+            let sim = SnowSim::new(table_scene(4.0, 1.2, 0.7), params.clone(), 1).unwrap();
+            let frame = render(&sim, &SnowRenderSettings::default(), w, h);
+            let scene = |x: usize, y: usize| frame.pixel(x, y) != SKY;
+            let (mut x0, mut x1, mut y0, mut y1) = (w, 0, h, 0);
+            for y in 0..h {
+                for x in 0..w {
+                    if scene(x, y) {
+                        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+                    }
+                }
+            }
+            assert!(x0 > 0 && y0 > 0 && x1 < w - 1 && y1 < h - 1, "touches an edge: {x0}..{x1}, {y0}..{y1}");
+            // The 4 m ground's diagonal nearly spans the bounding sphere: it fills most
+            // of the narrower side.
+            let fill = ((x1 - x0) as f32 / w as f32).max((y1 - y0) as f32 / h as f32);
+            assert!(fill > 0.5, "{w}x{h}: {fill}");
+        }
     }
 
     #[test]
