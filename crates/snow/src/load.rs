@@ -77,7 +77,19 @@ fn finish(mut mesh: Mesh, objects: Vec<String>, scale: f32) -> Result<Loaded, Lo
 /// Parse an OBJ file's bytes (materials ignored; faces triangulated).
 pub fn obj(bytes: &[u8], scale: f32) -> Result<Loaded, LoadError> {
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, |_| {
+    // Texture coordinates and normals are not used, and tobj 4.0.5 multiplies their face
+    // indices unchecked (an overflow panic in debug builds, found by the OBJ fuzzer):
+    // their statements are left out before parsing, so faces never index them.
+    let kept: Vec<u8> = bytes
+        .split_inclusive(|&b| b == b'\n')
+        .filter(|line| {
+            let first = std::str::from_utf8(line).ok().and_then(|l| l.split_whitespace().next());
+            !matches!(first, Some("vt" | "vn"))
+        })
+        .flatten()
+        .copied()
+        .collect();
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(kept), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
     .map_err(|e| LoadError::Parse { format: "OBJ", message: e.to_string() })?;
@@ -479,6 +491,15 @@ mod tests {
         format!(
             r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":{nodes},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","max":[4,0,4],"min":[0,0,0]}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],"buffers":[{{"uri":"b.bin","byteLength":36}}]}}"#
         )
+    }
+
+    /// Found by the OBJ fuzzer: a texture or normal index far past its list overflowed
+    /// inside tobj; they are not used, so such files load by their positions.
+    #[test]
+    fn texture_and_normal_indices_are_not_read() {
+        let file = b"v 0 0 0\nv 1 0 0\nv 0 0 1\nvt 0 0\nvn 0 1 0\nf 1/-9223372036854775807/-9223372036854775807 2/1/1 3//1\n";
+        let loaded = obj(file, 1.0).unwrap();
+        assert_eq!(loaded.mesh.triangles.len(), 1);
     }
 
     #[test]
