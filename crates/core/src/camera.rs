@@ -148,24 +148,33 @@ pub const NEAR_M: f32 = 1e-4;
 impl Camera {
     /// A three-quarter view from above of the box `lo..=hi` (metres, y up) for a
     /// `width × height` image: a 45° perspective camera looking at the box's centre from
-    /// 40° of azimuth off +z towards +x and 30° above the horizon, at the distance where
-    /// the box's bounding sphere just fits the narrower of the two fields of view (a
-    /// sphere of radius r at distance d fills a cone of half-angle asin(r / d), and that
-    /// cone lies inside the view's pyramid), so every corner of the box is in the image.
-    /// For scenes whose file gives no camera.
+    /// 40° of azimuth off +z towards +x and 30° above the horizon, at the nearest
+    /// distance where every corner of the box is inside the view, plus 10 % of margin. A
+    /// corner at (x, y) across and z along the view direction from the centre is in view
+    /// from distance d when |x| ≤ (d + z)·tan(half the horizontal field) and
+    /// |y| ≤ (d + z)·tan(half the vertical field); the eye also stays outside the box's
+    /// bounding sphere. For scenes whose file gives no camera.
     pub fn framing(lo: Vec3, hi: Vec3, width: usize, height: usize) -> Camera {
         const FOV_Y_DEG: f32 = 45.0;
         let centre = 0.5 * (lo + hi);
-        let radius = (0.5 * (hi - lo).length()).max(1e-3);
-        let half_y = 0.5 * FOV_Y_DEG.to_radians();
-        let aspect = width.max(1) as f32 / height.max(1) as f32;
-        let half_x = (aspect * half_y.tan()).atan();
-        let distance = radius / half_y.min(half_x).sin();
         let (azimuth, elevation) = (40f32.to_radians(), 30f32.to_radians());
         let towards_eye =
             Vec3::new(azimuth.sin() * elevation.cos(), elevation.sin(), azimuth.cos() * elevation.cos());
+        let forward = -towards_eye;
+        let right = forward.cross(Vec3::Y).normalize();
+        let up = right.cross(forward);
+        let tan_y = (0.5 * FOV_Y_DEG.to_radians()).tan();
+        let tan_x = tan_y * width.max(1) as f32 / height.max(1) as f32;
+        let half = 0.5 * (hi - lo);
+        let mut distance = half.length() + 1e-3;
+        for k in 0..8 {
+            let sign = |bit: i32| if k & bit != 0 { 1.0 } else { -1.0 };
+            let c = Vec3::new(sign(1) * half.x, sign(2) * half.y, sign(4) * half.z);
+            let (x, y, z) = (c.dot(right), c.dot(up), c.dot(forward));
+            distance = distance.max(x.abs() / tan_x - z).max(y.abs() / tan_y - z);
+        }
         Camera {
-            position: centre + towards_eye * distance,
+            position: centre + towards_eye * (1.1 * distance),
             look_at: centre,
             up: Vec3::Y,
             projection: Projection::Perspective { fov_y_deg: FOV_Y_DEG },
@@ -471,9 +480,10 @@ mod tests {
                     lo_px = [lo_px[0].min(p.x_px), lo_px[1].min(p.y_px)];
                     hi_px = [hi_px[0].max(p.x_px), hi_px[1].max(p.y_px)];
                 }
-                // Not a speck: the box spans a good part of the image's width or height.
+                // Tight: the box spans most of the image's width or height (not all of it: the
+                // nearest corner binds one side; the far side is further and looks smaller).
                 let fill = ((hi_px[0] - lo_px[0]) / w as f32).max((hi_px[1] - lo_px[1]) / h as f32);
-                assert!(hi == lo || fill > 0.3, "{lo}..{hi} at {w}x{h}: fills {fill}");
+                assert!(hi == lo || fill > 0.6, "{lo}..{hi} at {w}x{h}: fills {fill}");
             }
         }
     }
