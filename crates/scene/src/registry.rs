@@ -143,7 +143,7 @@ macro_rules! shipped {
 
 /// Every scene in `scenes/`; the first of each phenomenon is the one the studio's tab
 /// opens with. `phenomena demo` renders those with a [`Demo`], in this order.
-pub static SHIPPED: [Shipped; 16] = [
+pub static SHIPPED: [Shipped; 17] = [
     shipped!("flame-paper", "flame", demo 120..121 at 640 x 360),
     shipped!("flame-campfire", "flame", demo 30..150 at 960 x 540),
     shipped!("flame-wind-left", "flame", demo 120..121 at 640 x 360),
@@ -156,6 +156,7 @@ pub static SHIPPED: [Shipped; 16] = [
     shipped!("snow-table", "snow", demo 59..60 at 640 x 480),
     shipped!("snow-primitives", "snow"),
     shipped!("snow-village", "snow"),
+    shipped!("snow-yard", "snow"),
     shipped!("sparkle-diamond-dust", "sparkle", demo 0..30 at 960 x 540),
     shipped!("sparkle-leaf-glitter", "sparkle", demo 60..61 at 960 x 540),
     shipped!("sparkle-sun-pillar", "sparkle"),

@@ -223,6 +223,9 @@ pub enum Builtin {
     Primitives,
     /// Like the paper's Fig 9: a village of about 12,000+ triangles.
     Village,
+    /// A small yard like one a user makes in Blender: a house with a steep gable roof,
+    /// three trees, a fence and a bench (issue 25's stabilisation workload).
+    Yard,
 }
 
 impl Builtin {
@@ -232,6 +235,7 @@ impl Builtin {
             Builtin::Table => table_scene(4.0, 1.2, 0.7),
             Builtin::Primitives => primitives_scene(),
             Builtin::Village => village_scene(),
+            Builtin::Yard => yard_scene(),
         }
     }
 }
@@ -335,6 +339,52 @@ pub fn village_scene() -> Mesh {
     mesh
 }
 
+/// A small yard like the one of issue 25 (made there in Blender 3.4: ground, a house with
+/// a pitched roof, three trees, a fence, a bench; 24 objects): a 12 m ground square, a
+/// 5 × 3 × 4 m house whose gable roof (ridge along x, 0.4 m eaves) rises 2.1 m over its
+/// 2.4 m half-depth (41°, steeper than a 35° repose, so its snow slides off and piles up
+/// under the eaves), three trees (trunk and two stacked cones of 49-51°), a fence of 15
+/// posts and two rails on each of the ground's front and left sides, and a bench.
+/// Objects: 0 ground, 1 house, 2-4 trees, 5-23 fence posts and rails, 24 bench.
+pub fn yard_scene() -> Mesh {
+    let mut mesh = Mesh::default();
+    mesh.push_object(&ground_square(6.0), 0);
+    mesh.push_object(&house(Vec3::new(-1.0, 0.0, -1.5), Vec3::new(5.0, 3.0, 4.0), 2.1, 0.4), 1);
+    for (k, (x, z, s)) in
+        [(3.6f32, -3.2f32, 1.0f32), (4.2, 1.2, 0.8), (-4.3, 3.4, 1.2)].into_iter().enumerate()
+    {
+        let c = Vec3::new(x, 0.0, z);
+        let mut t = cylinder(c, 0.15 * s, 0.9 * s, 16);
+        t.extend(cone(c + Vec3::Y * 0.7 * s, 1.3 * s, 1.5 * s, 48));
+        t.extend(cone(c + Vec3::Y * 1.6 * s, 0.9 * s, 1.1 * s, 48));
+        mesh.push_object(&t, 2 + k as u32);
+    }
+    let mut object = 5;
+    // Posts every 1.5 m along z = 5.5 (front) and x = -5.5 (left), then two rails each.
+    for k in 0..8 {
+        let x = -5.25 + 1.5 * k as f32;
+        mesh.push_object(&cuboid(Vec3::new(x - 0.05, 0.0, 5.45), Vec3::new(x + 0.05, 1.1, 5.55)), object);
+        object += 1;
+    }
+    for k in 1..8 {
+        let z = 5.25 - 1.5 * k as f32;
+        mesh.push_object(&cuboid(Vec3::new(-5.55, 0.0, z - 0.05), Vec3::new(-5.45, 1.1, z + 0.05)), object);
+        object += 1;
+    }
+    for y in [0.45f32, 0.9] {
+        mesh.push_object(&cuboid(Vec3::new(-5.3, y, 5.47), Vec3::new(5.3, y + 0.08, 5.53)), object);
+        mesh.push_object(&cuboid(Vec3::new(-5.53, y, -5.3), Vec3::new(-5.47, y + 0.08, 5.3)), object + 1);
+        object += 2;
+    }
+    let bench = Vec3::new(1.5, 0.0, 2.5);
+    let mut b = cuboid(bench + Vec3::new(-0.9, 0.42, -0.22), bench + Vec3::new(0.9, 0.48, 0.22));
+    for sx in [-0.8f32, 0.72] {
+        b.extend(cuboid(bench + Vec3::new(sx, 0.0, -0.2), bench + Vec3::new(sx + 0.08, 0.42, 0.2)));
+    }
+    mesh.push_object(&b, object);
+    mesh
+}
+
 /// The table scene of the paper's Fig 7: a ground square of `ground_m` and a table (top
 /// 0.05 m thick at `height_m`, four legs) in its middle. Objects: 0 ground, 1 table.
 pub fn table_scene(ground_m: f32, top_m: f32, height_m: f32) -> Mesh {
@@ -412,6 +462,25 @@ mod tests {
         assert!((volume(&h) - 15.0).abs() < 1e-3, "{}", volume(&h));
         let v = village_scene();
         assert!((12_000..16_000).contains(&v.len()), "{} triangles", v.len());
+    }
+
+    #[test]
+    fn the_yard_is_issue_25s_scene() {
+        let y = yard_scene();
+        let objects = y.object.iter().max().map_or(0, |&o| o + 1);
+        assert_eq!(objects, 25);
+        let closed = y.closed_objects();
+        assert!(!closed[0] && closed[1..].iter().all(|&c| c), "{closed:?}");
+        // The roof is steeper than the scene's 35° repose: its up-facing slopes.
+        let roof = (0..y.len())
+            .filter(|&t| y.object[t] == 1)
+            .map(|t| y.normal(t).y)
+            .filter(|&up| up > 0.1 && up < 0.99)
+            .fold(1.0f32, f32::min);
+        let pitch = roof.acos().to_degrees();
+        assert!((41.0..41.4).contains(&pitch), "roof pitch {pitch}°");
+        let (lo, hi) = y.bounds().unwrap();
+        assert!(lo.x >= -6.0 && hi.x <= 6.0 && lo.z >= -6.0 && hi.z <= 6.0 && hi.y > 5.0, "{lo} {hi}");
     }
 
     #[test]

@@ -470,6 +470,7 @@ impl SnowSim {
         let (i, j) = (k % n, k / n);
         let map = &self.maps[mi];
         let h = map.surface(k);
+        let rise = self.params.repose_deg.to_radians().tan() * self.footprint.texel_m;
         [(0i64, -1i64), (1, 0), (0, 1), (-1, 0)].into_iter().map(move |(dx, dz)| {
             let (ni, nj) = (i as i64 + dx, j as i64 + dz);
             if ni < 0 || nj < 0 || ni >= n as i64 || nj >= n as i64 {
@@ -478,6 +479,27 @@ impl SnowSim {
             let nk = nj as usize * n + ni as usize;
             if map.possible(nk) {
                 return (Target::Map(mi as u32, nk as u32), map.surface(nk));
+            }
+            // Another group's region continuing this one: a surface split between two
+            // maps (a ground square whose two triangles fell into different groups), its
+            // ground within the repose rise of this texel's. The two are one surface and
+            // the slope is measured to the other's snow surface, whichever is higher.
+            // (Before, a neighbour a little higher than this texel was not "lower", the
+            // texel measured to its own ground, and snow deeper than the rise fell off
+            // the scene along the join: a V-shaped trench along the ground's diagonal,
+            // found on the yard scene; issue 25.)
+            let g = map.ground_m[k];
+            let joined = self
+                .maps
+                .iter()
+                .enumerate()
+                .filter(|(o, m)| *o != mi && m.possible(nk) && (m.ground_m[nk] - g).abs() <= rise)
+                .min_by(|a, b| {
+                    let (da, db) = ((a.1.ground_m[nk] - g).abs(), (b.1.ground_m[nk] - g).abs());
+                    da.total_cmp(&db).then(a.0.cmp(&b.0))
+                });
+            if let Some((o, m)) = joined {
+                return (Target::Map(o as u32, nk as u32), m.surface(nk));
             }
             // Falling (§2.4.2): the highest map below the source height at that texel.
             let lower = self

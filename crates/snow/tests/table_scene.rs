@@ -215,3 +215,61 @@ fn changed_grounds_are_found_again() {
     assert_eq!(s.maps()[top].probability[on], 0.0);
     assert_eq!(s.maps()[top].probability[off], 1.0);
 }
+
+/// A surface split between two maps (here a ground square whose two triangles are given
+/// different groups, as the automatic grouping does to a ground under objects) holds snow
+/// as one surface: no trench along the join, nothing lost there. Before issue 25's fix a
+/// texel next to a slightly higher neighbour on the other map measured its slope to its
+/// own ground, so snow deeper than the repose rise fell off the scene along the diagonal.
+#[test]
+fn a_surface_split_between_two_maps_holds_snow_evenly_across_the_join() {
+    use glam::Vec3;
+    use phenomena_snow::mesh::{Mesh, ground_square};
+    let mut mesh = Mesh::default();
+    let [a, b] = ground_square(2.0);
+    mesh.push_object(&[a], 0);
+    mesh.push_object(&[b], 1);
+    // A 20 cm box in one corner, so the two halves are not exactly alike.
+    mesh.push_object(&phenomena_snow::mesh::cuboid(Vec3::new(1.2, 0.0, -1.8), Vec3::new(1.6, 0.2, -1.4)), 2);
+    let params = SnowConfig {
+        map_resolution: 64,
+        directions: 16,
+        spread_deg: 0.0,
+        repose_deg: 35.0,
+        rate_cm_per_h: 10.0,
+        time_step_h: 0.5,
+        object_groups: Some(vec![0, 1, 2]),
+        ..SnowConfig::default()
+    };
+    let mut s = SnowSim::new(mesh, params, 1).expect("split ground");
+    assert!(s.maps().len() >= 2);
+    // 20 cm of snow, over three times the repose rise of a 6.6 cm texel (4.6 cm).
+    for _ in 0..4 {
+        assert!(s.step().unwrap().stable);
+    }
+    let fp = s.footprint();
+    let rise = 35f32.to_radians().tan() * fp.texel_m;
+    assert!(0.2 > 3.0 * rise);
+    // Along the diagonal (the join), away from the ground's edge and the box: the snow is
+    // as deep as anywhere on open ground (the probability is 1 there: no occluder, no
+    // spread), to f32 rounding.
+    let n = fp.n;
+    let mut checked = 0;
+    for d in 10..n - 10 {
+        for (i, j) in [(d, d), (d + 1, d), (d, d + 1)] {
+            let p = fp.centre(i, j);
+            if p.x > 0.8 && p.y < -0.8 {
+                continue; // near the box
+            }
+            let k = j * n + i;
+            let depth: f32 = s.maps().iter().filter(|m| m.possible(k)).map(|m| m.snow_m[k]).sum();
+            assert!((depth - 0.2).abs() < 1e-5, "texel ({i}, {j}) at the join holds {depth} m, not 0.2 m");
+            checked += 1;
+        }
+    }
+    assert!(checked > 100);
+    // What fell off went over the ground's outer edge only: at most the repose wedges
+    // along the 16 m perimeter (½ · 0.2 m · 0.2 m / tan 35° per metre).
+    let wedges = 16.0 * 0.5 * 0.2 * 0.2 / 35f64.to_radians().tan();
+    assert!(s.fallen_off_m3() < wedges, "{} m³ fell off (wedges: {wedges} m³)", s.fallen_off_m3());
+}
