@@ -453,7 +453,7 @@ impl SnowSim {
                 if map.snow_m[k] <= 0.0 {
                     continue;
                 }
-                for (_, h_n) in self.neighbours(mi, k) {
+                for (_, h_n) in self.neighbours(mi, k, tan * t) {
                     worst = worst.max((map.surface(k) - h_n) / t - tan);
                 }
             }
@@ -465,12 +465,12 @@ impl SnowSim {
     /// it is compared with. Inside the map's region: the neighbour's surface. Past the
     /// region's edge: the source's own ground (snow stands up to the repose slope at an
     /// edge) and the destination is the highest lower map at that texel, or off the scene.
-    fn neighbours(&self, mi: usize, k: usize) -> impl Iterator<Item = (Target, f32)> + '_ {
+    /// `rise` is tan(repose) times the texel size, m.
+    fn neighbours(&self, mi: usize, k: usize, rise: f32) -> impl Iterator<Item = (Target, f32)> + '_ {
         let n = self.footprint.n;
         let (i, j) = (k % n, k / n);
         let map = &self.maps[mi];
         let h = map.surface(k);
-        let rise = self.params.repose_deg.to_radians().tan() * self.footprint.texel_m;
         [(0i64, -1i64), (1, 0), (0, 1), (-1, 0)].into_iter().map(move |(dx, dz)| {
             let (ni, nj) = (i as i64 + dx, j as i64 + dz);
             if ni < 0 || nj < 0 || ni >= n as i64 || nj >= n as i64 {
@@ -483,7 +483,7 @@ impl SnowSim {
             // Another group's region continuing this one: a surface split between two
             // maps (a ground square whose two triangles fell into different groups), its
             // ground within the repose rise of this texel's. The two are one surface and
-            // the slope is measured to the other's snow surface, whichever is higher.
+            // the slope is measured to the other's snow surface, higher or lower.
             // (Before, a neighbour a little higher than this texel was not "lower", the
             // texel measured to its own ground, and snow deeper than the rise fell off
             // the scene along the join: a V-shaped trench along the ground's diagonal,
@@ -594,7 +594,7 @@ impl SnowSim {
                     let mut steep = [(Target::Off, 0.0f32); 4];
                     let mut count = 0usize;
                     let mut largest = 0.0f32;
-                    for (target, h_n) in self.neighbours(mi, k) {
+                    for (target, h_n) in self.neighbours(mi, k, tan * t) {
                         let excess = h - h_n - tan * t;
                         if excess > tol {
                             steep[count] = (target, excess);
