@@ -201,6 +201,10 @@ pub struct SnowSim {
     closed_triangles: usize,
     /// Buffers of [`SnowSim::update_probability`], kept between calls.
     exposure: Exposure,
+    /// The regions' shapes for the stabilisation, once made (None after `maps_mut`).
+    regions: Option<Regions>,
+    /// Visit every texel in every stabilisation pass (the check of the sparse sweep).
+    dense_sweeps: bool,
     fallen_off_m3: f64,
     time_h: f64,
     steps: u64,
@@ -284,6 +288,8 @@ impl SnowSim {
             casters,
             closed_triangles,
             exposure: Exposure::default(),
+            regions: None,
+            dense_sweeps: false,
             fallen_off_m3: 0.0,
             time_h: 0.0,
             steps: 0,
@@ -323,7 +329,16 @@ impl SnowSim {
     pub fn maps_mut(&mut self) -> &mut [SnowMap] {
         // The grounds may change: find the snow-possible texels again.
         self.exposure.laid_out = false;
+        self.regions = None;
         &mut self.maps
+    }
+
+    /// Visit every texel in every stabilisation pass instead of only those next to a
+    /// change: the same result, slower; for the test that the sparse sweep skips only
+    /// texels that cannot move.
+    #[doc(hidden)]
+    pub fn set_dense_sweeps(&mut self, on: bool) {
+        self.dense_sweeps = on;
     }
 
     /// Steps taken so far.
@@ -524,13 +539,15 @@ impl SnowSim {
     /// Move snow until no slope exceeds the angle of repose (§2.4.1, Fig 6): a snow-covered
     /// texel whose slope to some of its 4 neighbours exceeds the repose gives half the
     /// largest excess (the amount that levels a pair to the repose) times an
-    /// over-relaxation factor `OVER_RELAXATION` (at most all its snow), in equal shares, to those
-    /// neighbours; past
-    /// the edge of its region the snow falls to the highest lower map or off the scene
-    /// (§2.4.2). Texels are visited in place, maps in order and texels alternately
-    /// forwards and backwards, so an avalanche runs across a map in one pass (a
-    /// Gauss-Seidel sweep; sequential, hence the same for any thread count). Returns the
-    /// passes and whether the repose was met.
+    /// over-relaxation factor `OVER_RELAXATION` (at most all its snow), in equal shares,
+    /// to those neighbours; past the edge of its region the snow falls to the highest
+    /// lower map or off the scene (§2.4.2). Texels are visited in place, maps in order and
+    /// texels alternately forwards and backwards, so an avalanche runs across a map in one
+    /// pass (a Gauss-Seidel sweep; sequential, hence the same for any thread count). A
+    /// pass visits only the texels a change may have made steep (bit sets), in the order
+    /// of the full sweep: the result is bit for bit that of visiting every texel (test
+    /// `the_sparse_stabilisation_equals_visiting_every_texel`), the cost that of the
+    /// texels that move. Returns the passes and whether the repose was met.
     fn stabilise(&mut self) -> (u32, bool) {
         let tan = self.params.repose_deg.to_radians().tan();
         let t = self.footprint.texel_m;
@@ -539,53 +556,86 @@ impl SnowSim {
         let tol = 0.5e-4 * t;
         let n = self.footprint.n;
         let texels = n * n;
-        // Texels to look at: those with snow at first, then those next to a change.
-        let mut active: Vec<Vec<bool>> =
-            self.maps.iter().map(|m| m.snow_m.iter().map(|&s| s > 0.0).collect()).collect();
-        let mark_one = |a: &mut [bool], k: usize| {
-            let (i, j) = (k % n, k / n);
-            a[k] = true;
-            if i > 0 {
-                a[k - 1] = true;
-            }
-            if i + 1 < n {
-                a[k + 1] = true;
-            }
-            if j > 0 {
-                a[k - n] = true;
-            }
-            if j + 1 < n {
-                a[k + n] = true;
-            }
-        };
-        // A change at texel k of map mi steepens slopes around k on that map, and on any
-        // other map whose region ends next to k (past a region's edge the slope is
-        // measured to the lower map's surface): those edge texels are looked at again.
-        let possible: Vec<Vec<bool>> =
-            self.maps.iter().map(|m| (0..texels).map(|k| m.possible(k)).collect()).collect();
-        let mark = |active: &mut Vec<Vec<bool>>, mi: usize, k: usize| {
-            mark_one(&mut active[mi], k);
-            let (i, j) = (k % n, k / n);
-            for (o, a) in active.iter_mut().enumerate() {
-                if o == mi || possible[o][k] {
-                    continue;
+        let maps = self.maps.len();
+        // Texels to look at, one bit each: those with snow at first, then those next to a
+        // change. The sweep visits only set bits, in the same order as a sweep over every
+        // texel, and a texel not marked cannot move snow (neither it nor a neighbour
+        // changed since it was last found stable), so the result is that of the full
+        // sweep while the cost follows the texels that move (issue 25).
+        let mut active: Vec<Bits> = self
+            .maps
+            .iter()
+            .map(|m| {
+                let mut b = Bits::new(texels);
+                for (k, &s) in m.snow_m.iter().enumerate() {
+                    if s > 0.0 {
+                        b.set(k);
+                    }
                 }
-                for (ni, nj) in [(i.wrapping_sub(1), j), (i + 1, j), (i, j.wrapping_sub(1)), (i, j + 1)] {
-                    if ni < n && nj < n && possible[o][nj * n + ni] {
-                        a[nj * n + ni] = true;
+                b
+            })
+            .collect();
+        if self.dense_sweeps {
+            active.iter_mut().for_each(|b| b.fill(texels));
+        }
+        let mut next: Vec<Bits> = (0..maps).map(|_| Bits::new(texels)).collect();
+        // The regions' shapes, kept between steps (the grounds change only through
+        // `maps_mut`, which drops them).
+        let regions = self.regions.take().unwrap_or_else(|| Regions::new(&self.maps, n));
+        let Regions { rim, inner, any_rim } = &regions;
+        // Marks, for the rest of this pass and all of the next, what a change of texel k
+        // of map mi can make steep: k itself; when k lost snow, its neighbours on the map
+        // (their slopes towards k grew; a gain only lowers them); and, either way, the
+        // texels of other maps next to k where their region ends (past the edge the slope
+        // is measured to the surface at k, and whether that map counts as the lower one
+        // depends on it).
+        let mark = |active: &mut [Bits], next: &mut [Bits], mi: usize, k: usize, lost: bool| {
+            let (i, j) = (k % n, k / n);
+            let mut both = |o: usize, nk: usize| {
+                active[o].set(nk);
+                next[o].set(nk);
+            };
+            both(mi, k);
+            if lost {
+                if i > 0 {
+                    both(mi, k - 1);
+                }
+                if i + 1 < n {
+                    both(mi, k + 1);
+                }
+                if j > 0 {
+                    both(mi, k - n);
+                }
+                if j + 1 < n {
+                    both(mi, k + n);
+                }
+            }
+            if any_rim.get(k) {
+                for (o, r) in rim.iter().enumerate() {
+                    if o != mi && r.get(k) {
+                        for nk in four(n, k) {
+                            both(o, nk);
+                        }
                     }
                 }
             }
         };
+        let rise = tan * t;
         for pass in 0..self.params.max_passes {
             let mut moved = false;
-            let mut next: Vec<Vec<bool>> = self.maps.iter().map(|_| vec![false; texels]).collect();
-            for mi in 0..self.maps.len() {
-                for step in 0..texels {
-                    let k = if pass % 2 == 0 { step } else { texels - 1 - step };
-                    if !active[mi][k] {
-                        continue;
-                    }
+            for b in &mut next {
+                b.clear();
+            }
+            for mi in 0..maps {
+                let forward = pass % 2 == 0;
+                let mut cursor = if forward { 0 } else { texels };
+                loop {
+                    // The next marked texel in sweep order (marks made while visiting are
+                    // seen: a Gauss-Seidel sweep).
+                    let found =
+                        if forward { active[mi].next_from(cursor) } else { active[mi].prev_before(cursor) };
+                    let Some(k) = found else { break };
+                    cursor = if forward { k + 1 } else { k };
                     let s = self.maps[mi].snow_m[k];
                     if !(s > 0.0) {
                         continue;
@@ -594,12 +644,24 @@ impl SnowSim {
                     let mut steep = [(Target::Off, 0.0f32); 4];
                     let mut count = 0usize;
                     let mut largest = 0.0f32;
-                    for (target, h_n) in self.neighbours(mi, k, tan * t) {
-                        let excess = h - h_n - tan * t;
+                    let mut consider = |target: Target, h_n: f32| {
+                        let excess = h - h_n - rise;
                         if excess > tol {
                             steep[count] = (target, excess);
                             count += 1;
                             largest = largest.max(excess);
+                        }
+                    };
+                    if inner[mi].get(k) {
+                        // All four neighbours in this map's region: the common case,
+                        // in `neighbours`' order without its edge cases.
+                        let map = &self.maps[mi];
+                        for nk in [k - n, k + 1, k + n, k - 1] {
+                            consider(Target::Map(mi as u32, nk as u32), map.surface(nk));
+                        }
+                    } else {
+                        for (target, h_n) in self.neighbours(mi, k, rise) {
+                            consider(target, h_n);
                         }
                     }
                     if count == 0 {
@@ -612,8 +674,7 @@ impl SnowSim {
                             Target::Map(o, nk) => {
                                 self.maps[o as usize].snow_m[nk as usize] += share;
                                 // Later texels of this pass and all of the next see it.
-                                mark(&mut active, o as usize, nk as usize);
-                                mark(&mut next, o as usize, nk as usize);
+                                mark(&mut active, &mut next, o as usize, nk as usize, false);
                             }
                             Target::Off => {
                                 self.fallen_off_m3 += f64::from(share) * f64::from(t) * f64::from(t)
@@ -622,15 +683,19 @@ impl SnowSim {
                     }
                     let left = &mut self.maps[mi].snow_m[k];
                     *left = (*left - share * count as f32).max(0.0);
-                    mark(&mut active, mi, k);
-                    mark(&mut next, mi, k);
+                    mark(&mut active, &mut next, mi, k, true);
                 }
             }
             if !moved {
+                self.regions = Some(regions);
                 return (pass, true);
             }
-            active = next;
+            std::mem::swap(&mut active, &mut next);
+            if self.dense_sweeps {
+                active.iter_mut().for_each(|b| b.fill(texels));
+            }
         }
+        self.regions = Some(regions);
         (self.params.max_passes, false)
     }
 
@@ -646,6 +711,118 @@ impl SnowSim {
 /// passes a step needs grew to 512+ at 1.0, 443 at 1.5 and 250 at 1.8 (1.95 is used).
 /// The end state is checked against the repose either way.
 const OVER_RELAXATION: f32 = 1.95;
+
+/// The 4-neighbours of texel `k` on an `n`×`n` grid that lie on the grid.
+fn four(n: usize, k: usize) -> impl Iterator<Item = usize> {
+    let (i, j) = (k % n, k / n);
+    [(i > 0).then(|| k - 1), (i + 1 < n).then(|| k + 1), (j > 0).then(|| k - n), (j + 1 < n).then(|| k + n)]
+        .into_iter()
+        .flatten()
+}
+
+/// The shape of the snow maps' regions as the stabilisation needs it (issue 25).
+#[derive(Clone, Debug)]
+struct Regions {
+    /// Per map, the texels outside its region next to one inside it: a change there
+    /// steepens slopes measured past the region's edge (to the lower map's surface).
+    rim: Vec<Bits>,
+    /// Per map, the texels whose four neighbours are all in its region.
+    inner: Vec<Bits>,
+    /// Texels on any map's rim: most changes are not next to another region.
+    any_rim: Bits,
+}
+
+impl Regions {
+    fn new(maps: &[SnowMap], n: usize) -> Self {
+        let texels = n * n;
+        let select = |m: &SnowMap, keep: &dyn Fn(&SnowMap, usize) -> bool| {
+            let mut b = Bits::new(texels);
+            for k in (0..texels).filter(|&k| keep(m, k)) {
+                b.set(k);
+            }
+            b
+        };
+        let rim: Vec<Bits> = maps
+            .iter()
+            .map(|m| select(m, &|m, k| !m.possible(k) && four(n, k).any(|nk| m.possible(nk))))
+            .collect();
+        let inner = maps
+            .iter()
+            .map(|m| select(m, &|m, k| m.possible(k) && four(n, k).filter(|&nk| m.possible(nk)).count() == 4))
+            .collect();
+        let mut any_rim = Bits::new(texels);
+        for r in &rim {
+            for (a, w) in any_rim.0.iter_mut().zip(&r.0) {
+                *a |= w;
+            }
+        }
+        Self { rim, inner, any_rim }
+    }
+}
+
+/// A set of texels, one bit each, walked in either direction.
+#[derive(Clone, Debug)]
+struct Bits(Vec<u64>);
+
+impl Bits {
+    fn new(len: usize) -> Self {
+        Self(vec![0; len.div_ceil(64)])
+    }
+
+    fn clear(&mut self) {
+        self.0.fill(0);
+    }
+
+    /// Every texel of `len`.
+    fn fill(&mut self, len: usize) {
+        self.0.fill(!0);
+        if !len.is_multiple_of(64) {
+            self.0[len / 64] = (1 << (len % 64)) - 1;
+        }
+    }
+
+    fn set(&mut self, k: usize) {
+        self.0[k / 64] |= 1 << (k % 64);
+    }
+
+    fn get(&self, k: usize) -> bool {
+        self.0[k / 64] >> (k % 64) & 1 == 1
+    }
+
+    /// The first set bit at `from` or after.
+    fn next_from(&self, from: usize) -> Option<usize> {
+        let mut w = from / 64;
+        let mut word = *self.0.get(w)? & (!0u64 << (from % 64));
+        loop {
+            if word != 0 {
+                return Some(w * 64 + word.trailing_zeros() as usize);
+            }
+            w += 1;
+            word = *self.0.get(w)?;
+        }
+    }
+
+    /// The last set bit before `end`.
+    fn prev_before(&self, end: usize) -> Option<usize> {
+        if end == 0 {
+            return None;
+        }
+        let last = end - 1;
+        let mut w = last / 64;
+        let b = last % 64;
+        let mut word = self.0[w] & (!0u64 >> (63 - b));
+        loop {
+            if word != 0 {
+                return Some(w * 64 + 63 - word.leading_zeros() as usize);
+            }
+            if w == 0 {
+                return None;
+            }
+            w -= 1;
+            word = self.0[w];
+        }
+    }
+}
 
 /// Where moved snow goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
