@@ -13,6 +13,10 @@ use phenomena_aurora::{
 };
 use std::hint::black_box;
 
+/// The fixed reference workload reported beside these numbers (issue 23).
+#[path = "../../core/benches/shared/reference.rs"]
+mod reference;
+
 /// The default scene after 20 frames with redistribution off, so the particle count
 /// stays at Table 3.2's 120,000 (less any that left the plane).
 fn settled() -> AuroraSim {
@@ -101,5 +105,5 @@ fn full_frame(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, poisson, renewal_and_motion, full_frame);
+criterion_group!(benches, reference::reference, poisson, renewal_and_motion, full_frame);
 criterion_main!(benches);

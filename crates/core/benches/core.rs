@@ -10,6 +10,10 @@ use phenomena_core::image::Plane;
 use phenomena_core::rng::{Purpose, Stream};
 use std::hint::black_box;
 
+/// The fixed reference workload reported beside these numbers (issue 23).
+#[path = "shared/reference.rs"]
+mod reference;
+
 fn cloud(n: usize) -> Vec<Vec3> {
     let mut s = Stream::new(1, Purpose::named("bench.cloud"), 0);
     (0..n).map(|_| Vec3::new(s.next_f32(), s.next_f32() * 2.0, s.next_f32()) * 0.6).collect()
@@ -78,5 +82,5 @@ fn srgb(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, grid, blur, blackbody, srgb);
+criterion_group!(benches, reference::reference, grid, blur, blackbody, srgb);
 criterion_main!(benches);

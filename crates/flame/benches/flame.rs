@@ -11,6 +11,10 @@ use phenomena_flame::{FlameConfig, FlameRenderer, FlameSim, RenderSettings};
 use std::hint::black_box;
 use std::time::Duration;
 
+/// The fixed reference workload reported beside these numbers (issue 23).
+#[path = "../../core/benches/shared/reference.rs"]
+mod reference;
+
 /// A flame whose steady state holds about `n` particles (rate × mean lifetime).
 fn config(n: usize) -> FlameConfig {
     let mut c = FlameConfig::default();
@@ -71,5 +75,5 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, reference::reference, bench);
 criterion_main!(benches);

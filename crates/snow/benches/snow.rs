@@ -8,6 +8,10 @@ use phenomena_snow::reference::naive_vertex_probability;
 use phenomena_snow::{SnowConfig, SnowSim};
 use std::hint::black_box;
 
+/// The fixed reference workload reported beside these numbers (issue 23).
+#[path = "../../core/benches/shared/reference.rs"]
+mod reference;
+
 fn probability(c: &mut Criterion) {
     let params =
         SnowConfig { map_resolution: 128, directions: 64, shadow_resolution: 256, ..SnowConfig::default() };
@@ -101,5 +105,5 @@ fn yard(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, probability, village, step, yard);
+criterion_group!(benches, reference::reference, probability, village, step, yard);
 criterion_main!(benches);

@@ -10,6 +10,10 @@ use phenomena_sparkle::{Method, Population, RenderSettings, SparkleConfig, Spark
 use std::hint::black_box;
 use std::time::Duration;
 
+/// The fixed reference workload reported beside these numbers (issue 23).
+#[path = "../../core/benches/shared/reference.rs"]
+mod reference;
+
 fn config(method: Method, virtual_count: f64) -> SparkleConfig {
     let mut c = SparkleConfig { method, ..SparkleConfig::default() };
     if let Population::DiamondDust(d) = &mut c.population {
@@ -47,5 +51,5 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, reference::reference, bench);
 criterion_main!(benches);
