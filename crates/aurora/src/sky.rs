@@ -86,34 +86,44 @@ impl PerLine {
 pub enum SkyCamera {
     /// An observer on the ground `distance_km` south of the centre, looking north and up
     /// at `elevation_deg` (perspective; the thesis's view, Table 3.2: 1280 × 720).
+    /// Defaults: 250 km, 38°, 60°.
     Ground {
         /// Distance south of the plane's centre, km.
+        #[serde(default = "defaults::ground_distance_km")]
         distance_km: f32,
         /// Elevation of the view direction above the horizon, degrees.
+        #[serde(default = "defaults::ground_elevation_deg")]
         elevation_deg: f32,
         /// Vertical field of view, degrees.
+        #[serde(default = "defaults::fov_y_deg")]
         fov_y_deg: f32,
     },
     /// A spacecraft at `altitude_km`, `distance_km` south of the centre, looking at the
-    /// centre at `look_at_altitude_km`.
+    /// centre at `look_at_altitude_km`. Defaults: the International Space Station's
+    /// 400 km, 1,000 km south, looking at 110 km (where the green line shines), 60°.
     Orbit {
         /// Altitude, km.
+        #[serde(default = "defaults::orbit_altitude_km")]
         altitude_km: f32,
         /// Horizontal distance south of the centre, km.
+        #[serde(default = "defaults::orbit_distance_km")]
         distance_km: f32,
         /// Altitude of the point looked at, km.
+        #[serde(default = "defaults::orbit_look_at_altitude_km")]
         look_at_altitude_km: f32,
         /// Vertical field of view, degrees.
+        #[serde(default = "defaults::fov_y_deg")]
         fov_y_deg: f32,
     },
     /// A planetarium dome master: equidistant fisheye on the ground at the centre, zenith
     /// at the image centre, north up.
     Dome {
-        /// Field of view across the circle, degrees (180 for a dome).
+        /// Field of view across the circle, degrees (default 180: a dome).
+        #[serde(default = "defaults::dome_fov_deg")]
         fov_deg: f32,
     },
     /// A 360° × 180° equirectangular panorama on the ground at the centre, north in the
-    /// middle.
+    /// middle (nothing to set).
     Panorama,
     /// Any core camera, in km.
     Custom {
@@ -163,7 +173,37 @@ impl SkyCamera {
 
 impl Default for SkyCamera {
     fn default() -> Self {
-        SkyCamera::Ground { distance_km: 250.0, elevation_deg: 38.0, fov_y_deg: 60.0 }
+        SkyCamera::Ground {
+            distance_km: defaults::ground_distance_km(),
+            elevation_deg: defaults::ground_elevation_deg(),
+            fov_y_deg: defaults::fov_y_deg(),
+        }
+    }
+}
+
+/// What a camera kind's fields default to when the scene file leaves them out (issue 20:
+/// `kind = "dome"` alone was refused for want of `fov_deg`).
+mod defaults {
+    pub(super) fn ground_distance_km() -> f32 {
+        250.0
+    }
+    pub(super) fn ground_elevation_deg() -> f32 {
+        38.0
+    }
+    pub(super) fn fov_y_deg() -> f32 {
+        60.0
+    }
+    pub(super) fn orbit_altitude_km() -> f32 {
+        400.0
+    }
+    pub(super) fn orbit_distance_km() -> f32 {
+        1000.0
+    }
+    pub(super) fn orbit_look_at_altitude_km() -> f32 {
+        110.0
+    }
+    pub(super) fn dome_fov_deg() -> f32 {
+        180.0
     }
 }
 
@@ -852,6 +892,47 @@ fn deposit(dst: &mut [&mut [f32]; 5], spill: &mut [f32], w: usize, r_lo: usize, 
 mod tests {
     use super::*;
     use phenomena_core::image::gaussian_weights;
+
+    #[test]
+    fn every_camera_kind_has_defaults() {
+        // Issue 20: `kind = "dome"` alone was refused ("missing field `fov_deg`").
+        let parse = |text: &str| toml::from_str::<SkyCamera>(text).map_err(|e| e.to_string());
+        assert_eq!(parse(r#"kind = "dome""#), Ok(SkyCamera::Dome { fov_deg: 180.0 }));
+        assert_eq!(parse(r#"kind = "panorama""#), Ok(SkyCamera::Panorama));
+        assert_eq!(parse(r#"kind = "ground""#), Ok(SkyCamera::default()));
+        assert_eq!(
+            parse("kind = \"ground\"\nelevation_deg = 70.0"),
+            Ok(SkyCamera::Ground { distance_km: 250.0, elevation_deg: 70.0, fov_y_deg: 60.0 })
+        );
+        assert_eq!(
+            parse(r#"kind = "orbit""#),
+            Ok(SkyCamera::Orbit {
+                altitude_km: 400.0,
+                distance_km: 1000.0,
+                look_at_altitude_km: 110.0,
+                fov_y_deg: 60.0
+            })
+        );
+        // Every default camera sees the aurora's layer: the plane's centre at 110 km is
+        // inside the image.
+        for camera in [
+            SkyCamera::default(),
+            SkyCamera::Dome { fov_deg: 180.0 },
+            SkyCamera::Panorama,
+            parse(r#"kind = "orbit""#).unwrap(),
+        ] {
+            let view = camera.camera().view(320, 180).unwrap();
+            let p = view.project(Vec3::new(0.0, 110.0, 0.0));
+            assert!(
+                p.is_some_and(|p| (0.0..320.0).contains(&p.x_px) && (0.0..180.0).contains(&p.y_px)),
+                "{camera:?}"
+            );
+        }
+        // A custom camera has no sensible default: it must be given, and the error says so.
+        assert!(parse(r#"kind = "custom""#).unwrap_err().contains("camera"));
+        // Unknown fields are still refused.
+        assert!(parse("kind = \"dome\"\nfov = 180.0").unwrap_err().contains("unknown field"));
+    }
 
     #[test]
     fn deposit_then_blur_is_the_sum_of_splats() {
