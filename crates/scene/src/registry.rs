@@ -181,6 +181,15 @@ mod tests {
         // That every file in scenes/ is listed is the tidy test's (crates/cli/tests/tidy.rs).
     }
 
+    /// The yard's benchmark and tests use `yard_config()`; the shipped scene is the same.
+    #[test]
+    fn the_shipped_yard_is_the_benchmarks_yard() {
+        let scene = shipped("snow-yard").expect("registered").scene().unwrap_or_else(|e| panic!("{e}"));
+        let snow = scene.get::<crate::snow::SnowScene>().expect("a snow scene");
+        assert_eq!(snow.snow, phenomena_snow::mesh::yard_config());
+        assert_eq!(snow.geometry.builtin, Some(phenomena_snow::mesh::Builtin::Yard));
+    }
+
     #[test]
     fn every_phenomenon_has_a_shipped_scene_first_in_its_tab_and_unique_names() {
         for p in PHENOMENA {

@@ -3,7 +3,7 @@
 //! setting (five 128×128 maps, one per primitive).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
-use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene, yard_scene};
+use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene, yard_config, yard_scene};
 use phenomena_snow::reference::naive_vertex_probability;
 use phenomena_snow::{SnowConfig, SnowSim};
 use std::hint::black_box;
@@ -81,16 +81,7 @@ fn step(c: &mut Criterion) {
 /// the piles under the eaves are deep. Target: every step ≤ 30 ms, the late step ≤ 2× the
 /// early one.
 fn yard(c: &mut Criterion) {
-    let params = SnowConfig {
-        map_resolution: 256,
-        directions: 64,
-        spread_deg: 8.0,
-        rate_cm_per_h: 4.0,
-        time_step_h: 0.25,
-        repose_deg: 35.0,
-        margin_m: 0.3,
-        ..SnowConfig::default()
-    };
+    let params = yard_config();
     let mut sim = SnowSim::new(yard_scene(), params, 1).expect("yard");
     let mut group = c.benchmark_group("snow_yard_256");
     group.sample_size(10);

@@ -339,6 +339,21 @@ pub fn village_scene() -> Mesh {
     mesh
 }
 
+/// Issue 25's snowfall on [`yard_scene`], as `scenes/snow-yard.toml` has it: 256² maps,
+/// 64 directions of 8° spread, 4 cm/h in 0.25 h steps, repose 35°, 0.3 m margin.
+pub fn yard_config() -> crate::SnowConfig {
+    crate::SnowConfig {
+        map_resolution: 256,
+        directions: 64,
+        spread_deg: 8.0,
+        rate_cm_per_h: 4.0,
+        time_step_h: 0.25,
+        repose_deg: 35.0,
+        margin_m: 0.3,
+        ..crate::SnowConfig::default()
+    }
+}
+
 /// A small yard like the one of issue 25 (made there in Blender 3.4: ground, a house with
 /// a pitched roof, three trees, a fence, a bench; 24 objects): a 12 m ground square, a
 /// 5 × 3 × 4 m house whose gable roof (ridge along x, 0.4 m eaves) rises 2.1 m over its

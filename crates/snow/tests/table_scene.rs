@@ -281,16 +281,7 @@ fn a_surface_split_between_two_maps_holds_snow_evenly_across_the_join() {
 /// sets' last word is partly outside the map.
 #[test]
 fn the_sparse_stabilisation_equals_visiting_every_texel() {
-    let params = SnowConfig {
-        map_resolution: 100,
-        directions: 16,
-        spread_deg: 8.0,
-        rate_cm_per_h: 4.0,
-        time_step_h: 0.25,
-        repose_deg: 35.0,
-        margin_m: 0.3,
-        ..SnowConfig::default()
-    };
+    let params = SnowConfig { map_resolution: 100, directions: 16, ..phenomena_snow::mesh::yard_config() };
     let mut sparse = SnowSim::new(phenomena_snow::mesh::yard_scene(), params, 1).expect("yard");
     let mut dense = sparse.clone();
     dense.set_dense_sweeps(true);
