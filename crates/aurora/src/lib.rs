@@ -33,5 +33,5 @@ pub use config::{
 };
 pub use plane::PlaneView;
 pub use render::{AuroraRenderer, AuroraView, LINE_LAYERS, RenderError, RenderSettings};
-pub use sim::{AuroraError, AuroraSim, FieldInputs, FieldState, StepStats};
+pub use sim::{AuroraError, AuroraSim, AuroraState, FieldInputs, FieldState, StepStats};
 pub use sky::{ColourMode, SkyBackground, SkyCamera, SkyRenderer, SkySettings, SkyTimings};

@@ -31,10 +31,13 @@ pub enum AuroraError {
     /// A motion step failed.
     #[error("particle motion failed")]
     Motion(#[from] MotionError),
+    /// A saved state does not fit this simulation.
+    #[error("the saved state does not fit this simulation: {0}")]
+    State(String),
 }
 
 /// The field of the current intermediate target shape.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FieldState {
     /// The intermediate target shape the field was made for.
     pub shape: Shape,
@@ -377,6 +380,74 @@ impl AuroraSim {
     }
 }
 
+/// A checkpoint: everything an [`AuroraSim`] built from the same configuration and
+/// seed needs to continue bit-identically (the shapes, grid and noise are rebuilt from
+/// the configuration; every random number is keyed by seed, purpose and frame or
+/// renewal, so no stream position is kept).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AuroraState {
+    /// Frames completed.
+    pub frame: u64,
+    /// Id of the next particle to be added.
+    pub next_id: u64,
+    /// The particles.
+    pub particles: Particles,
+    /// The field of the current intermediate target shape.
+    pub field: FieldState,
+}
+
+impl AuroraSim {
+    /// A checkpoint of the current state.
+    pub fn state(&self) -> AuroraState {
+        AuroraState {
+            frame: self.frame,
+            next_id: self.next_id,
+            particles: self.particles.clone(),
+            field: self.field.clone(),
+        }
+    }
+
+    /// Continue from a checkpoint taken with [`AuroraSim::state`] of a simulation with
+    /// the same configuration and seed. Refused, leaving `self` as it was, when its
+    /// arrays do not fit this simulation's grid or a particle is not finite.
+    pub fn restore(&mut self, state: AuroraState) -> Result<(), AuroraError> {
+        let bad = |what: String| Err(AuroraError::State(what));
+        let p = &state.particles;
+        if p.position_km.len() != p.len() || p.velocity_km_s.len() != p.len() {
+            return bad(format!(
+                "{} ids, {} positions, {} velocities",
+                p.len(),
+                p.position_km.len(),
+                p.velocity_km_s.len()
+            ));
+        }
+        if let Some(i) =
+            (0..p.len()).find(|&i| !p.position_km[i].is_finite() || !p.velocity_km_s[i].is_finite())
+        {
+            return bad(format!("particle {i} has a position or velocity that is not finite"));
+        }
+        let f = &state.field;
+        let cells = self.grid.len();
+        let lens = [f.counts.len(), f.potential.len(), f.potential_noisy.len(), f.e.len()];
+        if lens.iter().any(|&l| l != cells) {
+            return bad(format!("field arrays of {lens:?} cells for a grid of {cells}"));
+        }
+        if !f.rest_density.is_finite() || f.e.iter().any(|e| !e.is_finite()) {
+            return bad("the field is not finite".into());
+        }
+        if f.shape.next.len() != f.shape.points.len()
+            || f.shape.next.iter().flatten().any(|&j| j as usize >= f.shape.points.len())
+        {
+            return bad("the field's shape links points it does not have".into());
+        }
+        self.frame = state.frame;
+        self.next_id = state.next_id;
+        self.particles = state.particles;
+        self.field = state.field;
+        Ok(())
+    }
+}
+
 impl phenomena_core::phenomenon::Simulation for AuroraSim {
     type StepStats = StepStats;
     type Error = AuroraError;
@@ -387,5 +458,15 @@ impl phenomena_core::phenomenon::Simulation for AuroraSim {
 
     fn frames_done(&self) -> u64 {
         self.frame()
+    }
+
+    type State = AuroraState;
+
+    fn state(&self) -> AuroraState {
+        AuroraSim::state(self)
+    }
+
+    fn restore(&mut self, state: AuroraState) -> Result<(), AuroraError> {
+        AuroraSim::restore(self, state)
     }
 }

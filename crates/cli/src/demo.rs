@@ -17,17 +17,11 @@ pub(crate) fn run(out: &Path, threads: Option<usize>) -> Result<String> {
         let Some(demo) = &shipped.demo else { continue };
         let scene = shipped.scene()?;
         let job = RenderJob {
-            out_dir: out.join(shipped.name),
             frames: Some(demo.frames.clone()),
             width: Some(demo.size.0),
             height: Some(demo.size.1),
-            seed: None,
             threads,
-            format: ImageFormat::Png,
-            resume: false,
-            stats: None,
-            view: None,
-            quiet: false,
+            ..RenderJob::new(out.join(shipped.name), ImageFormat::Png)
         };
         // Shipped scenes read no files.
         lines.push(render::run_scene(scene, &Assets::none(), &job)?);

@@ -94,6 +94,33 @@ enum Command {
         /// aurora: sky, plane; snow: scene, probability; sparkle: glints).
         #[arg(long, value_parser = view_names())]
         view: Option<String>,
+        #[command(flatten)]
+        checkpoints: CheckpointArgs,
+    },
+    /// Simulate a scene file without drawing it, writing checkpoints (the first stage of
+    /// a farm render: `render --frames A..B` then starts at frame A from them).
+    Simulate {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Frames to simulate: up to B (A..B starts from a checkpoint at or before A).
+        /// Default: all of the scene's frames.
+        #[arg(long, value_parser = render::parse_frame_range)]
+        frames: Option<std::ops::Range<u32>>,
+        /// Random seed (overrides the scene).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: one per core). Output is identical for any count.
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+        threads: Option<u16>,
+        /// Write a checkpoint after every N frames.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+        checkpoint_every: u32,
+        /// Folder of the checkpoints.
+        #[arg(long, value_name = "DIR")]
+        checkpoint_dir: PathBuf,
+        /// Write one JSON object per frame (timings, particle counts) to this file.
+        #[arg(long)]
+        stats: Option<PathBuf>,
     },
     /// Export data products.
     Export {
@@ -149,6 +176,20 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
     },
+}
+
+/// Checkpoint options of `render`.
+#[derive(clap::Args, Debug)]
+struct CheckpointArgs {
+    /// Write the simulation's whole state after every N frames as
+    /// DIR/checkpoint_NNNNN.ckpt (NNNNN: the next frame to simulate).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    checkpoint_every: Option<u32>,
+    /// Folder of the checkpoints, written and read (default: OUT/checkpoints). With
+    /// --frames A..B or --resume the render starts from the newest usable checkpoint at
+    /// or before the first frame it must make instead of frame 0.
+    #[arg(long, value_name = "DIR")]
+    checkpoint_dir: Option<PathBuf>,
 }
 
 /// Format of a data table.
@@ -273,7 +314,20 @@ fn run(cli: Cli) -> anyhow::Result<String> {
         render::handle_signals();
     }
     match cli.command {
-        Command::Render { scene, out, frames, width, height, seed, threads, format, resume, stats, view } => {
+        Command::Render {
+            scene,
+            out,
+            frames,
+            width,
+            height,
+            seed,
+            threads,
+            format,
+            resume,
+            stats,
+            view,
+            checkpoints,
+        } => {
             let format = match format {
                 FormatArg::Png => ImageFormat::Png,
                 FormatArg::Exr => ImageFormat::Exr,
@@ -281,17 +335,32 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             render::run(
                 &scene,
                 &RenderJob {
-                    out_dir: out,
                     frames,
                     width,
                     height,
                     seed,
                     threads: threads.map(usize::from),
-                    format,
                     resume,
                     stats,
                     view,
-                    quiet: false,
+                    checkpoint_every: checkpoints.checkpoint_every,
+                    checkpoint_dir: checkpoints.checkpoint_dir,
+                    ..RenderJob::new(out, format)
+                },
+            )
+        }
+        Command::Simulate { scene, frames, seed, threads, checkpoint_every, checkpoint_dir, stats } => {
+            render::run(
+                &scene,
+                &RenderJob {
+                    frames,
+                    seed,
+                    threads: threads.map(usize::from),
+                    stats,
+                    checkpoint_every: Some(checkpoint_every),
+                    checkpoint_dir: Some(checkpoint_dir.clone()),
+                    images: false,
+                    ..RenderJob::new(checkpoint_dir, ImageFormat::Png)
                 },
             )
         }

@@ -10,8 +10,13 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use phenomena_core::clock::{Clock, SharedClock};
-use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, write_bytes_atomic};
-use phenomena_scene::{Assets, BuildError, FrameRecord, Limits, Observer, RunError, Runner, Scene};
+use phenomena_scene::output::{
+    CheckpointSink, ImageFormat, ImageSink, ensure_dir, list_checkpoints, read_checkpoint, write_bytes_atomic,
+};
+use phenomena_scene::{
+    Assets, BuildError, FrameRecord, FrameSink, Limits, Observer, Only, RunError, Runner, Scene, Simulate,
+    Tee,
+};
 
 /// Set by SIGINT or SIGTERM while a render runs: the render stops after its frame.
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
@@ -48,6 +53,40 @@ pub(crate) struct RenderJob {
     pub(crate) stats: Option<PathBuf>,
     pub(crate) view: Option<String>,
     pub(crate) quiet: bool,
+    /// Write a checkpoint after every this many frames.
+    pub(crate) checkpoint_every: Option<u32>,
+    /// Where checkpoints are written and looked for (default `OUT/checkpoints`).
+    pub(crate) checkpoint_dir: Option<PathBuf>,
+    /// Write frames (`false`: `simulate`, checkpoints only).
+    pub(crate) images: bool,
+}
+
+impl RenderJob {
+    /// A job writing `format` frames into `out_dir` with every other option at its
+    /// default.
+    pub(crate) fn new(out_dir: PathBuf, format: ImageFormat) -> Self {
+        Self {
+            out_dir,
+            frames: None,
+            width: None,
+            height: None,
+            seed: None,
+            threads: None,
+            format,
+            resume: false,
+            stats: None,
+            view: None,
+            quiet: false,
+            checkpoint_every: None,
+            checkpoint_dir: None,
+            images: true,
+        }
+    }
+
+    /// The checkpoint folder: `--checkpoint-dir`, else `OUT/checkpoints`.
+    fn checkpoints(&self) -> PathBuf {
+        self.checkpoint_dir.clone().unwrap_or_else(|| self.out_dir.join("checkpoints"))
+    }
 }
 
 /// Parse `A..B` (B exclusive), `A..=B` (inclusive) or `N` (the single frame N).
@@ -199,7 +238,11 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
             range.end
         );
     }
-    let mut sink = ImageSink::new(&job.out_dir, job.format, job.resume)?;
+    let mut images =
+        if job.images { Some(ImageSink::new(&job.out_dir, job.format, job.resume)?) } else { None };
+    let checkpoint_dir = job.checkpoints();
+    let mut checkpoints =
+        job.checkpoint_every.map(|n| CheckpointSink::new(&checkpoint_dir, n)).transpose()?;
     if let Some(stats) = &job.stats {
         if stats.is_dir() {
             bail!("--stats {} is a directory: give a file name", stats.display());
@@ -213,14 +256,32 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         .build()
         .context("cannot start the worker threads")?;
     let started = Instant::now();
+    let mut started_at = 0;
     pool.install(|| -> Result<()> {
         let mut runner = runner(&scene, assets)?;
         log_estimate(runner.estimate());
         warn(&runner);
+        // The first frame to make: with --resume, the first whose file is missing.
+        let first = match &images {
+            Some(sink) if job.resume => range.clone().find(|&i| !sink.path(i).is_file()).unwrap_or(range.end),
+            _ => range.start,
+        };
+        started_at = restore_newest(&mut runner, &checkpoint_dir, first, job.quiet);
         runner.set_clock(wall_clock());
-        let mut progress = Progress::new(range.clone(), job.quiet, job.stats.is_some());
+        let mut progress = Progress::new(range.clone(), started_at, job.quiet, job.stats.is_some());
+        let mut nothing = Simulate;
+        let image_sink: &mut dyn FrameSink = match images.as_mut() {
+            Some(s) => s,
+            None => &mut nothing,
+        };
+        let mut only = Only { frames: range.clone(), sink: image_sink };
+        let mut sinks: Vec<&mut dyn FrameSink> = vec![&mut only];
+        if let Some(c) = checkpoints.as_mut() {
+            sinks.push(c);
+        }
+        let mut tee = Tee::new(sinks);
         CANCELLABLE.store(true, Ordering::SeqCst);
-        let result = runner.run(range.clone(), &mut sink, &mut progress);
+        let result = runner.run(started_at..range.end, &mut tee, &mut progress);
         CANCELLABLE.store(false, Ordering::SeqCst);
         progress.bar.finish_and_clear();
         // The stats of the frames done are written even when a later frame failed.
@@ -234,13 +295,61 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
             other => Ok(other?),
         }
     })?;
-    let (written, kept) = (sink.written(), sink.kept());
-    Ok(format!(
-        "{name}: wrote {written} frame(s){} to {} in {:.1} s",
-        if kept > 0 { format!(", kept {kept} finished frame(s)") } else { String::new() },
-        job.out_dir.display(),
-        started.elapsed().as_secs_f64()
-    ))
+    let mut parts = Vec::new();
+    if let Some(sink) = &images {
+        // With --resume, the frames before the checkpoint it started from exist too.
+        let before = if job.resume { started_at.saturating_sub(range.start) } else { 0 };
+        let (written, kept) = (sink.written(), sink.kept() + before);
+        parts.push(format!(
+            "wrote {written} frame(s){} to {}",
+            if kept > 0 { format!(", kept {kept} finished frame(s)") } else { String::new() },
+            job.out_dir.display()
+        ));
+    }
+    if let Some(c) = &checkpoints {
+        parts.push(format!("wrote {} checkpoint(s) to {}", c.written(), checkpoint_dir.display()));
+    }
+    if started_at > 0 {
+        parts.push(format!("started from the checkpoint at frame {started_at}"));
+    }
+    if parts.is_empty() {
+        parts.push(format!("simulated frames {started_at}..{}", range.end));
+    }
+    Ok(format!("{name}: {} in {:.1} s", parts.join("; "), started.elapsed().as_secs_f64()))
+}
+
+/// Continue `runner` from the newest checkpoint in `dir` from which frame `first` can
+/// be reached (frames simulated ≤ `first`), trying older ones when one is refused
+/// (damaged, of another scene or seed); returns the frames simulated (0: none used,
+/// simulate from the start). Each refusal is reported.
+#[allow(clippy::print_stderr)]
+fn restore_newest(runner: &mut Runner, dir: &Path, first: u32, quiet: bool) -> u32 {
+    let candidates = list_checkpoints(dir);
+    for (_, path) in candidates.iter().rev().filter(|(f, _)| *f <= first && *f > 0) {
+        let refused = match read_checkpoint(path) {
+            Ok(bytes) => match phenomena_scene::checkpoint::open(&bytes) {
+                // Named for an earlier frame than it holds (renamed by hand): not usable
+                // for `first`.
+                Ok((header, _)) if header.frames_done > u64::from(first) => {
+                    format!("it holds frame {}, after frame {first}", header.frames_done)
+                }
+                Ok(_) => match runner.restore(&bytes) {
+                    Ok(done) => return done,
+                    Err(e) => e.to_string(),
+                },
+                Err(e) => e.to_string(),
+            },
+            Err(e) => e.to_string(),
+        };
+        eprintln!("warning: checkpoint {} not used: {refused}", path.display());
+    }
+    if first > 0 && !quiet && !candidates.is_empty() {
+        eprintln!(
+            "note: no usable checkpoint at or before frame {first} in {}: simulating from frame 0",
+            dir.display()
+        );
+    }
+    0
 }
 
 /// Render the scene file `path`.
@@ -258,9 +367,10 @@ struct Progress {
 }
 
 impl Progress {
-    fn new(range: Range<u32>, quiet: bool, keep_stats: bool) -> Self {
+    /// Frames `from..range.end` to simulate, those of `range` written.
+    fn new(range: Range<u32>, from: u32, quiet: bool, keep_stats: bool) -> Self {
         let bar = ProgressBar::with_draw_target(
-            Some(u64::from(range.end)),
+            Some(u64::from(range.end.saturating_sub(from))),
             if quiet { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() },
         );
         bar.set_style(

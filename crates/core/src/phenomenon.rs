@@ -7,6 +7,11 @@
 //!
 //! These traits let code above the phenomena (the scene layer's runner) drive any of
 //! them the same way; each library also offers the same methods inherently.
+//!
+//! A simulation's [`Simulation::State`] is everything that is not rebuilt from its
+//! configuration, seed (and mesh): particles, maps, frame counters. A simulation built
+//! from the same inputs and given a saved state with [`Simulation::restore`] continues
+//! bit for bit as the one it was saved from (the scene layer's checkpoints).
 
 use crate::image::{Frame, Plane};
 use crate::validate::InvalidConfig;
@@ -17,12 +22,23 @@ pub trait Simulation: Send {
     type StepStats: serde::Serialize;
     /// Why a step failed.
     type Error: std::error::Error + Send + Sync + 'static;
+    /// Everything needed to continue bit-identically, besides what the simulation is
+    /// built from (configuration, seed, mesh).
+    type State: serde::Serialize + serde::de::DeserializeOwned + Send;
 
     /// Advance one frame.
     fn step(&mut self) -> Result<Self::StepStats, Self::Error>;
 
     /// Frames stepped so far.
     fn frames_done(&self) -> u64;
+
+    /// A copy of the current state.
+    fn state(&self) -> Self::State;
+
+    /// Continue from `state`, taken by [`Simulation::state`] of a simulation built from
+    /// the same configuration and seed; refused (and `self` unchanged) when its shape
+    /// does not fit this simulation.
+    fn restore(&mut self, state: Self::State) -> Result<(), Self::Error>;
 }
 
 /// A named extra image of a render (an EXR layer), e.g. one emission line.

@@ -250,12 +250,28 @@ impl FlameSim {
 
     /// Continue from a checkpoint taken with [`FlameSim::state`].
     pub fn from_state(config: FlameConfig, seed: u64, state: FlameState) -> Result<Self, FlameError> {
-        state.particles.check_shape()?;
         let mut sim = Self::new(config, seed)?;
-        sim.frame = state.frame;
-        sim.next_id = state.next_id;
-        sim.particles = state.particles;
+        sim.restore(state)?;
         Ok(sim)
+    }
+
+    /// Continue from a checkpoint taken with [`FlameSim::state`] of a simulation with
+    /// the same configuration and seed. Refused, leaving `self` as it was, when the
+    /// arrays differ in length or a position or velocity is not finite.
+    pub fn restore(&mut self, state: FlameState) -> Result<(), FlameError> {
+        let p = &state.particles;
+        p.check_shape()?;
+        if let Some(i) =
+            (0..p.len()).find(|&i| !p.position_m[i].is_finite() || !p.velocity_m_s[i].is_finite())
+        {
+            return Err(FlameError::Shape(format!(
+                "particle {i} has a position or velocity that is not finite"
+            )));
+        }
+        self.frame = state.frame;
+        self.next_id = state.next_id;
+        self.particles = state.particles;
+        Ok(())
     }
 
     /// Place particles directly (no emission history): positions and velocities, with
@@ -575,6 +591,16 @@ impl phenomena_core::phenomenon::Simulation for FlameSim {
 
     fn frames_done(&self) -> u64 {
         self.frame()
+    }
+
+    type State = FlameState;
+
+    fn state(&self) -> FlameState {
+        FlameSim::state(self)
+    }
+
+    fn restore(&mut self, state: FlameState) -> Result<(), FlameError> {
+        FlameSim::restore(self, state)
     }
 }
 

@@ -8,7 +8,9 @@
 //! - [`Assets`] is the only way a scene reads a file: from a folder, a studio session's
 //!   sandbox, or memory.
 //! - [`Runner`] builds a scene's simulation and renderer and runs them, handing frames
-//!   to a [`FrameSink`] ([`output::ImageSink`] writes PNG or EXR files).
+//!   to a [`FrameSink`] ([`output::ImageSink`] writes PNG or EXR files,
+//!   [`output::CheckpointSink`] the simulation's state every N frames, [`checkpoint`]'s
+//!   format, from which [`Runner::restore`] continues).
 //!
 //! A game or tool can load and run a scene with this crate alone:
 //!
@@ -41,6 +43,7 @@
 
 pub mod assets;
 pub mod aurora;
+pub mod checkpoint;
 pub mod flame;
 pub mod output;
 mod parse;
@@ -56,8 +59,8 @@ pub use assets::{AssetError, Assets};
 pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
 pub use phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, Steer, View};
 pub use runner::{
-    BuildError, FrameRecord, FrameSink, Limits, Observer, Output, Report, RunError, Runner, Simulate,
-    SinkError, gib,
+    BuildError, FrameRecord, FrameSink, Limits, Observer, Only, Output, Products, Report, RunError, Runner,
+    Simulate, SinkError, Tee, gib,
 };
 pub use scene::{Scene, set_path};
 pub use settings::{MAX_SIDE_PX, SceneSettings};

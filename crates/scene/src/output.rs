@@ -1,4 +1,5 @@
-//! Writing files: frame sinks for PNG and EXR, and the atomic write they share. Every
+//! Writing files: frame sinks for PNG and EXR and for checkpoints (and finding and
+//! reading the checkpoints back), and the atomic write they share. Every
 //! output goes to a temporary name in the same folder (unique to the process) and is
 //! renamed into place, so an interrupted write never leaves a half-written file under
 //! the real name.
@@ -253,6 +254,85 @@ impl FrameSink for ImageSink {
         self.written += 1;
         Ok(())
     }
+}
+
+/// The file of the checkpoint from which frame `frames_done` is the next to simulate.
+pub fn checkpoint_path(dir: &Path, frames_done: u32) -> PathBuf {
+    dir.join(format!("checkpoint_{frames_done:05}.{CHECKPOINT_EXTENSION}"))
+}
+
+/// Checkpoint files' extension.
+pub const CHECKPOINT_EXTENSION: &str = "ckpt";
+
+/// The simulation's state every `every` frames as `DIR/checkpoint_NNNNN.ckpt` (NNNNN:
+/// the frames simulated, i.e. the next frame to simulate), atomically; the frames need
+/// not be rendered.
+pub struct CheckpointSink {
+    dir: PathBuf,
+    every: u32,
+    written: u32,
+}
+
+impl CheckpointSink {
+    /// Checkpoints into `dir` (created if missing) after every `every` frames (at
+    /// least 1).
+    pub fn new(dir: &Path, every: u32) -> Result<Self, SinkError> {
+        if every == 0 {
+            return Err(error("checkpoints every 0 frames: give a whole number of frames from 1"));
+        }
+        ensure_dir(dir)?;
+        remove_stale_temps(dir);
+        Ok(Self { dir: dir.to_path_buf(), every, written: 0 })
+    }
+
+    /// Checkpoints written.
+    pub fn written(&self) -> u32 {
+        self.written
+    }
+}
+
+impl FrameSink for CheckpointSink {
+    fn wants(&mut self, index: u32) -> bool {
+        (index + 1).is_multiple_of(self.every)
+    }
+
+    fn needs_image(&self) -> bool {
+        false
+    }
+
+    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        let bytes = out.data.checkpoint()?;
+        write_bytes_atomic(&checkpoint_path(&self.dir, out.index + 1), &bytes)?;
+        self.written += 1;
+        Ok(())
+    }
+}
+
+/// The checkpoints in `dir`, by frames simulated (from their names; not opened),
+/// oldest first. A missing folder has none.
+pub fn list_checkpoints(dir: &Path) -> Vec<(u32, PathBuf)> {
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    let mut found: Vec<(u32, PathBuf)> = entries
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let n = name.strip_prefix("checkpoint_")?.strip_suffix(&format!(".{CHECKPOINT_EXTENSION}"))?;
+            Some((n.parse().ok()?, e.path()))
+        })
+        .collect();
+    found.sort();
+    found
+}
+
+/// Read a checkpoint file (at most [`crate::checkpoint::MAX_STATE_BYTES`] plus its
+/// header; a larger file is refused without reading it).
+pub fn read_checkpoint(path: &Path) -> Result<Vec<u8>, SinkError> {
+    let len =
+        std::fs::metadata(path).map_err(|e| error(format!("cannot read {}: {e}", path.display())))?.len();
+    if len > crate::checkpoint::MAX_STATE_BYTES + 4096 {
+        return Err(error(format!("{} is {len} bytes: too large for a checkpoint", path.display())));
+    }
+    std::fs::read(path).map_err(|e| error(format!("cannot read {}: {e}", path.display())))
 }
 
 #[cfg(test)]

@@ -140,6 +140,13 @@ pub trait Phenomenon:
     /// Build the simulation and its renderer at the scene's size.
     fn build(&self, loaded: Self::Loaded) -> Result<Built<Self>, BuildError>;
 
+    /// A hash of the files the simulation is built from (the snow's mesh), for
+    /// checkpoint identities ([`crate::checkpoint::identity`]); `None` when the
+    /// simulation reads none (images only change how frames are drawn).
+    fn files_identity(_loaded: &Self::Loaded) -> Option<u64> {
+        None
+    }
+
     /// Give the simulation and renderer a clock for their timing breakdowns.
     fn set_clock(_built: &mut Built<Self>, _clock: &SharedClock) {}
     /// Before a render: `Some(frame)` asks for a fast preview of frame `frame` (the

@@ -16,6 +16,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::assets::{AssetError, Assets};
+use crate::checkpoint::{self, CheckpointError, Header};
 use crate::phenomenon::{Built, Estimate, Exported, Phenomenon, Steer};
 use crate::scene::Scene;
 
@@ -174,30 +175,54 @@ pub struct FrameRecord {
     pub counters: Value,
 }
 
-/// A rendered frame handed to a sink.
+/// A frame handed to a sink: its image (when a sink asked for one) and the
+/// simulation's state, for sinks that write data rather than pictures.
 pub struct Output<'a> {
     /// Its frame number.
     pub index: u32,
-    /// Linear (scene-referred) RGB.
+    /// Linear (scene-referred) RGB: the render of this frame when a sink taking it
+    /// [`FrameSink::needs_image`], else the last frame rendered (or black).
     pub frame: &'a Frame,
-    /// Extra images (EXR layers).
+    /// Extra images (EXR layers), as `frame`.
     pub layers: &'a [Layer<'a>],
+    /// Whether `frame` and `layers` are this frame's render.
+    pub rendered: bool,
     /// The scene's exposure and tone map (for display encodings).
     pub exposure: Exposure,
     /// The frame's record so far (step and render timings, counters).
     pub record: &'a FrameRecord,
+    /// The simulation's data at this frame (checkpoints, volumes, point caches).
+    pub data: &'a dyn Products,
+}
+
+/// What a simulation's state can be turned into, besides images.
+pub trait Products {
+    /// A checkpoint of the whole state ([`crate::checkpoint`]'s format).
+    fn checkpoint(&self) -> Result<Vec<u8>, SinkError>;
 }
 
 /// Where rendered frames go.
 pub trait FrameSink {
     /// Whether frame `index` is to be rendered and written (`false`: the sink has it
-    /// already, e.g. a finished file when resuming).
+    /// already, e.g. a finished file when resuming, or does not take it).
     fn wants(&mut self, _index: u32) -> bool {
+        true
+    }
+
+    /// Whether the frames it takes must be rendered (a sink of simulation data, such
+    /// as checkpoints, does not need the image).
+    fn needs_image(&self) -> bool {
         true
     }
 
     /// Take one frame.
     fn write(&mut self, output: &Output<'_>) -> Result<(), SinkError>;
+
+    /// The run is over (every frame it asked for was given): write what is written
+    /// once (a flipbook's atlas). Not called when the run stops early.
+    fn finish(&mut self) -> Result<(), SinkError> {
+        Ok(())
+    }
 }
 
 /// A sink that takes nothing: the frames are simulated, not rendered.
@@ -210,6 +235,73 @@ impl FrameSink for Simulate {
 
     fn write(&mut self, _output: &Output<'_>) -> Result<(), SinkError> {
         Ok(())
+    }
+}
+
+/// A sink that passes on only the frames of `frames` (the rest are simulated only).
+pub struct Only<'a> {
+    /// The frames passed on.
+    pub frames: Range<u32>,
+    /// Where they go.
+    pub sink: &'a mut dyn FrameSink,
+}
+
+impl FrameSink for Only<'_> {
+    fn wants(&mut self, index: u32) -> bool {
+        self.frames.contains(&index) && self.sink.wants(index)
+    }
+
+    fn needs_image(&self) -> bool {
+        self.sink.needs_image()
+    }
+
+    fn write(&mut self, output: &Output<'_>) -> Result<(), SinkError> {
+        self.sink.write(output)
+    }
+
+    fn finish(&mut self) -> Result<(), SinkError> {
+        self.sink.finish()
+    }
+}
+
+/// Several sinks fed by one run: each frame is rendered once, when any sink that
+/// wants it needs the image, and given to every sink that wants it, in order.
+pub struct Tee<'a> {
+    sinks: Vec<&'a mut dyn FrameSink>,
+    wanted: Vec<bool>,
+}
+
+impl<'a> Tee<'a> {
+    /// The sinks, written in this order.
+    pub fn new(sinks: Vec<&'a mut dyn FrameSink>) -> Self {
+        let wanted = vec![false; sinks.len()];
+        Self { sinks, wanted }
+    }
+}
+
+impl FrameSink for Tee<'_> {
+    fn wants(&mut self, index: u32) -> bool {
+        for (w, s) in self.wanted.iter_mut().zip(&mut self.sinks) {
+            *w = s.wants(index);
+        }
+        self.wanted.iter().any(|&w| w)
+    }
+
+    fn needs_image(&self) -> bool {
+        self.sinks.iter().zip(&self.wanted).any(|(s, &w)| w && s.needs_image())
+    }
+
+    fn write(&mut self, output: &Output<'_>) -> Result<(), SinkError> {
+        for (s, &w) in self.sinks.iter_mut().zip(&self.wanted) {
+            if w {
+                s.write(output)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), SinkError> {
+        self.sinks.iter_mut().try_for_each(|s| s.finish())
     }
 }
 
@@ -299,31 +391,59 @@ impl Runner {
         Ok(FrameRecord { frame, step_ms: t.ms(), counters, ..FrameRecord::default() })
     }
 
-    /// Render the current state and give it to `sink` (if it wants this frame),
-    /// completing `record`.
+    /// Render the current state (when the sink needs the image) and give it to `sink`
+    /// (if it wants this frame), completing `record`.
     pub fn output(&mut self, record: &mut FrameRecord, sink: &mut dyn FrameSink) -> Result<(), RunError> {
         if !sink.wants(record.frame) {
             record.skipped = true;
             return Ok(());
         }
-        let t = self.clock.stopwatch();
-        // A preview's subset turns with the frames simulated (0 before the first step).
-        let done = self.frames_done();
-        self.run.render(self.preview.then_some(done));
-        record.render_ms = Some(t.ms());
-        record.render_detail = self.run.render_detail();
+        let rendered = sink.needs_image();
+        if rendered {
+            let t = self.clock.stopwatch();
+            // A preview's subset turns with the frames simulated (0 before the first step).
+            let done = self.frames_done();
+            self.run.render(self.preview.then_some(done));
+            record.render_ms = Some(t.ms());
+            record.render_detail = self.run.render_detail();
+        }
         let t = self.clock.stopwatch();
         let layers = self.run.layers();
         let output = Output {
             index: record.frame,
             frame: self.run.frame(),
             layers: &layers,
+            rendered,
             exposure: self.exposure,
             record,
+            data: self.run.as_products(),
         };
         sink.write(&output).map_err(|source| RunError::Sink { frame: record.frame, source })?;
         record.write_ms = Some(t.ms());
         Ok(())
+    }
+
+    /// The checkpoint header of this scene at its current frame.
+    pub fn checkpoint_header(&self) -> Header {
+        self.run.header()
+    }
+
+    /// The whole simulation state now, as a checkpoint file's bytes.
+    pub fn checkpoint(&self) -> Result<Vec<u8>, SinkError> {
+        self.run.as_products().checkpoint()
+    }
+
+    /// Continue from checkpoint `bytes` of this scene (any frame at or after which the
+    /// run goes on); returns the frames simulated. A checkpoint that is damaged, of
+    /// another scene or seed, or whose state does not fit is refused and the runner is
+    /// unchanged.
+    pub fn restore(&mut self, bytes: &[u8]) -> Result<u32, CheckpointError> {
+        let (header, payload) = checkpoint::open(bytes)?;
+        header.matches(&self.run.header())?;
+        let frames = u32::try_from(header.frames_done)
+            .map_err(|_| CheckpointError::State(format!("frame {} is out of range", header.frames_done)))?;
+        self.run.restore(payload)?;
+        Ok(frames)
     }
 
     /// Simulate up to frame `frames.end` (not included), rendering each frame of
@@ -348,7 +468,7 @@ impl Runner {
                 return Err(RunError::Cancelled { frames: record.frame + 1 });
             }
         }
-        Ok(())
+        sink.finish().map_err(|source| RunError::Sink { frame: frames.end.saturating_sub(1), source })
     }
 
     /// Export `name` of the current state in `format` (see the phenomenon's exports).
@@ -374,6 +494,9 @@ pub(crate) trait Run: Send {
     fn steer(&mut self, path: &str, value: &Value) -> Steer;
     fn warnings(&self) -> &[String];
     fn frames_done(&self) -> u64;
+    fn header(&self) -> Header;
+    fn restore(&mut self, payload: &[u8]) -> Result<(), CheckpointError>;
+    fn as_products(&self) -> &dyn Products;
 }
 
 /// Build `scene`'s simulation and renderer: read its files, refuse it when its
@@ -385,7 +508,10 @@ pub(crate) fn live<P: Phenomenon>(
 ) -> Result<(Box<dyn Run>, Estimate), BuildError> {
     let loaded = scene.load(assets)?;
     let estimate = within(estimate(scene, &loaded), limits)?;
-    Ok((Box::new(Live(scene.build(loaded)?)), estimate))
+    let identity =
+        checkpoint::identity(P::NAME, &checkpoint::simulation_tables(scene), P::files_identity(&loaded));
+    let seed = scene.settings().seed;
+    Ok((Box::new(Live { built: scene.build(loaded)?, identity, seed }), estimate))
 }
 
 /// `estimate` if it is within `limits`.
@@ -422,49 +548,78 @@ pub(crate) fn check<P: Phenomenon>(
     Ok(Report { warnings, estimate })
 }
 
-struct Live<P: Phenomenon>(Built<P>);
+struct Live<P: Phenomenon> {
+    built: Built<P>,
+    /// The scene's checkpoint identity ([`checkpoint::identity`]).
+    identity: u64,
+    seed: u64,
+}
+
+impl<P: Phenomenon> Products for Live<P> {
+    fn checkpoint(&self) -> Result<Vec<u8>, SinkError> {
+        checkpoint::encode(&self.header(), &self.built.sim.state()).map_err(|e| SinkError(e.to_string()))
+    }
+}
 
 impl<P: Phenomenon> Run for Live<P> {
     fn step(&mut self) -> Result<Value, String> {
-        let stats = self.0.sim.step().map_err(|e| e.to_string())?;
+        let stats = self.built.sim.step().map_err(|e| e.to_string())?;
         serde_json::to_value(stats).map_err(|e| e.to_string())
     }
 
     fn render(&mut self, preview: Option<u32>) {
-        P::before_render(&mut self.0, preview);
-        let Built { sim, renderer, .. } = &mut self.0;
+        P::before_render(&mut self.built, preview);
+        let Built { sim, renderer, .. } = &mut self.built;
         renderer.render(sim);
     }
 
     fn frame(&self) -> &Frame {
-        self.0.renderer.frame()
+        self.built.renderer.frame()
     }
 
     fn layers(&self) -> Vec<Layer<'_>> {
-        self.0.renderer.layers()
+        self.built.renderer.layers()
     }
 
     fn render_detail(&self) -> Option<Value> {
-        P::render_detail(&self.0)
+        P::render_detail(&self.built)
     }
 
     fn set_clock(&mut self, clock: &SharedClock) {
-        P::set_clock(&mut self.0, clock)
+        P::set_clock(&mut self.built, clock)
     }
 
     fn export(&self, name: &str, format: &str) -> Result<Exported, String> {
-        P::export(&self.0, name, format)
+        P::export(&self.built, name, format)
     }
 
     fn steer(&mut self, path: &str, value: &Value) -> Steer {
-        P::steer(&mut self.0, path, value)
+        P::steer(&mut self.built, path, value)
     }
 
     fn warnings(&self) -> &[String] {
-        &self.0.warnings
+        &self.built.warnings
     }
 
     fn frames_done(&self) -> u64 {
-        self.0.sim.frames_done()
+        self.built.sim.frames_done()
+    }
+
+    fn header(&self) -> Header {
+        Header {
+            phenomenon: P::NAME.to_string(),
+            identity: self.identity,
+            seed: self.seed,
+            frames_done: self.frames_done(),
+        }
+    }
+
+    fn restore(&mut self, payload: &[u8]) -> Result<(), CheckpointError> {
+        let state = checkpoint::decode_state(payload)?;
+        self.built.sim.restore(state).map_err(|e| CheckpointError::State(e.to_string()))
+    }
+
+    fn as_products(&self) -> &dyn Products {
+        self
     }
 }

@@ -261,6 +261,21 @@ impl Phenomenon for SnowScene {
         )
     }
 
+    /// The mesh the snow lies on: its triangles and object ids, bit for bit.
+    fn files_identity(files: &SnowFiles) -> Option<u64> {
+        let m = &files.mesh;
+        let mut bytes = Vec::with_capacity(m.triangles.len() * 40);
+        for (t, o) in m.triangles.iter().zip(&m.object) {
+            for v in t {
+                for c in v.to_array() {
+                    bytes.extend_from_slice(&c.to_bits().to_le_bytes());
+                }
+            }
+            bytes.extend_from_slice(&o.to_le_bytes());
+        }
+        Some(crate::checkpoint::hash_bytes(&bytes))
+    }
+
     fn build(&self, files: SnowFiles) -> Result<Built<Self>, BuildError> {
         let SnowFiles { mesh, warnings, background } = files;
         let sim = SnowSim::new(mesh, self.snow.clone(), self.scene.seed).map_err(|e| self.refusal(e))?;

@@ -31,4 +31,6 @@ mod sim;
 
 pub use phenomena_core::phenomenon::RenderError;
 pub use render::{Background, Flakes, SnowRenderSettings, SnowRenderer, SnowView};
-pub use sim::{Footprint, SnowConfig, SnowError, SnowMap, SnowSim, StepStats, snowfall_directions};
+pub use sim::{
+    Footprint, SnowConfig, SnowError, SnowMap, SnowSim, SnowState, StepStats, snowfall_directions,
+};

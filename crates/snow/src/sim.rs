@@ -111,6 +111,9 @@ pub enum SnowError {
     /// The rasteriser refused.
     #[error(transparent)]
     Raster(#[from] RasterError),
+    /// A saved state does not fit this simulation.
+    #[error("the saved state does not fit this simulation: {0}")]
+    State(String),
 }
 
 /// The square grid shared by all snow maps: texel (i, j) is centred at
@@ -1063,5 +1066,79 @@ impl phenomena_core::phenomenon::Simulation for SnowSim {
 
     fn frames_done(&self) -> u64 {
         self.steps()
+    }
+
+    type State = SnowState;
+
+    fn state(&self) -> SnowState {
+        SnowSim::state(self)
+    }
+
+    fn restore(&mut self, state: SnowState) -> Result<(), SnowError> {
+        SnowSim::restore(self, state)
+    }
+}
+
+/// A checkpoint: what a [`SnowSim`] built from the same configuration and mesh needs to
+/// continue bit-identically (the groups, grounds and depth maps are rebuilt from the
+/// mesh; the probability is kept because it was drawn from the snow at its last update).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SnowState {
+    /// Steps completed.
+    pub steps: u64,
+    /// Time simulated, hours.
+    pub time_h: f64,
+    /// Snow volume that has left the scene, m³.
+    pub fallen_off_m3: f64,
+    /// Snow depth per map and texel, m.
+    pub snow_m: Vec<Vec<f32>>,
+    /// Snow probability per map and texel.
+    pub probability: Vec<Vec<f32>>,
+}
+
+impl SnowSim {
+    /// A checkpoint of the current state.
+    pub fn state(&self) -> SnowState {
+        SnowState {
+            steps: self.steps,
+            time_h: self.time_h,
+            fallen_off_m3: self.fallen_off_m3,
+            snow_m: self.maps.iter().map(|m| m.snow_m.clone()).collect(),
+            probability: self.maps.iter().map(|m| m.probability.clone()).collect(),
+        }
+    }
+
+    /// Continue from a checkpoint taken with [`SnowSim::state`] of a simulation built
+    /// from the same configuration and mesh. Refused, leaving `self` as it was, when
+    /// its maps differ in number or size from this simulation's, or hold a depth or
+    /// probability that is negative or not finite.
+    pub fn restore(&mut self, state: SnowState) -> Result<(), SnowError> {
+        let texels = self.maps.first().map_or(0, |m| m.snow_m.len());
+        let fits = |v: &[Vec<f32>]| v.len() == self.maps.len() && v.iter().all(|m| m.len() == texels);
+        if !fits(&state.snow_m) || !fits(&state.probability) {
+            return Err(SnowError::State(format!(
+                "{} snow and {} probability maps for {} maps of {texels} texels",
+                state.snow_m.len(),
+                state.probability.len(),
+                self.maps.len()
+            )));
+        }
+        let sane = |v: &[Vec<f32>], top: f32| v.iter().flatten().all(|&x| (0.0..=top).contains(&x));
+        if !sane(&state.snow_m, f32::MAX) || !sane(&state.probability, 1.0) {
+            return Err(SnowError::State(
+                "a depth or probability is negative, above range or not finite".into(),
+            ));
+        }
+        if !(state.time_h.is_finite() && state.fallen_off_m3.is_finite() && state.fallen_off_m3 >= 0.0) {
+            return Err(SnowError::State("the time or the fallen volume is not finite".into()));
+        }
+        for ((map, snow), p) in self.maps.iter_mut().zip(state.snow_m).zip(state.probability) {
+            map.snow_m = snow;
+            map.probability = p;
+        }
+        self.steps = state.steps;
+        self.time_h = state.time_h;
+        self.fallen_off_m3 = state.fallen_off_m3;
+        Ok(())
     }
 }

@@ -40,4 +40,4 @@ pub use config::{
 };
 pub use phenomena_core::phenomenon::RenderError;
 pub use render::{Background, GlareShape, RenderSettings, SparkleRenderer};
-pub use sim::{Glints, SparkleError, SparkleSim, StepStats};
+pub use sim::{Everything, Glints, SparkleError, SparkleSim, SparkleState, StepStats};

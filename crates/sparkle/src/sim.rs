@@ -41,7 +41,7 @@ use glam::Vec3;
 use phenomena_core::camera::Projection;
 use phenomena_core::rng::{Purpose, Stream};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use wide::f32x8;
 
@@ -85,10 +85,13 @@ pub enum SparkleError {
         /// The limit ([`crate::MAX_CANDIDATES`]).
         max: f64,
     },
+    /// A saved state does not fit this simulation.
+    #[error("the saved state does not fit this simulation: {0}")]
+    State(String),
 }
 
 /// The facets seen in the current frame, structure of arrays.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Glints {
     /// Positions, metres.
     pub position_m: Vec<Vec3>,
@@ -362,8 +365,8 @@ pub(crate) struct Motion {
 }
 
 /// Every facet of the full system (brute force).
-#[derive(Clone, Debug, Default)]
-struct Everything {
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Everything {
     position_m: Vec<Vec3>,
     normal: Vec<Vec3>,
     /// Frame since which the facet is seen, `u32::MAX` when it is not.
@@ -1300,6 +1303,82 @@ impl phenomena_core::phenomenon::Simulation for SparkleSim {
 
     fn frames_done(&self) -> u64 {
         u64::from(self.frame())
+    }
+
+    type State = SparkleState;
+
+    fn state(&self) -> SparkleState {
+        SparkleSim::state(self)
+    }
+
+    fn restore(&mut self, state: SparkleState) -> Result<(), SparkleError> {
+        SparkleSim::restore(self, state)
+    }
+}
+
+/// A checkpoint: what a [`SparkleSim`] built from the same configuration and seed needs
+/// to continue bit-identically (the space, lobe, tables and gust phases are rebuilt;
+/// every random number is keyed by seed, purpose, frame and cell, so no stream position
+/// is kept).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SparkleState {
+    /// Frame now shown.
+    pub frame: u32,
+    /// The facets seen now.
+    pub glints: Glints,
+    /// Facets seen within the memory window but not now.
+    pub ghosts: Glints,
+    /// Every facet, for the brute-force method (`None` for the stochastic one).
+    pub everything: Option<Everything>,
+}
+
+impl SparkleSim {
+    /// A checkpoint of the current state.
+    pub fn state(&self) -> SparkleState {
+        SparkleState {
+            frame: self.frame,
+            glints: self.glints.clone(),
+            ghosts: self.ghosts.clone(),
+            everything: self.everything.clone(),
+        }
+    }
+
+    /// Continue from a checkpoint taken with [`SparkleSim::state`] of a simulation with
+    /// the same configuration and seed. Refused, leaving `self` as it was, when its
+    /// method differs (brute force keeps every facet), its arrays differ in length or a
+    /// facet is not finite.
+    pub fn restore(&mut self, state: SparkleState) -> Result<(), SparkleError> {
+        let bad = |what: &str| Err(SparkleError::State(what.to_string()));
+        if state.everything.is_some() != self.everything.is_some() {
+            return bad("it was saved by the other method (brute force or stochastic)");
+        }
+        if let Some(e) = &state.everything {
+            let n = self.virtual_count as usize;
+            if [e.position_m.len(), e.normal.len(), e.since.len(), e.last_seen.len()].iter().any(|&l| l != n)
+            {
+                return bad("the brute-force population has the wrong number of facets");
+            }
+            if !e.position_m.iter().chain(&e.normal).all(|v| v.is_finite()) {
+                return bad("a facet is not finite");
+            }
+        }
+        for g in [&state.glints, &state.ghosts] {
+            let n = g.len();
+            if g.normal.len() != n || g.intensity.len() != n || g.birth_frame.len() != n {
+                return bad("glint arrays differ in length");
+            }
+            if !g.position_m.iter().chain(&g.normal).all(|v| v.is_finite())
+                || !g.intensity.iter().all(|i| i.is_finite())
+            {
+                return bad("a glint is not finite");
+            }
+        }
+        self.frame = state.frame;
+        self.glints = state.glints;
+        self.ghosts = state.ghosts;
+        self.everything = state.everything;
+        self.last = self.stats_now(0, 0, 0);
+        Ok(())
     }
 }
 

@@ -4,6 +4,7 @@
 mod assets;
 mod aurora_sky;
 mod bad_input;
+mod checkpoints;
 mod determinism;
 mod export_blackbody;
 mod new_and_demo;
