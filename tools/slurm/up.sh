@@ -23,6 +23,10 @@ chown munge:munge /run/munge /var/log/munge /var/lib/munge
 if ! pgrep -x munged >/dev/null; then
   runuser -u munge -- /usr/sbin/munged
 fi
+for _ in $(seq 1 20); do
+  [ -S /run/munge/munge.socket.2 ] && break
+  sleep 0.5
+done
 
 conf="$dir/slurm.conf"
 cat > "$conf" <<CONF
@@ -50,6 +54,8 @@ MpiDefault=none
 JobAcctGatherType=jobacct_gather/none
 AccountingStorageType=accounting_storage/none
 MinJobAge=3600
+JobCompType=jobcomp/filetxt
+JobCompLoc=$dir/log/jobcomp.txt
 NodeName=$host CPUs=$cpus RealMemory=$mem_mib State=UNKNOWN
 PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF

@@ -3,6 +3,7 @@
 
 mod demo;
 mod export;
+mod farm;
 mod render;
 #[cfg(feature = "studio")]
 mod studio;
@@ -32,12 +33,22 @@ fn phenomenon_names() -> PossibleValuesParser {
 }
 
 /// Image formats of `render`.
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum FormatArg {
     /// 8-bit sRGB PNG, exposed and tone mapped.
     Png,
     /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping).
     Exr,
+}
+
+impl FormatArg {
+    /// The name on the command line.
+    fn name(self) -> &'static str {
+        match self {
+            FormatArg::Png => "png",
+            FormatArg::Exr => "exr",
+        }
+    }
 }
 
 /// Simulate and render natural phenomena: flame, aurora, snow cover and sparkle.
@@ -122,6 +133,11 @@ enum Command {
         #[arg(long)]
         stats: Option<PathBuf>,
     },
+    /// Render on a farm: write (and submit) the jobs of a farm manager.
+    Farm {
+        #[command(subcommand)]
+        manager: FarmManager,
+    },
     /// Export data products.
     Export {
         #[command(subcommand)]
@@ -175,6 +191,51 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
+    },
+}
+
+/// Farm managers.
+#[derive(Subcommand, Debug)]
+enum FarmManager {
+    /// Slurm: OUT/farm/simulate.sbatch simulates the scene once, writing a checkpoint
+    /// every CHUNK frames; OUT/farm/render.sbatch, an array job started after it
+    /// succeeds, renders chunk i (frames i*CHUNK..) from its checkpoint into OUT/frames.
+    Slurm {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output folder: frames/, checkpoints/, farm/ (scripts and logs).
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames per render task.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+        chunk: u32,
+        /// Slurm partition (default: the cluster's default).
+        #[arg(long)]
+        partition: Option<String>,
+        /// Submit the jobs with sbatch (otherwise run OUT/farm/submit.sh yourself).
+        #[arg(long)]
+        submit: bool,
+        /// CPUs per job (each job uses that many threads).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1024))]
+        cpus_per_task: u16,
+        /// The phenomena binary the jobs run, as the compute nodes see it (default: this one).
+        #[arg(long, value_name = "PATH")]
+        phenomena: Option<PathBuf>,
+        /// Image width in pixels (overrides the scene).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+        width: Option<u32>,
+        /// Image height in pixels (overrides the scene).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+        height: Option<u32>,
+        /// Random seed (overrides the scene).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Image format.
+        #[arg(long, value_enum, default_value_t = FormatArg::Png)]
+        format: FormatArg,
+        /// What to draw (one of the phenomenon's views).
+        #[arg(long, value_parser = view_names())]
+        view: Option<String>,
     },
 }
 
@@ -363,6 +424,53 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     ..RenderJob::new(checkpoint_dir, ImageFormat::Png)
                 },
             )
+        }
+        Command::Farm {
+            manager:
+                FarmManager::Slurm {
+                    scene,
+                    out,
+                    chunk,
+                    partition,
+                    submit,
+                    cpus_per_task,
+                    phenomena,
+                    width,
+                    height,
+                    seed,
+                    format,
+                    view,
+                },
+        } => {
+            let mut render_args = Vec::new();
+            let mut simulate_args = Vec::new();
+            for (flag, value) in
+                [("--width", width.map(|w| w.to_string())), ("--height", height.map(|h| h.to_string()))]
+            {
+                if let Some(v) = value {
+                    render_args.extend([flag.to_string(), v]);
+                }
+            }
+            if let Some(s) = seed {
+                for args in [&mut render_args, &mut simulate_args] {
+                    args.extend(["--seed".to_string(), s.to_string()]);
+                }
+            }
+            render_args.extend(["--format".to_string(), format.name().to_string()]);
+            if let Some(v) = view {
+                render_args.extend(["--view".to_string(), v]);
+            }
+            farm::slurm(&farm::FarmJob {
+                scene,
+                out,
+                chunk,
+                partition,
+                submit,
+                render_args,
+                simulate_args,
+                cpus_per_task,
+                binary: phenomena,
+            })
         }
         Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
             export::blackbody(min_k, max_k, step_k, format, &out)
