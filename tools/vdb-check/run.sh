@@ -1,0 +1,24 @@
+#!/bin/sh
+# Writes the test volumes of crates/core/examples/vdb_sample.rs and reads every one
+# back with OpenVDB's own Python module (Debian's python3-openvdb, OpenVDB 10), checking
+# it against the expectations written beside it (check.py). Needs
+# `apt-get install python3-openvdb`.
+#   tools/vdb-check/run.sh [OUT_DIR]     (default: target/vdb-check)
+set -eu
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+out=${1:-"$root/target/vdb-check"}
+python=/usr/bin/python3
+if ! "$python" -c "import pyopenvdb" 2>/dev/null; then
+    echo "run.sh: $python has no pyopenvdb; install Debian's python3-openvdb" >&2
+    exit 2
+fi
+rm -rf "$out"
+mkdir -p "$out"
+(cd "$root" && cargo run --quiet --release -p phenomena-core --example vdb_sample -- "$out")
+set --
+for json in "$out"/*.json; do
+    set -- "$@" "${json%.json}.vdb" "$json"
+done
+"$python" "$here/check.py" "$@"
+
