@@ -3,6 +3,11 @@
 # back with OpenVDB's own Python module (Debian's python3-openvdb, OpenVDB 10), checking
 # it against the expectations written beside it (check.py). Needs
 # `apt-get install python3-openvdb`.
+#
+# If the C++ library's headers are there too (`apt-get install libopenvdb-dev
+# libboost-dev libimath-dev`), each file is also read and written again by OpenVDB's
+# own writer (rewrite.cpp) and the two compared byte for byte (compare.py).
+#
 #   tools/vdb-check/run.sh [OUT_DIR]     (default: target/vdb-check)
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
@@ -22,3 +27,14 @@ for json in "$out"/*.json; do
 done
 "$python" "$here/check.py" "$@"
 
+if [ -f /usr/include/openvdb/openvdb.h ] && command -v g++ >/dev/null; then
+    g++ -O1 -std=c++17 "$here/rewrite.cpp" -o "$out/rewrite" -lopenvdb -ltbb -lImath-3_1
+    for vdb in "$out"/*.vdb; do
+        "$out/rewrite" "$vdb" "$out/openvdb.tmp"
+        echo "same as OpenVDB's writer: $(basename "$vdb")"
+        "$python" "$here/compare.py" "$vdb" "$out/openvdb.tmp"
+    done
+    rm -f "$out/openvdb.tmp"
+else
+    echo "run.sh: no /usr/include/openvdb (libopenvdb-dev): skipped the byte comparison with OpenVDB's writer"
+fi
