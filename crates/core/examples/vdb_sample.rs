@@ -229,8 +229,7 @@ fn main() {
     let e = expect(&spread, &probes, [-5000, 5000, -5000], Some((dir, "spread.bin")));
     write(dir, "spread", &[AnyGrid::from(&spread)], &none, vec![e]);
 
-    // A flame-like frame: density, temperature and vector emission from the same splats,
-    // with repeated names made unique by the writer.
+    // A flame-like frame: density, temperature and vector emission from the same splats.
     let flame_t = Transform::new(0.01, [-0.2, 0.0, -0.2]).expect("transform");
     let mut density = Grid::<f32>::new("density", flame_t, GridClass::FogVolume);
     let mut heat = Grid::<f32>::new("temperature", flame_t, GridClass::Unknown);
