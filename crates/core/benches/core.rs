@@ -1,4 +1,5 @@
-//! Core hot paths: neighbour-grid build and queries, separable blur, blackbody XYZ.
+//! Core hot paths: neighbour-grid build and queries, separable blur, blackbody XYZ, VDB
+//! encoding.
 //!
 //! Run with `cargo bench -p phenomena-core --bench core`.
 
@@ -8,6 +9,7 @@ use phenomena_core::color::{Observer, blackbody_xyz};
 use phenomena_core::grid::NeighborGrid;
 use phenomena_core::image::Plane;
 use phenomena_core::rng::{Purpose, Stream};
+use phenomena_core::vdb::{AnyGrid, Grid, GridClass, Metadata, Transform, encode_into};
 use std::hint::black_box;
 
 /// The fixed reference workload reported beside these numbers (issue 23).
@@ -82,5 +84,106 @@ fn srgb(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, reference::reference, grid, blur, blackbody, srgb);
+/// A thin curtain: a sheet 4 voxels thick waving through 2000 × 125 voxels (10^6 active
+/// voxels, leaves about half full), with values varying by `seed`.
+fn curtain(seed: f32) -> Grid<f32> {
+    let transform = Transform::new(100.0, [0.0, 0.0, 100_000.0]).expect("transform");
+    let mut g = Grid::new("emission_557_7nm", transform, GridClass::FogVolume);
+    for x in 0..2000 {
+        let z0 = (40.0 * (x as f32 / 100.0).sin()) as i32;
+        for y in 0..125 {
+            for z in z0..z0 + 4 {
+                g.add([x, y, z], 1.0 + seed + (x + y + z) as f32 * 1e-3);
+            }
+        }
+    }
+    g
+}
+
+fn vdb(c: &mut Criterion) {
+    let mut g = c.benchmark_group("vdb");
+    g.sample_size(20);
+    let mut out = Vec::new();
+
+    // Encoding alone: one float grid of 10^6 active voxels.
+    let sheet = curtain(0.0);
+    assert_eq!(sheet.active_voxel_count(), 1_000_000);
+    g.bench_function("encode_float_1e6", |b| {
+        b.iter(|| {
+            encode_into(&[AnyGrid::from(&sheet)], &Metadata::new(), &mut out);
+            out.len()
+        })
+    });
+
+    // An aurora frame: five float grids of 2 x 10^6 active voxels each (10^7 in all).
+    let lines: Vec<Grid<f32>> = (0..5)
+        .map(|k| {
+            let mut a = curtain(k as f32);
+            let b = curtain(k as f32 + 0.5);
+            for (origin, values) in b.leaves() {
+                let dst = a.leaf_mut([origin[0], origin[1] + 1000, origin[2]]);
+                dst.copy_from_slice(values);
+            }
+            a
+        })
+        .collect();
+    assert!(lines.iter().all(|l| l.active_voxel_count() == 2_000_000));
+    let refs: Vec<AnyGrid<'_>> = lines.iter().map(AnyGrid::from).collect();
+    g.bench_function("aurora_frame_5x2e6", |b| {
+        b.iter(|| {
+            encode_into(&refs, &Metadata::new(), &mut out);
+            out.len()
+        })
+    });
+
+    // A flame frame from scratch: 30,000 particles in 0.4 x 1.2 x 0.4 m splatted at 1 cm
+    // over 3^3 voxels into density, temperature and a vector emission, then encoded.
+    let mut s = Stream::new(1, Purpose::named("bench.vdb.flame"), 0);
+    let particles: Vec<(Vec3, f32)> = (0..30_000)
+        .map(|_| {
+            (Vec3::new(s.next_f32() * 0.4, s.next_f32() * 1.2, s.next_f32() * 0.4), s.uniform(1200.0, 2000.0))
+        })
+        .collect();
+    let t = Transform::new(0.01, [0.0; 3]).expect("transform");
+    let mut density = Grid::<f32>::new("density", t, GridClass::FogVolume);
+    let mut temperature = Grid::<f32>::new("temperature", t, GridClass::Unknown);
+    let mut emission = Grid::<[f32; 3]>::new("emission", t, GridClass::Unknown);
+    g.bench_function("flame_frame_30k_particles", |b| {
+        b.iter(|| {
+            density.clear();
+            temperature.clear();
+            emission.clear();
+            for &(p, kelvin) in &particles {
+                let c = (p / 0.01).round().as_ivec3();
+                for dx in -1..=1 {
+                    for dy in -1..=1 {
+                        for dz in -1..=1 {
+                            let w = [1.0, 0.5, 1.0][(dx + 1) as usize]
+                                * [1.0, 0.5, 1.0][(dy + 1) as usize]
+                                * 0.125;
+                            let ijk = [c.x + dx, c.y + dy, c.z + dz];
+                            density.add(ijk, w);
+                            temperature.add(ijk, w * kelvin);
+                            emission.add(ijk, [w, 0.6 * w, 0.2 * w]);
+                        }
+                    }
+                }
+            }
+            let grids = [AnyGrid::from(&density), AnyGrid::from(&temperature), AnyGrid::from(&emission)];
+            encode_into(&grids, &Metadata::new(), &mut out);
+            out.len()
+        })
+    });
+    // The encoding part of that frame alone.
+    g.bench_function("flame_frame_encode_only", |b| {
+        b.iter(|| {
+            let grids = [AnyGrid::from(&density), AnyGrid::from(&temperature), AnyGrid::from(&emission)];
+            encode_into(&grids, &Metadata::new(), &mut out);
+            out.len()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, reference::reference, grid, blur, blackbody, srgb, vdb);
 criterion_main!(benches);

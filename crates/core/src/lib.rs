@@ -16,6 +16,7 @@
 //!   [`phenomenon::Renderer`]).
 //! - [`clock`]: timings through a clock the caller injects (libraries read no clock).
 //! - [`serde_vec`]: strict `[x, y, z]` parsing for configuration files.
+//! - [`vdb`]: sparse float and vector grids encoded as OpenVDB `.vdb` files (bytes only).
 //!
 //! This crate does no file, terminal or network IO and reads no clock.
 //!
@@ -47,3 +48,4 @@ pub mod rng;
 pub mod serde_vec;
 pub mod tonemap;
 pub mod validate;
+pub mod vdb;
