@@ -2,7 +2,8 @@
 //! renewal of the intermediate shape's field and one motion step (issue 3's targets:
 //! ≤ 20 ms and ≤ 15 ms), the Poisson solvers alone, and the full frame of issue 4
 //! (step + emission + splat + colour at 1280×720: ≤ 250 ms) and its 640×360 preview
-//! with 30,000 particles (≥ 20 frames per second, i.e. ≤ 50 ms).
+//! with 30,000 particles (≥ 20 frames per second, i.e. ≤ 50 ms); the five line volumes
+//! of a frame as one OpenVDB file (issue 21: ≤ 200 ms).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use glam::Vec2;
@@ -105,5 +106,31 @@ fn full_frame(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, reference::reference, poisson, renewal_and_motion, full_frame);
+/// Issue 21's target: the five line volumes of 120,000 particles at 1 km voxels,
+/// voxelised and encoded as one OpenVDB file, within 200 ms.
+#[allow(clippy::print_stderr, reason = "the bench reports the volume's size beside criterion's times")]
+fn line_volumes(c: &mut Criterion) {
+    use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
+    let sim = settled();
+    let settings = SkySettings::default();
+    let sky = SkyRenderer::new(settings.clone(), 64, 36, None).expect("sky");
+    let column = sky.column_model().expect("physical mode");
+    let mut bytes = Vec::new();
+    let mut group = c.benchmark_group("aurora_vdb");
+    group.sample_size(20);
+    group.bench_function("line_volumes_120k_1km", |b| {
+        b.iter(|| {
+            let grids = phenomena_aurora::volume::line_volumes(&sim, &settings, column, 1.0).expect("volumes");
+            let any: Vec<AnyGrid<'_>> = grids.iter().map(AnyGrid::from).collect();
+            encode_into(&any, &Metadata::new(), &mut bytes);
+            black_box(bytes.len())
+        })
+    });
+    group.finish();
+    let grids = phenomena_aurora::volume::line_volumes(&sim, &settings, column, 1.0).expect("volumes");
+    let voxels: u64 = grids.iter().map(|g| g.active_voxel_count()).sum();
+    eprintln!("aurora line volumes: {} particles, {voxels} active voxels, {} bytes", sim.particles().len(), bytes.len());
+}
+
+criterion_group!(benches, reference::reference, poisson, renewal_and_motion, full_frame, line_volumes);
 criterion_main!(benches);

@@ -27,6 +27,7 @@ mod render;
 pub mod shape;
 mod sim;
 pub mod sky;
+pub mod volume;
 
 pub use config::{
     AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,

@@ -134,6 +134,23 @@ impl AuroraRenderer {
     }
 }
 
+impl AuroraRenderer {
+    /// The five line volumes of `sim` now at `voxel_km` ([`crate::volume`]): the sky
+    /// view's geometry and the physical mode's altitude profiles.
+    pub fn line_volumes(
+        &self,
+        sim: &AuroraSim,
+        voxel_km: f64,
+    ) -> Result<[phenomena_core::vdb::Grid<f32>; 5], crate::volume::VolumeError> {
+        let sky = match &self.target {
+            Target::Sky(sky) => sky,
+            Target::Plane(_) => return Err(crate::volume::VolumeError::PlaneView),
+        };
+        let column = sky.column_model().ok_or(crate::volume::VolumeError::PaperMode)?;
+        crate::volume::line_volumes(sim, sky.settings(), column, voxel_km)
+    }
+}
+
 impl phenomena_core::phenomenon::Renderer<AuroraSim> for AuroraRenderer {
     fn render(&mut self, sim: &AuroraSim) -> &Frame {
         AuroraRenderer::render(self, sim)

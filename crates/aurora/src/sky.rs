@@ -335,7 +335,7 @@ impl SkySettings {
     }
 
     /// Unit vector along B into the atmosphere, and the horizontal drift per km of descent.
-    fn field(&self) -> (DVec3, DVec3) {
+    pub(crate) fn field(&self) -> (DVec3, DVec3) {
         let (tilt, az) =
             (f64::from(self.field_tilt_deg).to_radians(), f64::from(self.field_azimuth_deg).to_radians());
         let drift = DVec3::new(az.sin(), 0.0, az.cos()) * tilt.tan();

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use anyhow::Result;
-use phenomena_scene::output::ImageFormat;
+use phenomena_scene::output::Format;
 use phenomena_scene::{Assets, registry};
 
 use crate::export::{self, TableFormat};
@@ -21,7 +21,7 @@ pub(crate) fn run(out: &Path, threads: Option<usize>) -> Result<String> {
             width: Some(demo.size.0),
             height: Some(demo.size.1),
             threads,
-            ..RenderJob::new(out.join(shipped.name), ImageFormat::Png)
+            ..RenderJob::new(out.join(shipped.name), Format::Png)
         };
         // Shipped scenes read no files.
         lines.push(render::run_scene(scene, &Assets::none(), &job)?);

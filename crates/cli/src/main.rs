@@ -13,7 +13,7 @@ use std::process::ExitCode;
 
 use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
-use phenomena_scene::output::{ImageFormat, ensure_dir, write_bytes_atomic};
+use phenomena_scene::output::{Format, ensure_dir, write_bytes_atomic};
 use phenomena_scene::{Assets, registry};
 
 use crate::export::TableFormat;
@@ -39,15 +39,74 @@ enum FormatArg {
     Png,
     /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping).
     Exr,
+    /// OpenVDB volumes, one per frame (flame: density, temperature, emission; aurora:
+    /// one emission grid per line).
+    Vdb,
+    /// Binary PLY particle caches, one per frame (flame, aurora, sparkle).
+    Ply,
+    /// One atlas PNG of every frame and a JSON descriptor, for game engines (flame,
+    /// sparkle).
+    Flipbook,
 }
 
 impl FormatArg {
+    /// The scene layer's format.
+    fn format(self) -> Format {
+        match self {
+            FormatArg::Png => Format::Png,
+            FormatArg::Exr => Format::Exr,
+            FormatArg::Vdb => Format::Vdb,
+            FormatArg::Ply => Format::Ply,
+            FormatArg::Flipbook => Format::Flipbook,
+        }
+    }
+
     /// The name on the command line.
     fn name(self) -> &'static str {
-        match self {
-            FormatArg::Png => "png",
-            FormatArg::Exr => "exr",
-        }
+        self.format().name()
+    }
+}
+
+/// How a flipbook stores alpha.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum AlphaArg {
+    /// Colour not multiplied by alpha.
+    Straight,
+    /// Colour multiplied by alpha.
+    Premultiplied,
+}
+
+/// Options of the vdb and flipbook formats.
+#[derive(clap::Args, Debug)]
+struct OutputArgs {
+    /// vdb: voxel size in metres (default: the flame's 0.01).
+    #[arg(long, value_name = "M", conflicts_with = "voxel_km")]
+    voxel_m: Option<f64>,
+    /// vdb: voxel size in km (the aurora; default 1).
+    #[arg(long, value_name = "KM")]
+    voxel_km: Option<f64>,
+    /// flipbook: cells and grid in powers of two (frames resampled to the cell size).
+    #[arg(long)]
+    pot: bool,
+    /// flipbook: straight or premultiplied alpha.
+    #[arg(long, value_enum, default_value_t = AlphaArg::Straight)]
+    alpha: AlphaArg,
+    /// flipbook: a seamless loop, the last K frames cross-faded into the first.
+    #[arg(long = "loop", value_name = "K", default_value_t = 0)]
+    loop_frames: u32,
+}
+
+impl OutputArgs {
+    fn apply(&self, job: &mut RenderJob) {
+        job.volume.voxel_m = self.voxel_m.or(self.voxel_km.map(|km| km * 1e3));
+        job.flipbook = render::FlipbookArgs {
+            power_of_two: self.pot,
+            alpha: match self.alpha {
+                AlphaArg::Straight => phenomena_scene::flipbook::Alpha::Straight,
+                AlphaArg::Premultiplied => phenomena_scene::flipbook::Alpha::Premultiplied,
+            },
+            loop_frames: self.loop_frames,
+        };
     }
 }
 
@@ -92,9 +151,12 @@ enum Command {
         /// Worker threads (default: one per core). Output is identical for any count.
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
-        /// Image format: png (tone mapped, 8-bit sRGB) or exr (linear float radiance).
+        /// Output format: png (tone mapped, 8-bit sRGB), exr (linear float radiance), vdb
+        /// (volumes), ply (particle caches) or flipbook (one atlas of every frame).
         #[arg(long, value_enum, default_value_t = FormatArg::Png)]
         format: FormatArg,
+        #[command(flatten)]
+        output: OutputArgs,
         /// Skip frames whose files already exist (they are still simulated).
         #[arg(long)]
         resume: bool,
@@ -388,27 +450,23 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             stats,
             view,
             checkpoints,
+            output,
         } => {
-            let format = match format {
-                FormatArg::Png => ImageFormat::Png,
-                FormatArg::Exr => ImageFormat::Exr,
+            let mut job = RenderJob {
+                frames,
+                width,
+                height,
+                seed,
+                threads: threads.map(usize::from),
+                resume,
+                stats,
+                view,
+                checkpoint_every: checkpoints.checkpoint_every,
+                checkpoint_dir: checkpoints.checkpoint_dir,
+                ..RenderJob::new(out, format.format())
             };
-            render::run(
-                &scene,
-                &RenderJob {
-                    frames,
-                    width,
-                    height,
-                    seed,
-                    threads: threads.map(usize::from),
-                    resume,
-                    stats,
-                    view,
-                    checkpoint_every: checkpoints.checkpoint_every,
-                    checkpoint_dir: checkpoints.checkpoint_dir,
-                    ..RenderJob::new(out, format)
-                },
-            )
+            output.apply(&mut job);
+            render::run(&scene, &job)
         }
         Command::Simulate { scene, frames, seed, threads, checkpoint_every, checkpoint_dir, stats } => {
             render::run(
@@ -421,7 +479,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     checkpoint_every: Some(checkpoint_every),
                     checkpoint_dir: Some(checkpoint_dir.clone()),
                     images: false,
-                    ..RenderJob::new(checkpoint_dir, ImageFormat::Png)
+                    ..RenderJob::new(checkpoint_dir, Format::Png)
                 },
             )
         }

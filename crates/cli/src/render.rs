@@ -10,12 +10,14 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use phenomena_core::clock::{Clock, SharedClock};
+use phenomena_scene::flipbook::{Alpha, FlipbookOptions};
 use phenomena_scene::output::{
-    CheckpointSink, ImageFormat, ImageSink, ensure_dir, list_checkpoints, read_checkpoint, write_bytes_atomic,
+    CheckpointSink, Data, DataSink, FlipbookSink, Format, ImageFormat, ImageSink, ensure_dir,
+    list_checkpoints, read_checkpoint, write_bytes_atomic,
 };
 use phenomena_scene::{
     Assets, BuildError, FrameRecord, FrameSink, Limits, Observer, Only, RunError, Runner, Scene, Simulate,
-    Tee,
+    Tee, VolumeOptions,
 };
 
 /// Set by SIGINT or SIGTERM while a render runs: the render stops after its frame.
@@ -48,7 +50,11 @@ pub(crate) struct RenderJob {
     pub(crate) height: Option<u32>,
     pub(crate) seed: Option<u64>,
     pub(crate) threads: Option<usize>,
-    pub(crate) format: ImageFormat,
+    pub(crate) format: Format,
+    /// Voxel size of `vdb` frames (the phenomenon's default when not given).
+    pub(crate) volume: VolumeOptions,
+    /// Layout of a `flipbook`.
+    pub(crate) flipbook: FlipbookArgs,
     pub(crate) resume: bool,
     pub(crate) stats: Option<PathBuf>,
     pub(crate) view: Option<String>,
@@ -64,7 +70,7 @@ pub(crate) struct RenderJob {
 impl RenderJob {
     /// A job writing `format` frames into `out_dir` with every other option at its
     /// default.
-    pub(crate) fn new(out_dir: PathBuf, format: ImageFormat) -> Self {
+    pub(crate) fn new(out_dir: PathBuf, format: Format) -> Self {
         Self {
             out_dir,
             frames: None,
@@ -73,6 +79,8 @@ impl RenderJob {
             seed: None,
             threads: None,
             format,
+            volume: VolumeOptions::default(),
+            flipbook: FlipbookArgs { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0 },
             resume: false,
             stats: None,
             view: None,
@@ -86,6 +94,94 @@ impl RenderJob {
     /// The checkpoint folder: `--checkpoint-dir`, else `OUT/checkpoints`.
     fn checkpoints(&self) -> PathBuf {
         self.checkpoint_dir.clone().unwrap_or_else(|| self.out_dir.join("checkpoints"))
+    }
+}
+
+/// A flipbook's options from the command line (its rate comes from the scene).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FlipbookArgs {
+    pub(crate) power_of_two: bool,
+    pub(crate) alpha: Alpha,
+    pub(crate) loop_frames: u32,
+}
+
+/// Where a render's frames go, by format.
+enum Frames {
+    Image(ImageSink),
+    Data(DataSink),
+    Flipbook(FlipbookSink),
+}
+
+impl Frames {
+    /// The sink for `job`'s format, for `frames` frames of `width × height`.
+    fn new(job: &RenderJob, frames: u32, width: u32, height: u32, fps: f64) -> Result<Self> {
+        let (dir, resume) = (&job.out_dir, job.resume);
+        Ok(match job.format {
+            Format::Png => Frames::Image(ImageSink::new(dir, ImageFormat::Png, resume)?),
+            Format::Exr => Frames::Image(ImageSink::new(dir, ImageFormat::Exr, resume)?),
+            Format::Vdb => Frames::Data(DataSink::new(dir, Data::Volume(job.volume), resume)?),
+            Format::Ply => Frames::Data(DataSink::new(dir, Data::Points, resume)?),
+            Format::Flipbook => {
+                if resume {
+                    bail!(
+                        "--resume keeps finished frame files; a flipbook is one file made of every frame: render it again without --resume"
+                    );
+                }
+                let f = job.flipbook;
+                let options = FlipbookOptions {
+                    power_of_two: f.power_of_two,
+                    alpha: f.alpha,
+                    loop_frames: f.loop_frames,
+                    fps,
+                };
+                Frames::Flipbook(FlipbookSink::new(dir, frames, width, height, options)?)
+            }
+        })
+    }
+
+    /// The file of frame `index`, for formats with a file per frame.
+    fn path(&self, index: u32) -> Option<PathBuf> {
+        match self {
+            Frames::Image(s) => Some(s.path(index)),
+            Frames::Data(s) => Some(s.path(index)),
+            Frames::Flipbook(_) => None,
+        }
+    }
+
+    fn sink(&mut self) -> &mut dyn FrameSink {
+        match self {
+            Frames::Image(s) => s,
+            Frames::Data(s) => s,
+            Frames::Flipbook(s) => s,
+        }
+    }
+
+    /// What was written, for the summary.
+    fn summary(&self, kept_before: u32, dir: &Path) -> String {
+        let (written, kept) = match self {
+            Frames::Image(s) => (s.written(), s.kept()),
+            Frames::Data(s) => (s.written(), s.kept()),
+            Frames::Flipbook(s) => {
+                let l = s.layout();
+                return format!(
+                    "wrote a flipbook of {} frame(s) in {}x{} cells of {}x{} ({}x{} pixels) to {}",
+                    l.frames,
+                    l.columns,
+                    l.rows,
+                    l.frame_width,
+                    l.frame_height,
+                    l.atlas_width,
+                    l.atlas_height,
+                    s.image_path().display()
+                );
+            }
+        };
+        let kept = kept + kept_before;
+        format!(
+            "wrote {written} frame(s){} to {}",
+            if kept > 0 { format!(", kept {kept} finished frame(s)") } else { String::new() },
+            dir.display()
+        )
     }
 }
 
@@ -238,8 +334,17 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
             range.end
         );
     }
+    if job.images {
+        scene.supports(job.format).map_err(|e| anyhow::anyhow!("--format {}: {e}", job.format.name()))?;
+        if job.format == Format::Flipbook {
+            scene.emission_only().map_err(anyhow::Error::msg)?;
+        }
+    }
+    let (width, height) = (scene.settings().width, scene.settings().height);
+    // The frame time is an f32 of the scene (1/60 reads 59.9999969): to a micro-frame.
+    let fps = (1e6 / scene.frame_time_s()).round() / 1e6;
     let mut images =
-        if job.images { Some(ImageSink::new(&job.out_dir, job.format, job.resume)?) } else { None };
+        if job.images { Some(Frames::new(job, range.len() as u32, width, height, fps)?) } else { None };
     let checkpoint_dir = job.checkpoints();
     let mut checkpoints =
         job.checkpoint_every.map(|n| CheckpointSink::new(&checkpoint_dir, n)).transpose()?;
@@ -263,7 +368,9 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         warn(&runner);
         // The first frame to make: with --resume, the first whose file is missing.
         let first = match &images {
-            Some(sink) if job.resume => range.clone().find(|&i| !sink.path(i).is_file()).unwrap_or(range.end),
+            Some(sink) if job.resume => {
+                range.clone().find(|&i| !sink.path(i).is_some_and(|p| p.is_file())).unwrap_or(range.end)
+            }
             _ => range.start,
         };
         started_at = restore_newest(&mut runner, &checkpoint_dir, first, job.quiet);
@@ -271,7 +378,7 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         let mut progress = Progress::new(range.clone(), started_at, job.quiet, job.stats.is_some());
         let mut nothing = Simulate;
         let image_sink: &mut dyn FrameSink = match images.as_mut() {
-            Some(s) => s,
+            Some(s) => s.sink(),
             None => &mut nothing,
         };
         let mut only = Only { frames: range.clone(), sink: image_sink };
@@ -299,12 +406,7 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
     if let Some(sink) = &images {
         // With --resume, the frames before the checkpoint it started from exist too.
         let before = if job.resume { started_at.saturating_sub(range.start) } else { 0 };
-        let (written, kept) = (sink.written(), sink.kept() + before);
-        parts.push(format!(
-            "wrote {written} frame(s){} to {}",
-            if kept > 0 { format!(", kept {kept} finished frame(s)") } else { String::new() },
-            job.out_dir.display()
-        ));
+        parts.push(sink.summary(before, &job.out_dir));
     }
     if let Some(c) = &checkpoints {
         parts.push(format!("wrote {} checkpoint(s) to {}", c.written(), checkpoint_dir.display()));

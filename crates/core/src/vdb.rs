@@ -633,6 +633,41 @@ impl<T: Voxel> Grid<T> {
         i as usize
     }
 
+    /// Make room for `more` leaves beyond those there (one allocation instead of a
+    /// vector that doubles while a frame fills it).
+    pub fn reserve_leaves(&mut self, more: usize) {
+        self.leaves.reserve(more);
+        self.origins.reserve(more);
+        self.index.reserve(more);
+    }
+
+    /// Add new leaves at `origins` (leaf origins, as [`Grid::leaf_origin`] gives, none of
+    /// them in the grid yet, no two the same) and return their values, all zero, in that
+    /// order, for the caller to fill (in parallel, say). `None`, and nothing added, when
+    /// an origin is not a leaf origin, repeats or is already there.
+    pub fn append_leaves(&mut self, origins: &[[i32; 3]]) -> Option<&mut [[T; LEAF_VOXELS]]> {
+        let start = self.leaves.len();
+        self.index.reserve(origins.len());
+        for (k, &o) in origins.iter().enumerate() {
+            if Self::leaf_origin(o) != o || self.index.insert(o, (start + k) as u32).is_some() {
+                // Undo: the ones added so far, and the clashing one's earlier index.
+                for &added in &origins[..k] {
+                    self.index.remove(&added);
+                }
+                if Self::leaf_origin(o) == o
+                    && let Some(at) = self.origins.iter().position(|&e| e == o)
+                {
+                    self.index.insert(o, at as u32);
+                }
+                self.recent = [(NO_LEAF, 0); CACHE_SLOTS];
+                return None;
+            }
+        }
+        self.origins.extend_from_slice(origins);
+        self.leaves.resize(start + origins.len(), [T::ZERO; LEAF_VOXELS]);
+        Some(&mut self.leaves[start..])
+    }
+
     /// The values of the leaf holding voxel `ijk`, created (all zero) if absent, indexed
     /// by [`Grid::leaf_offset`]: the fast way to fill a whole leaf.
     pub fn leaf_mut(&mut self, ijk: [i32; 3]) -> &mut [T; LEAF_VOXELS] {
@@ -1196,6 +1231,35 @@ mod tests {
 
     fn unit() -> Transform {
         Transform::new(1.0, [0.0; 3]).unwrap()
+    }
+
+    /// Appended leaves are the same grid as leaves made voxel by voxel; a clash adds
+    /// nothing and keeps the grid as it was.
+    #[test]
+    fn appended_leaves_equal_voxels_set_one_by_one() {
+        let mut a = Grid::<f32>::new("d", unit(), GridClass::FogVolume);
+        a.set([3, 0, 0], 2.0);
+        let leaves = a.append_leaves(&[[8, 0, 0], [-8, 16, 0]]).unwrap();
+        assert!(leaves.iter().flatten().all(|&v| v == 0.0));
+        leaves[0][Grid::<f32>::leaf_offset([9, 1, 2])] = 5.0;
+        leaves[1][Grid::<f32>::leaf_offset([-7, 16, 0])] = 6.0;
+        let mut b = Grid::<f32>::new("d", unit(), GridClass::FogVolume);
+        b.set([-7, 16, 0], 6.0);
+        b.set([9, 1, 2], 5.0);
+        b.set([3, 0, 0], 2.0);
+        assert_eq!(encode(&[(&a).into()], &Metadata::new()), encode(&[(&b).into()], &Metadata::new()));
+        // Clashes: an origin already there, a repeated one, one that is not a leaf origin.
+        for bad in [&[[16, 0, 0], [0, 0, 0]][..], &[[24, 0, 0], [24, 0, 0]], &[[1, 0, 0]]] {
+            assert!(a.append_leaves(bad).is_none(), "{bad:?}");
+        }
+        assert_eq!(a.get([3, 0, 0]), 2.0);
+        a.add([3, 0, 0], 1.0);
+        assert_eq!(a.get([3, 0, 0]), 3.0);
+        assert_eq!(a.leaf_count(), 3);
+        assert_eq!(encode(&[(&a).into()], &Metadata::new()), {
+            b.add([3, 0, 0], 1.0);
+            encode(&[(&b).into()], &Metadata::new())
+        });
     }
 
     /// A reader of the bytes written, for the layout checks.

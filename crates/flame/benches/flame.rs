@@ -2,6 +2,8 @@
 //! the two together, at the particle counts of issue 2 (10,000 and 30,000) and the
 //! paper's 3,000.
 //!
+//! Also one OpenVDB frame of 30,000 particles (`flame_vdb`).
+//!
 //! Run with `cargo bench -p phenomena-flame --bench flame`. The flame is the campfire-like
 //! configuration below, warmed up until its particle count is steady.
 
@@ -75,5 +77,26 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, reference::reference, bench);
+/// Issue 21's target: one VDB frame of 30,000 particles at 1 cm voxels (voxelising the
+/// three grids and encoding the file) within 50 ms.
+fn volume(c: &mut Criterion) {
+    use phenomena_core::vdb::{AnyGrid, Metadata, encode};
+    let sim = warm(30_000);
+    let r = renderer(30_000, 0.5);
+    let mut g = c.benchmark_group("flame_vdb");
+    g.sample_size(20);
+    g.bench_function("frame_30000_particles_1cm", |b| {
+        b.iter(|| {
+            let v =
+                phenomena_flame::volume::voxelize(sim.particles(), sim.config(), r.settings(), r.lut(), 0.01)
+                    .expect("voxelises");
+            let grids =
+                [AnyGrid::from(&v.density), AnyGrid::from(&v.temperature), AnyGrid::from(&v.emission)];
+            black_box(encode(&grids, &Metadata::new()).len())
+        });
+    });
+    g.finish();
+}
+
+criterion_group!(benches, reference::reference, bench, volume);
 criterion_main!(benches);

@@ -8,6 +8,8 @@
 //! - [`FlameRenderer`] (module `render`): blackbody colour through CIE XYZ (§5.1, eq
 //!   13-17), poly6 splats with additive blending and alpha from density (§5.2), heat
 //!   shimmer from accumulated kernel gradients distorting the background (§5.3).
+//! - [`volume`]: the SPH fields (density, temperature, emission) sampled on a voxel
+//!   grid for OpenVDB files.
 //!
 //! `Mode::Paper` follows the paper literally (constant temperature per particle);
 //! `Mode::Extended`, the default, cools particles with age so the tips redden and adds
@@ -35,6 +37,7 @@
 mod config;
 mod render;
 mod sim;
+pub mod volume;
 
 pub use config::{
     Domain, Emitter, Extended, FlameConfig, MAX_EMITTED_PER_FRAME, Mode, SphParams, Wind, WindKey,

@@ -372,6 +372,11 @@ impl FlameRenderer {
         &self.settings
     }
 
+    /// The blackbody table the particles are coloured with.
+    pub fn lut(&self) -> &BlackbodyLut {
+        &self.lut
+    }
+
     /// The camera prepared for the output frame.
     pub fn view(&self) -> &CameraView {
         &self.view

@@ -14,7 +14,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
-use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, View};
+use crate::cache::PointCache;
+use crate::output::Format;
+use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, View, VolumeOptions};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -59,6 +61,7 @@ impl Phenomenon for AuroraScene {
         },
     ];
     const STARTER: &'static str = include_str!("../starters/aurora.toml");
+    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr, Format::Vdb, Format::Ply];
     type Sim = AuroraSim;
     type Renderer = AuroraRenderer;
     type Loaded = Option<Frame>;
@@ -150,6 +153,45 @@ impl Phenomenon for AuroraScene {
         Estimate::of(work, parts)
     }
 
+    fn frame_time_s(&self) -> f64 {
+        f64::from(self.aurora.motion.time_step_s)
+    }
+
+    /// One emission grid per line (`aurora_557_7`, ...: rayleighs per metre of path) in
+    /// metres ([`phenomena_aurora::volume`]), 1 km voxels by default.
+    fn volume(
+        built: &Built<Self>,
+        options: &VolumeOptions,
+        _scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<(), String> {
+        use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
+        let voxel_km = options.voxel_m.map_or(1.0, |m| m / 1e3);
+        let grids = built.renderer.line_volumes(&built.sim, voxel_km).map_err(|e| e.to_string())?;
+        let any: Vec<AnyGrid<'_>> = grids.iter().map(AnyGrid::from).collect();
+        encode_into(&any, &Metadata::new(), out);
+        Ok(())
+    }
+
+    /// The particles as the feet of their field lines at the top of the sky view's
+    /// atmosphere, in metres (x east, y altitude, z north, the plane centred over the
+    /// origin), with their velocity (m/s) and id.
+    fn points(built: &Built<Self>) -> Result<PointCache, String> {
+        let p = built.sim.particles();
+        let grid = built.sim.grid();
+        let centre = grid.origin_km + grid.extent_km() * 0.5;
+        let top_m = top_altitude_m(built);
+        let mut c = PointCache::default();
+        c.push_vec3(
+            ["x", "y", "z"],
+            p.position_km.iter().map(|q| [(q.x - centre.x) * 1e3, top_m, (q.y - centre.y) * 1e3]),
+        );
+        c.push_vec3(["vx", "vy", "vz"], p.velocity_km_s.iter().map(|v| [v.x * 1e3, 0.0, v.y * 1e3]));
+        c.push_u32("id", p.id.iter().map(|&i| i as u32).collect());
+        c.comments.push("units: position m (x east, y altitude, z north), velocity m/s".into());
+        Ok(c)
+    }
+
     fn build(&self, background: Option<Frame>) -> Result<Built<Self>, BuildError> {
         let sim = AuroraSim::new(self.aurora.clone(), self.scene.seed).map_err(|e| match e {
             AuroraError::Invalid(c) => BuildError::invalid("aurora", c),
@@ -218,4 +260,9 @@ impl Phenomenon for AuroraScene {
         };
         Ok(Exported { bytes: text.into_bytes(), summary: format!("{rows} rows") })
     }
+}
+
+/// The altitude of the simulation plane in the sky view, metres.
+fn top_altitude_m(built: &Built<AuroraScene>) -> f32 {
+    built.renderer.settings().sky.top_altitude_km * 1e3
 }

@@ -10,7 +10,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
-use crate::phenomenon::{Built, Estimate, Phenomenon, Steer, View};
+use crate::cache::PointCache;
+use crate::output::Format;
+use crate::phenomenon::{Built, Estimate, Phenomenon, Scratch, Steer, View, VolumeOptions};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -40,6 +42,8 @@ impl Phenomenon for FlameScene {
         View { name: "density", about: "particles as squares coloured by density (Fig 7)" },
     ];
     const STARTER: &'static str = include_str!("../starters/flame.toml");
+    const FORMATS: &'static [Format] =
+        &[Format::Png, Format::Exr, Format::Vdb, Format::Ply, Format::Flipbook];
     type Sim = FlameSim;
     type Renderer = FlameRenderer;
     type Loaded = Option<Frame>;
@@ -127,6 +131,47 @@ impl Phenomenon for FlameScene {
         let renderer = FlameRenderer::new(self.render.clone(), w, h, background.as_ref())
             .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings: Vec::new() })
+    }
+
+    fn frame_time_s(&self) -> f64 {
+        f64::from(self.flame.frame_time_s)
+    }
+
+    fn emission_only(&mut self) {
+        self.render.background = Background::Black;
+    }
+
+    /// `density` (kg/m³), `temperature` (K) and `emission` (linear sRGB) grids in metres
+    /// ([`phenomena_flame::volume`]), 1 cm voxels by default.
+    fn volume(
+        built: &Built<Self>,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<(), String> {
+        use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
+        let voxel_m = options.voxel_m.unwrap_or(0.01);
+        let r = &built.renderer;
+        let voxelizer = scratch.get::<phenomena_flame::volume::Voxelizer>();
+        let v = voxelizer
+            .voxelize(built.sim.particles(), built.sim.config(), r.settings(), r.lut(), voxel_m)
+            .map_err(|e| e.to_string())?;
+        let grids = [AnyGrid::from(&v.density), AnyGrid::from(&v.temperature), AnyGrid::from(&v.emission)];
+        encode_into(&grids, &Metadata::new(), out);
+        Ok(())
+    }
+
+    /// Position (m), velocity (m/s), temperature (K), density (kg/m³) and id.
+    fn points(built: &Built<Self>) -> Result<PointCache, String> {
+        let p = built.sim.particles();
+        let mut c = PointCache::default();
+        c.push_vec3(["x", "y", "z"], p.position_m.iter().map(|v| v.to_array()));
+        c.push_vec3(["vx", "vy", "vz"], p.velocity_m_s.iter().map(|v| v.to_array()));
+        c.push_f32("temperature", p.temperature_k.clone());
+        c.push_f32("density", p.density_kg_m3.clone());
+        c.push_u32("id", p.id.iter().map(|&i| i as u32).collect());
+        c.comments.push("units: position m (y up), velocity m/s, temperature K, density kg/m^3".into());
+        Ok(c)
     }
 
     /// The wind ([`WIND_PATH`]) changes live (the paper's §6 mouse drag).

@@ -43,8 +43,10 @@
 
 pub mod assets;
 pub mod aurora;
+pub mod cache;
 pub mod checkpoint;
 pub mod flame;
+pub mod flipbook;
 pub mod output;
 mod parse;
 mod phenomenon;
@@ -57,7 +59,9 @@ pub mod sparkle;
 
 pub use assets::{AssetError, Assets};
 pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
-pub use phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, Steer, View};
+pub use phenomenon::{
+    Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions,
+};
 pub use runner::{
     BuildError, FrameRecord, FrameSink, Limits, Observer, Only, Output, Products, Report, RunError, Runner,
     Simulate, SinkError, Tee, gib,

@@ -13,6 +13,8 @@ use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::Layer;
 use phenomena_core::tonemap::Exposure;
 
+use crate::flipbook::{Descriptor, FlipbookOptions, Layout};
+use crate::phenomenon::{Scratch, VolumeOptions};
 use crate::runner::{FrameSink, Output, SinkError};
 
 /// Image formats for frames.
@@ -32,6 +34,43 @@ impl ImageFormat {
             ImageFormat::Png => "png",
             ImageFormat::Exr => "exr",
         }
+    }
+}
+
+/// What `render --format` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Format {
+    /// PNG frames.
+    Png,
+    /// OpenEXR frames.
+    Exr,
+    /// OpenVDB volumes, one file per frame.
+    Vdb,
+    /// Particle caches, one binary PLY per frame.
+    Ply,
+    /// One atlas PNG and a JSON descriptor of all frames.
+    Flipbook,
+}
+
+impl Format {
+    /// Every format.
+    pub const ALL: [Format; 5] = [Format::Png, Format::Exr, Format::Vdb, Format::Ply, Format::Flipbook];
+
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Png => "png",
+            Format::Exr => "exr",
+            Format::Vdb => "vdb",
+            Format::Ply => "ply",
+            Format::Flipbook => "flipbook",
+        }
+    }
+
+    /// The format named `name`.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Self::ALL.into_iter().find(|f| f.name() == name)
     }
 }
 
@@ -253,6 +292,166 @@ impl FrameSink for ImageSink {
         write_frame(&self.path(out.index), out.frame, out.layers, self.format, &out.exposure)?;
         self.written += 1;
         Ok(())
+    }
+}
+
+/// What a [`DataSink`] writes per frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Data {
+    /// An OpenVDB file of the phenomenon's grids.
+    Volume(VolumeOptions),
+    /// A binary PLY particle cache.
+    Points,
+}
+
+/// Frames as numbered data files, `DIR/frame_00000.vdb` or `.ply`, written atomically
+/// from the simulation's state (no image is rendered).
+pub struct DataSink {
+    dir: PathBuf,
+    data: Data,
+    resume: bool,
+    written: u32,
+    kept: u32,
+    scratch: Scratch,
+    bytes: Vec<u8>,
+}
+
+impl DataSink {
+    /// Files into `dir` (created if missing); `resume` as for [`ImageSink::new`].
+    pub fn new(dir: &Path, data: Data, resume: bool) -> Result<Self, SinkError> {
+        ensure_dir(dir)?;
+        if resume {
+            remove_stale_temps(dir);
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            data,
+            resume,
+            written: 0,
+            kept: 0,
+            scratch: Scratch::default(),
+            bytes: Vec::new(),
+        })
+    }
+
+    /// The file of frame `index`.
+    pub fn path(&self, index: u32) -> PathBuf {
+        let ext = match self.data {
+            Data::Volume(_) => "vdb",
+            Data::Points => "ply",
+        };
+        self.dir.join(format!("frame_{index:05}.{ext}"))
+    }
+
+    /// Files written.
+    pub fn written(&self) -> u32 {
+        self.written
+    }
+
+    /// Files kept because they existed (`resume`).
+    pub fn kept(&self) -> u32 {
+        self.kept
+    }
+}
+
+impl FrameSink for DataSink {
+    fn wants(&mut self, index: u32) -> bool {
+        if self.resume && self.path(index).is_file() {
+            self.kept += 1;
+            return false;
+        }
+        true
+    }
+
+    fn needs_image(&self) -> bool {
+        false
+    }
+
+    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        match &self.data {
+            Data::Volume(options) => out.data.volume(options, &mut self.scratch, &mut self.bytes)?,
+            Data::Points => self.bytes = out.data.points()?,
+        }
+        write_bytes_atomic(&self.path(out.index), &self.bytes)?;
+        self.written += 1;
+        Ok(())
+    }
+}
+
+/// All the frames of a run as one flipbook ([`crate::flipbook`]): `DIR/flipbook.png`
+/// (RGBA) and `DIR/flipbook.json`, written when the run finishes.
+pub struct FlipbookSink {
+    dir: PathBuf,
+    options: FlipbookOptions,
+    layout: Layout,
+    frames: Vec<Vec<f32>>,
+    first: Option<u32>,
+    last: u32,
+}
+
+impl FlipbookSink {
+    /// A flipbook of `rendered` frames of `width × height` into `dir` (created if
+    /// missing), refused at once when it cannot be laid out.
+    pub fn new(
+        dir: &Path,
+        rendered: u32,
+        width: u32,
+        height: u32,
+        options: FlipbookOptions,
+    ) -> Result<Self, SinkError> {
+        let layout = crate::flipbook::layout(rendered, width, height, &options).map_err(SinkError)?;
+        ensure_dir(dir)?;
+        Ok(Self { dir: dir.to_path_buf(), options, layout, frames: Vec::new(), first: None, last: 0 })
+    }
+
+    /// The atlas's layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The atlas image's path.
+    pub fn image_path(&self) -> PathBuf {
+        self.dir.join("flipbook.png")
+    }
+}
+
+impl FrameSink for FlipbookSink {
+    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        let (w, h) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        let frame = if (out.frame.width(), out.frame.height()) == (w, h) {
+            std::borrow::Cow::Borrowed(out.frame)
+        } else {
+            std::borrow::Cow::Owned(out.frame.resized(w, h))
+        };
+        let linear = frame.to_interleaved();
+        let mut display = Vec::with_capacity(linear.len());
+        out.exposure.apply_all(&linear, |v| display.push(v));
+        self.frames.push(display);
+        self.first.get_or_insert(out.index);
+        self.last = out.index;
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), SinkError> {
+        let rgba = crate::flipbook::atlas(&self.frames, &self.layout, &self.options).map_err(SinkError)?;
+        let (w, h) = (self.layout.atlas_width, self.layout.atlas_height);
+        let image = self.image_path();
+        write_atomic(&image, |tmp| {
+            image::save_buffer_with_format(tmp, &rgba, w, h, image::ColorType::Rgba8, image::ImageFormat::Png)
+                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+        })?;
+        let descriptor = Descriptor {
+            image: "flipbook.png".into(),
+            layout: self.layout,
+            fps: self.options.fps,
+            alpha: self.options.alpha,
+            loop_frames: self.options.loop_frames,
+            order: "row-major from the top left",
+            color_space: "sRGB",
+            source_frames: [self.first.unwrap_or(0), self.last + 1],
+        };
+        let json = serde_json::to_string_pretty(&descriptor).map_err(error)?;
+        write_bytes_atomic(&self.dir.join("flipbook.json"), json.as_bytes())
     }
 }
 

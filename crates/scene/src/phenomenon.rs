@@ -13,6 +13,8 @@ use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 use crate::assets::Assets;
+use crate::cache::PointCache;
+use crate::output::Format;
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
 
@@ -97,6 +99,32 @@ impl Estimate {
     }
 }
 
+/// Buffers a sink keeps for a phenomenon between frames (a volume's grids: tens of
+/// megabytes a frame that need not be allocated again); the phenomenon decides what.
+#[derive(Default)]
+pub struct Scratch(pub Option<Box<dyn std::any::Any + Send>>);
+
+impl Scratch {
+    /// The buffers of type `T`, made with `T::default()` the first time.
+    pub fn get<T: Default + Send + 'static>(&mut self) -> &mut T {
+        if !self.0.as_ref().is_some_and(|b| b.is::<T>()) {
+            self.0 = Some(Box::new(T::default()));
+        }
+        match self.0.as_mut().and_then(|b| b.downcast_mut::<T>()) {
+            Some(t) => t,
+            None => unreachable!("just stored a T"),
+        }
+    }
+}
+
+/// How to voxelise a volume.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VolumeOptions {
+    /// Voxel size, metres (`None`: the phenomenon's default, 1 cm for the flame, 1 km for
+    /// the aurora).
+    pub voxel_m: Option<f64>,
+}
+
 /// One phenomenon's scene file.
 pub trait Phenomenon:
     Serialize + DeserializeOwned + Default + Clone + PartialEq + Debug + Send + Sync + 'static
@@ -109,6 +137,8 @@ pub trait Phenomenon:
     const VIEWS: &'static [View];
     /// The data it can export.
     const EXPORTS: &'static [ExportKind] = &[];
+    /// The formats `render --format` writes for it; the first is the default.
+    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr];
     /// A commented scene file holding every default (`phenomena new`).
     const STARTER: &'static str;
 
@@ -145,6 +175,29 @@ pub trait Phenomenon:
     /// simulation reads none (images only change how frames are drawn).
     fn files_identity(_loaded: &Self::Loaded) -> Option<u64> {
         None
+    }
+
+    /// Seconds of simulated time per frame (a flipbook's playback rate).
+    fn frame_time_s(&self) -> f64;
+
+    /// Draw the phenomenon's light alone over black, for flipbooks (the caller has
+    /// checked [`Phenomenon::FORMATS`]).
+    fn emission_only(&mut self) {}
+
+    /// The current state as OpenVDB grids ([`Format::Vdb`]), encoded into `out`
+    /// (cleared first); `scratch` is the phenomenon's to keep buffers in between frames.
+    fn volume(
+        _built: &Built<Self>,
+        _options: &VolumeOptions,
+        _scratch: &mut Scratch,
+        _out: &mut Vec<u8>,
+    ) -> Result<(), String> {
+        Err(format!("{} scenes write no volumes", Self::NAME))
+    }
+
+    /// The current particles as a point cache ([`Format::Ply`]).
+    fn points(_built: &Built<Self>) -> Result<PointCache, String> {
+        Err(format!("{} scenes write no particle caches", Self::NAME))
     }
 
     /// Give the simulation and renderer a clock for their timing breakdowns.

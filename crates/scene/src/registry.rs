@@ -10,6 +10,7 @@ use std::ops::Range;
 
 use serde_json::Value;
 
+use crate::output::Format;
 use crate::parse::deserialize_all;
 use crate::phenomenon::{ExportKind, Phenomenon, View};
 use crate::scene::Scene;
@@ -32,6 +33,8 @@ pub trait Entry: Sync {
     fn views(&self) -> &'static [View];
     /// Its data exports.
     fn exports(&self) -> &'static [ExportKind];
+    /// The formats `render` writes for it; the first is the default.
+    fn formats(&self) -> &'static [Format];
     /// Its commented starter scene.
     fn starter(&self) -> &'static str;
     /// A scene holding every default.
@@ -74,6 +77,10 @@ impl<P: Phenomenon> Entry for Registered<P> {
 
     fn exports(&self) -> &'static [ExportKind] {
         P::EXPORTS
+    }
+
+    fn formats(&self) -> &'static [Format] {
+        P::FORMATS
     }
 
     fn starter(&self) -> &'static str {

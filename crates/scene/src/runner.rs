@@ -17,7 +17,7 @@ use serde_json::Value;
 
 use crate::assets::{AssetError, Assets};
 use crate::checkpoint::{self, CheckpointError, Header};
-use crate::phenomenon::{Built, Estimate, Exported, Phenomenon, Steer};
+use crate::phenomenon::{Built, Estimate, Exported, Phenomenon, Scratch, Steer, VolumeOptions};
 use crate::scene::Scene;
 
 /// Why a scene's simulation or renderer could not be built.
@@ -199,6 +199,16 @@ pub struct Output<'a> {
 pub trait Products {
     /// A checkpoint of the whole state ([`crate::checkpoint`]'s format).
     fn checkpoint(&self) -> Result<Vec<u8>, SinkError>;
+    /// The state as an OpenVDB file's bytes, into `out` (cleared first), with buffers
+    /// kept in `scratch` from frame to frame.
+    fn volume(
+        &self,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<(), SinkError>;
+    /// The particles as a binary PLY file's bytes.
+    fn points(&self) -> Result<Vec<u8>, SinkError>;
 }
 
 /// Where rendered frames go.
@@ -558,6 +568,21 @@ struct Live<P: Phenomenon> {
 impl<P: Phenomenon> Products for Live<P> {
     fn checkpoint(&self) -> Result<Vec<u8>, SinkError> {
         checkpoint::encode(&self.header(), &self.built.sim.state()).map_err(|e| SinkError(e.to_string()))
+    }
+
+    fn volume(
+        &self,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<(), SinkError> {
+        P::volume(&self.built, options, scratch, out).map_err(SinkError)
+    }
+
+    fn points(&self) -> Result<Vec<u8>, SinkError> {
+        let mut cache = P::points(&self.built).map_err(SinkError)?;
+        cache.comments.push(format!("phenomena {} particles after {} frames", P::NAME, self.frames_done()));
+        cache.to_ply().map_err(SinkError)
     }
 }
 

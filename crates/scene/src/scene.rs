@@ -10,6 +10,7 @@ use phenomena_core::validate::{Issue, Issues};
 use serde_json::Value;
 
 use crate::assets::Assets;
+use crate::output::Format;
 use crate::parse::{Located, Source};
 use crate::phenomenon::{Estimate, Phenomenon, View};
 use crate::registry::{self, Entry};
@@ -72,6 +73,36 @@ impl Scene {
         }
         self.source = None;
         self.inner.set_view(view);
+        Ok(())
+    }
+
+    /// Seconds of simulated time per frame.
+    pub fn frame_time_s(&self) -> f64 {
+        self.inner.frame_time_s()
+    }
+
+    /// Whether `render` can write `format` for this scene; if not, the error names the
+    /// formats it can.
+    pub fn supports(&self, format: Format) -> Result<(), String> {
+        let formats = self.phenomenon().formats();
+        if formats.contains(&format) {
+            return Ok(());
+        }
+        let names: Vec<&str> = formats.iter().map(|f| f.name()).collect();
+        Err(format!(
+            "{} scenes are not written as {}: use {}",
+            self.phenomenon().name(),
+            format.name(),
+            names.join(", ")
+        ))
+    }
+
+    /// Draw the phenomenon's light alone over black (for flipbooks); refused for a
+    /// phenomenon that has no flipbook format.
+    pub fn emission_only(&mut self) -> Result<(), String> {
+        self.supports(Format::Flipbook)?;
+        self.source = None;
+        self.inner.emission_only();
         Ok(())
     }
 
@@ -190,6 +221,8 @@ trait AnyScene: Send + Sync + fmt::Debug {
     fn view(&self) -> &'static str;
     fn set_view(&mut self, view: &str);
     fn to_json(&self) -> Value;
+    fn frame_time_s(&self) -> f64;
+    fn emission_only(&mut self);
     fn to_toml(&self) -> Result<String, String>;
     fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError>;
     fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError>;
@@ -232,6 +265,14 @@ impl<P: Phenomenon> AnyScene for P {
 
     fn to_toml(&self) -> Result<String, String> {
         toml::to_string(self).map_err(|e| e.to_string())
+    }
+
+    fn frame_time_s(&self) -> f64 {
+        Phenomenon::frame_time_s(self)
+    }
+
+    fn emission_only(&mut self) {
+        Phenomenon::emission_only(self)
     }
 
     fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError> {

@@ -261,6 +261,10 @@ impl Phenomenon for SnowScene {
         )
     }
 
+    fn frame_time_s(&self) -> f64 {
+        f64::from(self.snow.time_step_h) * 3600.0
+    }
+
     /// The mesh the snow lies on: its triangles and object ids, bit for bit.
     fn files_identity(files: &SnowFiles) -> Option<u64> {
         let m = &files.mesh;

@@ -9,6 +9,8 @@ use phenomena_sparkle::{
 use serde::{Deserialize, Serialize};
 
 use crate::assets::Assets;
+use crate::cache::PointCache;
+use crate::output::Format;
 use crate::phenomenon::{Built, Estimate, Phenomenon, View};
 use crate::runner::BuildError;
 use crate::settings::SceneSettings;
@@ -35,6 +37,7 @@ impl Phenomenon for SparkleScene {
     const VIEWS: &'static [View] =
         &[View { name: "glints", about: "the glints (and glare) over the sky, the crown or an image" }];
     const STARTER: &'static str = include_str!("../starters/sparkle.toml");
+    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr, Format::Ply, Format::Flipbook];
     type Sim = SparkleSim;
     type Renderer = SparkleRenderer;
     type Loaded = Option<Frame>;
@@ -105,6 +108,27 @@ impl Phenomenon for SparkleScene {
         );
         estimate.unchecked = unchecked;
         estimate
+    }
+
+    fn frame_time_s(&self) -> f64 {
+        f64::from(self.sparkle.dt_s())
+    }
+
+    fn emission_only(&mut self) {
+        self.render.background = Background::Black;
+    }
+
+    /// The glints seen now: position (m), normal, intensity (k_s I_l (N·H)^n) and the
+    /// frame each became visible.
+    fn points(built: &Built<Self>) -> Result<PointCache, String> {
+        let g = built.sim.glints();
+        let mut c = PointCache::default();
+        c.push_vec3(["x", "y", "z"], g.position_m.iter().map(|v| v.to_array()));
+        c.push_vec3(["nx", "ny", "nz"], g.normal.iter().map(|v| v.to_array()));
+        c.push_f32("intensity", g.intensity.clone());
+        c.push_u32("birth_frame", g.birth_frame.clone());
+        c.comments.push("units: position m (y up); intensity k_s I_l (N.H)^n".into());
+        Ok(c)
     }
 
     fn build(&self, background: Option<Frame>) -> Result<Built<Self>, BuildError> {
