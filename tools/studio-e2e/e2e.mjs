@@ -354,6 +354,28 @@ await check('render final writes the frames with progress', async () => {
   assert.equal(await page.getAttribute('#final-progress', 'value'), '3');
 });
 
+await check('render final writes volumes and flipbooks', async () => {
+  await openTab('flame');
+  const formats = await page.$$eval('#final-format option', (os) => os.map((o) => o.value));
+  assert.deepEqual(formats, ['png', 'exr', 'vdb', 'ply', 'flipbook']);
+  for (const [format, files] of [['vdb', ['frame_00000.vdb', 'frame_00000.vdb.json', 'frame_00001.vdb', 'frame_00001.vdb.json', 'scene.toml']],
+                                 ['flipbook', ['flipbook.json', 'flipbook.png', 'scene.toml']]]) {
+    const n = await studio('window.studio.messages.length');
+    await page.fill('#final-frames', '2');
+    await page.selectOption('#final-format', format);
+    await page.click('#render-final');
+    const done = await until(`the ${format} render to finish`, async () => {
+      const m = await studio(`window.studio.messages.slice(${n}).find((x) => x.text.startsWith('render final:') || x.kind === 'error')`);
+      return m;
+    }, 60000);
+    assert.equal(done.kind, 'notice', done.text);
+    const dir = /written to (.*)$/.exec(done.text)[1];
+    assert.deepEqual(readdirSync(dir).sort(), files);
+  }
+  await openTab('snow');
+  assert.deepEqual(await page.$$eval('#final-format option', (os) => os.map((o) => o.value)), ['png', 'exr']);
+});
+
 await check('no console errors during the whole run', async () => {
   assert.deepEqual(consoleErrors, []);
 });

@@ -20,7 +20,9 @@ if ! "$python" -c "import pyopenvdb" 2>/dev/null; then
 fi
 rm -rf "$out"
 mkdir -p "$out"
-(cd "$root" && cargo run --quiet --release -p phenomena-core --example vdb_sample -- "$out")
+# VDB_CHECK_PROFILE: the cargo profile to build the sample writer with (CI passes
+# `test`, whose dependencies `cargo test` has already built).
+(cd "$root" && cargo run --quiet --profile "${VDB_CHECK_PROFILE:-release}" -p phenomena-core --example vdb_sample -- "$out")
 set --
 for json in "$out"/*.json; do
     set -- "$@" "${json%.json}.vdb" "$json"

@@ -120,7 +120,8 @@ fn line_volumes(c: &mut Criterion) {
     group.sample_size(20);
     group.bench_function("line_volumes_120k_1km", |b| {
         b.iter(|| {
-            let grids = phenomena_aurora::volume::line_volumes(&sim, &settings, column, 1.0).expect("volumes");
+            let grids =
+                phenomena_aurora::volume::line_volumes(&sim, &settings, column, 1.0).expect("volumes");
             let any: Vec<AnyGrid<'_>> = grids.iter().map(AnyGrid::from).collect();
             encode_into(&any, &Metadata::new(), &mut bytes);
             black_box(bytes.len())
@@ -129,7 +130,11 @@ fn line_volumes(c: &mut Criterion) {
     group.finish();
     let grids = phenomena_aurora::volume::line_volumes(&sim, &settings, column, 1.0).expect("volumes");
     let voxels: u64 = grids.iter().map(|g| g.active_voxel_count()).sum();
-    eprintln!("aurora line volumes: {} particles, {voxels} active voxels, {} bytes", sim.particles().len(), bytes.len());
+    eprintln!(
+        "aurora line volumes: {} particles, {voxels} active voxels, {} bytes",
+        sim.particles().len(),
+        bytes.len()
+    );
 }
 
 criterion_group!(benches, reference::reference, poisson, renewal_and_motion, full_frame, line_volumes);

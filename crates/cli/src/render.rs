@@ -106,7 +106,7 @@ pub(crate) struct FlipbookArgs {
 }
 
 /// Where a render's frames go, by format.
-enum Frames {
+pub(crate) enum Frames {
     Image(ImageSink),
     Data(DataSink),
     Flipbook(FlipbookSink),
@@ -114,7 +114,7 @@ enum Frames {
 
 impl Frames {
     /// The sink for `job`'s format, for `frames` frames of `width × height`.
-    fn new(job: &RenderJob, frames: u32, width: u32, height: u32, fps: f64) -> Result<Self> {
+    pub(crate) fn new(job: &RenderJob, frames: u32, width: u32, height: u32, fps: f64) -> Result<Self> {
         let (dir, resume) = (&job.out_dir, job.resume);
         Ok(match job.format {
             Format::Png => Frames::Image(ImageSink::new(dir, ImageFormat::Png, resume)?),
@@ -148,7 +148,7 @@ impl Frames {
         }
     }
 
-    fn sink(&mut self) -> &mut dyn FrameSink {
+    pub(crate) fn sink(&mut self) -> &mut dyn FrameSink {
         match self {
             Frames::Image(s) => s,
             Frames::Data(s) => s,
@@ -341,8 +341,7 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         }
     }
     let (width, height) = (scene.settings().width, scene.settings().height);
-    // The frame time is an f32 of the scene (1/60 reads 59.9999969): to a micro-frame.
-    let fps = (1e6 / scene.frame_time_s()).round() / 1e6;
+    let fps = frame_rate(&scene);
     let mut images =
         if job.images { Some(Frames::new(job, range.len() as u32, width, height, fps)?) } else { None };
     let checkpoint_dir = job.checkpoints();
@@ -418,6 +417,12 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
         parts.push(format!("simulated frames {started_at}..{}", range.end));
     }
     Ok(format!("{name}: {} in {:.1} s", parts.join("; "), started.elapsed().as_secs_f64()))
+}
+
+/// A scene's frames per second for a flipbook. The frame time is an f32 of the scene
+/// (1/60 reads back as 59.99999...): the rate to a thousandth of a frame per second.
+pub(crate) fn frame_rate(scene: &Scene) -> f64 {
+    (1e3 / scene.frame_time_s()).round() / 1e3
 }
 
 /// Continue `runner` from the newest checkpoint in `dir` from which frame `first` can

@@ -19,23 +19,23 @@ use std::path::Path;
 /// What a grid's expectations need from a value type.
 trait Sample: Voxel {
     const TYPE: &'static str;
-    fn components(self) -> Vec<f32>;
+    fn parts(self) -> Vec<f32>;
     fn json(self) -> Value {
-        let c = self.components();
+        let c = self.parts();
         if c.len() == 1 { json!(c[0]) } else { json!(c) }
     }
 }
 
 impl Sample for f32 {
     const TYPE: &'static str = "float";
-    fn components(self) -> Vec<f32> {
+    fn parts(self) -> Vec<f32> {
         vec![self]
     }
 }
 
 impl Sample for [f32; 3] {
     const TYPE: &'static str = "vec3s";
-    fn components(self) -> Vec<f32> {
+    fn parts(self) -> Vec<f32> {
         self.to_vec()
     }
 }
@@ -78,13 +78,13 @@ fn expect<T: Sample>(
 ) -> Value {
     let voxels = active(grid);
     let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
-    let (mut min, mut max) = (T::ZERO.components(), T::ZERO.components());
+    let (mut min, mut max) = (T::ZERO.parts(), T::ZERO.parts());
     for (k, (p, v)) in voxels.iter().enumerate() {
         for a in 0..3 {
             lo[a] = lo[a].min(p[a]);
             hi[a] = hi[a].max(p[a]);
         }
-        let c = v.components();
+        let c = v.parts();
         if k == 0 || lexicographic_less(&c, &min) {
             min = c.clone();
         }
@@ -128,7 +128,7 @@ fn expect<T: Sample>(
         let mut bytes = Vec::new();
         for (p, v) in &voxels {
             p.iter().for_each(|c| bytes.extend_from_slice(&c.to_le_bytes()));
-            v.components().iter().for_each(|c| bytes.extend_from_slice(&c.to_le_bytes()));
+            v.parts().iter().for_each(|c| bytes.extend_from_slice(&c.to_le_bytes()));
         }
         std::fs::write(dir.join(file), bytes).expect("write the dump");
         e["dump"] = json!(file);

@@ -426,6 +426,8 @@ pub trait Voxel: sealed::Sealed + Copy + PartialEq + Send + Sync + std::fmt::Deb
     fn accumulate(&mut self, other: Self);
     /// Writes the value's little-endian bytes into `out` (`BYTES` long).
     fn write_le(self, out: &mut [u8]);
+    /// The value's components (one for a float).
+    fn components(&self) -> &[f32];
     /// OpenVDB 10's in-memory sizes on x86-64 for `file_mem_bytes`: `sizeof` the tree,
     /// the root node, an internal node's table entry and a leaf node without its values.
     #[doc(hidden)]
@@ -449,6 +451,9 @@ impl Voxel for f32 {
     fn write_le(self, out: &mut [u8]) {
         out[..4].copy_from_slice(&self.to_le_bytes());
     }
+    fn components(&self) -> &[f32] {
+        std::slice::from_ref(self)
+    }
 }
 
 impl Voxel for [f32; 3] {
@@ -471,6 +476,9 @@ impl Voxel for [f32; 3] {
         out[0..4].copy_from_slice(&self[0].to_le_bytes());
         out[4..8].copy_from_slice(&self[1].to_le_bytes());
         out[8..12].copy_from_slice(&self[2].to_le_bytes());
+    }
+    fn components(&self) -> &[f32] {
+        self
     }
 }
 
@@ -784,6 +792,36 @@ impl<T: Voxel> Grid<T> {
         self.origins.iter().copied().zip(self.leaves.iter())
     }
 
+    /// What OpenVDB reports of the grid once read: active voxels, their smallest and
+    /// largest value (lexicographic for vectors, as `Grid::evalMinMax` compares) and the
+    /// bounding box of the active voxels (`None` when there are none).
+    pub fn summary(&self) -> Summary {
+        let mut s = Summary { active_voxels: 0, min: Vec::new(), max: Vec::new(), bbox: None };
+        for (origin, leaf) in self.origins.iter().zip(&self.leaves) {
+            for (k, v) in leaf.iter().enumerate().filter(|(_, v)| !v.is_zero()) {
+                let ijk = [
+                    origin[0] + (k >> 6) as i32,
+                    origin[1] + ((k >> 3) & 7) as i32,
+                    origin[2] + (k & 7) as i32,
+                ];
+                let c = v.components();
+                if s.active_voxels == 0 || lexicographic_less(c, &s.min) {
+                    s.min = c.to_vec();
+                }
+                if s.active_voxels == 0 || lexicographic_less(&s.max, c) {
+                    s.max = c.to_vec();
+                }
+                let (lo, hi) = s.bbox.get_or_insert((ijk, ijk));
+                for a in 0..3 {
+                    lo[a] = lo[a].min(ijk[a]);
+                    hi[a] = hi[a].max(ijk[a]);
+                }
+                s.active_voxels += 1;
+            }
+        }
+        s
+    }
+
     /// Removes every voxel, keeping the allocations (for the next frame).
     pub fn clear(&mut self) {
         self.origins.clear();
@@ -791,6 +829,32 @@ impl<T: Voxel> Grid<T> {
         self.index.clear();
         self.recent = [(NO_LEAF, 0); CACHE_SLOTS];
     }
+}
+
+/// A grid as OpenVDB will report it ([`Grid::summary`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// Active voxels.
+    pub active_voxels: u64,
+    /// Smallest active value, by component (empty when there is none).
+    pub min: Vec<f32>,
+    /// Largest active value.
+    pub max: Vec<f32>,
+    /// Smallest and largest index of the active voxels.
+    pub bbox: Option<([i32; 3], [i32; 3])>,
+}
+
+/// `a < b` comparing component by component, first difference deciding.
+fn lexicographic_less(a: &[f32], b: &[f32]) -> bool {
+    for (x, y) in a.iter().zip(b) {
+        if x < y {
+            return true;
+        }
+        if x > y {
+            return false;
+        }
+    }
+    false
 }
 
 /// A grid of either value type, for [`encode`] (a closed set, so an enum).
@@ -815,10 +879,43 @@ impl<'a> From<&'a Grid<[f32; 3]>> for AnyGrid<'a> {
 }
 
 impl AnyGrid<'_> {
-    fn name(&self) -> &str {
+    /// The grid's name.
+    pub fn name(&self) -> &str {
         match self {
             AnyGrid::Float(g) => g.name(),
             AnyGrid::Vec3(g) => g.name(),
+        }
+    }
+
+    /// OpenVDB's value type name (`float`, `vec3s`: `valueTypeName` once read).
+    pub fn value_type(&self) -> &'static str {
+        match self {
+            AnyGrid::Float(_) => "float",
+            AnyGrid::Vec3(_) => "vec3s",
+        }
+    }
+
+    /// The grid's transform.
+    pub fn transform(&self) -> &Transform {
+        match self {
+            AnyGrid::Float(g) => g.transform(),
+            AnyGrid::Vec3(g) => g.transform(),
+        }
+    }
+
+    /// The grid's class.
+    pub fn class(&self) -> GridClass {
+        match self {
+            AnyGrid::Float(g) => g.class(),
+            AnyGrid::Vec3(g) => g.class(),
+        }
+    }
+
+    /// [`Grid::summary`].
+    pub fn summary(&self) -> Summary {
+        match self {
+            AnyGrid::Float(g) => g.summary(),
+            AnyGrid::Vec3(g) => g.summary(),
         }
     }
 }

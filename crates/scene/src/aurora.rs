@@ -164,13 +164,12 @@ impl Phenomenon for AuroraScene {
         options: &VolumeOptions,
         _scratch: &mut Scratch,
         out: &mut Vec<u8>,
-    ) -> Result<(), String> {
-        use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
+    ) -> Result<Value, String> {
+        use phenomena_core::vdb::AnyGrid;
         let voxel_km = options.voxel_m.map_or(1.0, |m| m / 1e3);
         let grids = built.renderer.line_volumes(&built.sim, voxel_km).map_err(|e| e.to_string())?;
         let any: Vec<AnyGrid<'_>> = grids.iter().map(AnyGrid::from).collect();
-        encode_into(&any, &Metadata::new(), out);
-        Ok(())
+        Ok(crate::phenomenon::encode_volume(&any, out))
     }
 
     /// The particles as the feet of their field lines at the top of the sky view's

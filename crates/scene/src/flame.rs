@@ -148,8 +148,8 @@ impl Phenomenon for FlameScene {
         options: &VolumeOptions,
         scratch: &mut Scratch,
         out: &mut Vec<u8>,
-    ) -> Result<(), String> {
-        use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
+    ) -> Result<Value, String> {
+        use phenomena_core::vdb::AnyGrid;
         let voxel_m = options.voxel_m.unwrap_or(0.01);
         let r = &built.renderer;
         let voxelizer = scratch.get::<phenomena_flame::volume::Voxelizer>();
@@ -157,8 +157,7 @@ impl Phenomenon for FlameScene {
             .voxelize(built.sim.particles(), built.sim.config(), r.settings(), r.lut(), voxel_m)
             .map_err(|e| e.to_string())?;
         let grids = [AnyGrid::from(&v.density), AnyGrid::from(&v.temperature), AnyGrid::from(&v.emission)];
-        encode_into(&grids, &Metadata::new(), out);
-        Ok(())
+        Ok(crate::phenomenon::encode_volume(&grids, out))
     }
 
     /// Position (m), velocity (m/s), temperature (K), density (kg/m³) and id.

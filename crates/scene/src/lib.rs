@@ -60,7 +60,7 @@ pub mod sparkle;
 pub use assets::{AssetError, Assets};
 pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
 pub use phenomenon::{
-    Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions,
+    Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, encode_volume,
 };
 pub use runner::{
     BuildError, FrameRecord, FrameSink, Limits, Observer, Only, Output, Products, Report, RunError, Runner,

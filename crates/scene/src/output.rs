@@ -368,14 +368,31 @@ impl FrameSink for DataSink {
     }
 
     fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
+        let path = self.path(out.index);
         match &self.data {
-            Data::Volume(options) => out.data.volume(options, &mut self.scratch, &mut self.bytes)?,
-            Data::Points => self.bytes = out.data.points()?,
+            Data::Volume(options) => {
+                let mut manifest = out.data.volume(options, &mut self.scratch, &mut self.bytes)?;
+                manifest["frame"] = out.index.into();
+                let text = serde_json::to_string_pretty(&manifest).map_err(error)?;
+                write_bytes_atomic(&path, &self.bytes)?;
+                write_bytes_atomic(&manifest_path(&path), text.as_bytes())?;
+            }
+            Data::Points => {
+                self.bytes = out.data.points()?;
+                write_bytes_atomic(&path, &self.bytes)?;
+            }
         }
-        write_bytes_atomic(&self.path(out.index), &self.bytes)?;
         self.written += 1;
         Ok(())
     }
+}
+
+/// The manifest beside a volume file: `frame_00000.vdb.json` (each grid as OpenVDB will
+/// report it, [`crate::phenomenon::encode_volume`]).
+pub fn manifest_path(vdb: &Path) -> PathBuf {
+    let mut name = vdb.file_name().unwrap_or_default().to_os_string();
+    name.push(".json");
+    vdb.with_file_name(name)
 }
 
 /// All the frames of a run as one flipbook ([`crate::flipbook`]): `DIR/flipbook.png`

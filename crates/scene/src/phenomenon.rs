@@ -117,6 +117,33 @@ impl Scratch {
     }
 }
 
+/// Encode `grids` as one OpenVDB file into `out` and describe each as OpenVDB will
+/// report it once read (the manifest written beside each `.vdb`): name, value type,
+/// class, active voxels, smallest and largest value, bounding box of the active voxels,
+/// voxel size and translation (metres), and the grid's metadata.
+pub fn encode_volume(grids: &[phenomena_core::vdb::AnyGrid<'_>], out: &mut Vec<u8>) -> Value {
+    phenomena_core::vdb::encode_into(grids, &phenomena_core::vdb::Metadata::new(), out);
+    let list: Vec<Value> = grids
+        .iter()
+        .map(|g| {
+            let s = g.summary();
+            let t = g.transform();
+            serde_json::json!({
+                "name": g.name(),
+                "type": g.value_type(),
+                "class": g.class().as_str(),
+                "active_voxels": s.active_voxels,
+                "min": s.min,
+                "max": s.max,
+                "bbox": s.bbox.map(|(lo, hi)| [lo, hi]),
+                "voxel_size_m": t.voxel_size_m(),
+                "translation_m": t.translation_m(),
+            })
+        })
+        .collect();
+    serde_json::json!({ "grids": list })
+}
+
 /// How to voxelise a volume.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VolumeOptions {
@@ -185,13 +212,14 @@ pub trait Phenomenon:
     fn emission_only(&mut self) {}
 
     /// The current state as OpenVDB grids ([`Format::Vdb`]), encoded into `out`
-    /// (cleared first); `scratch` is the phenomenon's to keep buffers in between frames.
+    /// (cleared first, by [`encode_volume`]), returning their manifest; `scratch` is the
+    /// phenomenon's to keep buffers in between frames.
     fn volume(
         _built: &Built<Self>,
         _options: &VolumeOptions,
         _scratch: &mut Scratch,
         _out: &mut Vec<u8>,
-    ) -> Result<(), String> {
+    ) -> Result<Value, String> {
         Err(format!("{} scenes write no volumes", Self::NAME))
     }
 

@@ -200,13 +200,14 @@ pub trait Products {
     /// A checkpoint of the whole state ([`crate::checkpoint`]'s format).
     fn checkpoint(&self) -> Result<Vec<u8>, SinkError>;
     /// The state as an OpenVDB file's bytes, into `out` (cleared first), with buffers
-    /// kept in `scratch` from frame to frame.
+    /// kept in `scratch` from frame to frame; returns the file's manifest
+    /// ([`crate::phenomenon::encode_volume`]).
     fn volume(
         &self,
         options: &VolumeOptions,
         scratch: &mut Scratch,
         out: &mut Vec<u8>,
-    ) -> Result<(), SinkError>;
+    ) -> Result<Value, SinkError>;
     /// The particles as a binary PLY file's bytes.
     fn points(&self) -> Result<Vec<u8>, SinkError>;
 }
@@ -575,7 +576,7 @@ impl<P: Phenomenon> Products for Live<P> {
         options: &VolumeOptions,
         scratch: &mut Scratch,
         out: &mut Vec<u8>,
-    ) -> Result<(), SinkError> {
+    ) -> Result<Value, SinkError> {
         P::volume(&self.built, options, scratch, out).map_err(SinkError)
     }
 

@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use phenomena_aurora::editor::{self, Drawn, EditOp};
 use phenomena_scene::aurora::AuroraScene;
-use phenomena_scene::output::{ImageFormat, ImageSink, ensure_dir, to_srgb8, write_bytes_atomic};
+use phenomena_scene::output::{Format, ensure_dir, to_srgb8, write_bytes_atomic};
 use phenomena_scene::{
     Assets, FrameRecord, FrameSink, Limits, Observer, Output, Runner, Scene, SinkError, Steer, registry,
 };
@@ -91,6 +91,10 @@ pub(crate) enum Incoming {
     /// Render the scene at its own size to the studio's output folder.
     RenderFinal {
         frames: Option<u32>,
+        /// `png` (the default), `exr`, `vdb`, `ply` or `flipbook`, as the phenomenon
+        /// writes (see `hello.phenomena[].formats`).
+        #[serde(default)]
+        format: Option<String>,
     },
     /// Tests only: a command that fails inside the session thread.
     #[cfg(test)]
@@ -118,7 +122,13 @@ pub(crate) fn hello(id: &str, controls: &super::controls::Catalogue) -> String {
     json!({
         "type": "hello",
         "session": id,
-        "phenomena": registry::PHENOMENA.iter().map(|p| json!({"name": p.name(), "about": p.about()})).collect::<Vec<_>>(),
+        "phenomena": registry::PHENOMENA
+            .iter()
+            .map(|p| {
+                let formats: Vec<&str> = p.formats().iter().map(|f| f.name()).collect();
+                json!({"name": p.name(), "about": p.about(), "formats": formats})
+            })
+            .collect::<Vec<_>>(),
         "builtins": registry::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
         "featured": controls.featured(),
         "limits": { "upload_bytes": super::MAX_UPLOAD_BYTES, "message_bytes": super::MAX_MESSAGE_BYTES },
@@ -466,7 +476,7 @@ impl Session {
                 },
                 None => self.error("no scene to save: load one first")?,
             },
-            Incoming::RenderFinal { frames } => self.render_final(frames)?,
+            Incoming::RenderFinal { frames, format } => self.render_final(frames, format.as_deref())?,
             #[cfg(test)]
             Incoming::Panic => panic!("a test asked for a panic"),
         }
@@ -613,11 +623,24 @@ impl Session {
         }
     }
 
-    fn render_final(&mut self, frames: Option<u32>) -> Result<(), Closed> {
-        let Some(scene) = self.scene.clone() else { return self.error("no scene to render") };
+    fn render_final(&mut self, frames: Option<u32>, format: Option<&str>) -> Result<(), Closed> {
+        let Some(mut scene) = self.scene.clone() else { return self.error("no scene to render") };
         let problems = scene.validate();
         if !problems.is_empty() {
             return self.error(format!("the scene is not valid: {}", joined(&problems)));
+        }
+        let name = format.unwrap_or("png");
+        let Some(format) = Format::from_name(name) else {
+            let all: Vec<&str> = Format::ALL.iter().map(|f| f.name()).collect();
+            return self.error(format!("render final: no format `{name}`: use {}", all.join(", ")));
+        };
+        if let Err(e) = scene.supports(format) {
+            return self.error(format!("render final: {e}"));
+        }
+        if format == Format::Flipbook
+            && let Err(e) = scene.emission_only()
+        {
+            return self.error(format!("render final: {e}"));
         }
         let total = frames.unwrap_or(scene.settings().frames);
         if !(1..=100_000).contains(&total) {
@@ -641,7 +664,7 @@ impl Session {
             let mut progress = FinalProgress { send: &send, cancel: &cancel, total, dir: &shown };
             // A bug in a render ends that render with a message, not silently.
             let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                render_to(&scene, &assets, &limits, &dir, total, &mut progress)
+                render_to(&scene, &assets, &limits, &dir, total, format, &mut progress)
             }));
             match rendered {
                 Ok(Ok(())) => {
@@ -709,22 +732,31 @@ impl Observer for FinalProgress<'_> {
     }
 }
 
-/// Render `total` frames of `scene` at its own size into `dir` (PNG, with the scene
-/// file beside them) through the runner, its files from `assets`.
+/// Render `total` frames of `scene` at its own size into `dir` in `format` (with the
+/// scene file beside them) through the runner, its files from `assets`.
 fn render_to(
     scene: &Scene,
     assets: &Assets,
     limits: &Limits,
     dir: &Path,
     total: u32,
+    format: Format,
     progress: &mut FinalProgress<'_>,
 ) -> Result<()> {
     ensure_dir(dir)?;
     let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
     write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
     let mut runner = Runner::with_limits(scene, assets, limits)?;
-    let mut sink = ImageSink::new(dir, ImageFormat::Png, false)?;
-    runner.run(0..total, &mut sink, progress)?;
+    let (w, h) = (scene.settings().width, scene.settings().height);
+    let fps = crate::render::frame_rate(scene);
+    let mut frames = crate::render::Frames::new(
+        &crate::render::RenderJob::new(dir.to_path_buf(), format),
+        total,
+        w,
+        h,
+        fps,
+    )?;
+    runner.run(0..total, frames.sink(), progress)?;
     Ok(())
 }
 

@@ -427,3 +427,44 @@ fn a_failing_session_says_why_and_goes_on() {
         next_json(&mut other, "frame").await;
     });
 }
+
+/// Issue 21: "render final" writes every format the phenomenon has (here VDB volumes with
+/// their manifests), and refuses one it has not, naming those it has.
+#[test]
+fn render_final_writes_the_chosen_format() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "builtin", "name": "snow-table"})).await;
+        next_json(&mut ws, "scene").await;
+        send(&mut ws, json!({"type": "render_final", "frames": 1, "format": "vdb"})).await;
+        let e = next_json(&mut ws, "error").await;
+        assert!(
+            e["message"].as_str().unwrap().contains("snow scenes are not written as vdb: use png, exr"),
+            "{e}"
+        );
+        send(&mut ws, json!({"type": "render_final", "frames": 1, "format": "gif"})).await;
+        let e = next_json(&mut ws, "error").await;
+        assert!(e["message"].as_str().unwrap().contains("no format `gif`"), "{e}");
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut ws, "scene").await;
+        send(&mut ws, json!({"type": "render_final", "frames": 2, "format": "vdb"})).await;
+        let done = next_json(&mut ws, "rendered").await;
+        let dir = std::path::PathBuf::from(done["dir"].as_str().unwrap());
+        let mut files: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        files.sort();
+        assert_eq!(
+            files,
+            [
+                "frame_00000.vdb",
+                "frame_00000.vdb.json",
+                "frame_00001.vdb",
+                "frame_00001.vdb.json",
+                "scene.toml"
+            ]
+        );
+    });
+}

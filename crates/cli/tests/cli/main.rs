@@ -9,6 +9,7 @@ mod determinism;
 mod export_blackbody;
 mod farm;
 mod new_and_demo;
+mod outputs;
 mod render_frames;
 mod resume;
 mod shipped_scenes;

@@ -66,6 +66,14 @@ function selectTab(phenomenon) {
     o.textContent = b.name;
     select.append(o);
   }
+  const formats = $('final-format');
+  formats.replaceChildren();
+  for (const f of hello.phenomena.find((p) => p.name === phenomenon).formats) {
+    const o = document.createElement('option');
+    o.value = f;
+    o.textContent = f;
+    formats.append(o);
+  }
   buildExtras(phenomenon);
   $('counters').textContent = '';
   if (scenes[phenomenon]) sendChange({ type: 'scene', phenomenon, scene: scenes[phenomenon] });
@@ -313,7 +321,7 @@ $('load').addEventListener('change', async () => {
 });
 $('render-final').addEventListener('click', () => {
   $('final-status').textContent = 'starting…';
-  send({ type: 'render_final', frames: Number($('final-frames').value) });
+  send({ type: 'render_final', frames: Number($('final-frames').value), format: $('final-format').value });
 });
 
 fetch('/api/controls').then((r) => r.json()).then((c) => {

@@ -1,0 +1,172 @@
+//! Issue 21: the outputs shots are finished with. VDB volumes and PLY caches per frame,
+//! flipbooks of all frames; formats a phenomenon cannot write are refused before
+//! anything is simulated. (The real clients, OpenVDB and Blender, read these in
+//! `.ci/run`: `tools/vdb-check/check_frames.py`, `tools/blender-check/check.py`.)
+
+use std::path::Path;
+
+use crate::{TINY_FLAME, fails, ok, write};
+
+fn shipped(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name).to_string_lossy().into_owned()
+}
+
+/// The cells of a flipbook atlas as RGBA bytes, in frame order.
+fn cells(dir: &Path) -> (serde_json::Value, Vec<Vec<u8>>) {
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("flipbook.json")).unwrap()).unwrap();
+    let atlas = image::open(dir.join("flipbook.png")).unwrap().to_rgba8();
+    let n = |k: &str| json[k].as_u64().unwrap() as u32;
+    assert_eq!((atlas.width(), atlas.height()), (n("atlas_width"), n("atlas_height")));
+    let (fw, fh, cols) = (n("frame_width"), n("frame_height"), n("columns"));
+    let frames = (0..n("frames"))
+        .map(|j| {
+            let (cx, cy) = (j % cols * fw, j / cols * fh);
+            let mut cell = Vec::new();
+            for y in cy..cy + fh {
+                for x in cx..cx + fw {
+                    cell.extend_from_slice(&atlas.get_pixel(x, y).0);
+                }
+            }
+            cell
+        })
+        .collect();
+    (json, frames)
+}
+
+/// Mean absolute difference of two cells' premultiplied colour (what is seen over
+/// black), 8-bit units.
+fn difference(a: &[u8], b: &[u8]) -> f64 {
+    let seen = |p: &[u8]| -> [f64; 3] { [0, 1, 2].map(|k| f64::from(p[k]) * f64::from(p[3]) / 255.0) };
+    let total: f64 = a
+        .chunks(4)
+        .zip(b.chunks(4))
+        .map(|(p, q)| {
+            let (p, q) = (seen(p), seen(q));
+            (0..3).map(|k| (p[k] - q[k]).abs()).sum::<f64>()
+        })
+        .sum();
+    total / (a.len() / 4 * 3) as f64
+}
+
+#[test]
+fn a_looped_flipbook_has_no_seam() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = shipped("flame-paper.toml");
+    // A steady stretch of the flame (it has grown for a second by frame 60).
+    let args =
+        ["render", &scene, "--frames", "60..100", "--width", "48", "--height", "64", "--format", "flipbook"];
+    let out = ok(dir.path(), &[&args[..], &["--out", "loop", "--loop", "8"]].concat());
+    assert!(out.contains("flipbook of 32 frame(s)"), "{out}");
+    let (json, looped) = cells(&dir.path().join("loop"));
+    assert_eq!(json["loop_frames"], 8);
+    assert_eq!(json["fps"], 60.0);
+    assert_eq!(json["source_frames"], serde_json::json!([60, 100]));
+    let steps: Vec<f64> = looped.windows(2).map(|w| difference(&w[0], &w[1])).collect();
+    let seam = difference(&looped[looped.len() - 1], &looped[0]);
+    let largest = steps.iter().copied().fold(0.0, f64::max);
+    assert!(seam <= largest, "the seam differs by {seam:.2}, consecutive frames by at most {largest:.2}");
+    // Without the loop the seam is a jump: the test can tell.
+    ok(dir.path(), &[&args[..], &["--out", "plain"]].concat());
+    let (_, plain) = cells(&dir.path().join("plain"));
+    assert_eq!(plain.len(), 40);
+    // Past the cross-fade the looped frames are the plain ones.
+    assert_eq!(looped[8..], plain[8..32]);
+    let plain_steps = plain.windows(2).map(|w| difference(&w[0], &w[1])).fold(0.0, f64::max);
+    let plain_seam = difference(&plain[39], &plain[0]);
+    assert!(plain_seam > plain_steps, "the unlooped seam {plain_seam:.2} vs steps {plain_steps:.2}");
+}
+
+#[test]
+fn flipbook_alpha_modes_and_power_of_two_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "tiny.toml", &TINY_FLAME.replace("frames = 4", "frames = 12"));
+    let base = ["render", &scene, "--format", "flipbook", "--width", "60", "--height", "30"];
+    ok(dir.path(), &[&base[..], &["--out", "s"]].concat());
+    ok(dir.path(), &[&base[..], &["--out", "p", "--alpha", "premultiplied"]].concat());
+    let (js, s) = cells(&dir.path().join("s"));
+    let (jp, p) = cells(&dir.path().join("p"));
+    assert_eq!((js["alpha"].as_str(), jp["alpha"].as_str()), (Some("straight"), Some("premultiplied")));
+    // Straight colour × alpha over black is the premultiplied colour (8-bit rounding,
+    // and sRGB encoding of each: within 2 codes of the brighter).
+    for (a, b) in s.iter().zip(&p) {
+        for (x, y) in a.chunks(4).zip(b.chunks(4)) {
+            assert_eq!(x[3], y[3]);
+        }
+    }
+    assert!(difference(&s[11], &p[11]) < 2.0);
+    // A flipbook is drawn over black: the tiny flame's corners are transparent.
+    assert_eq!(s[11][3], 0);
+    ok(dir.path(), &[&base[..], &["--out", "pot", "--pot"]].concat());
+    let (j, _) = cells(&dir.path().join("pot"));
+    for k in ["atlas_width", "atlas_height", "frame_width", "frame_height"] {
+        assert!(j[k].as_u64().unwrap().is_power_of_two(), "{k} = {}", j[k]);
+    }
+    assert_eq!((j["frame_width"].as_u64(), j["frame_height"].as_u64()), (Some(64), Some(32)));
+}
+
+#[test]
+fn volumes_and_caches_per_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "tiny.toml", TINY_FLAME);
+    ok(dir.path(), &["render", &scene, "--out", "v", "--format", "vdb", "--frames", "2..4"]);
+    for f in [2, 3] {
+        let vdb = std::fs::read(dir.path().join(format!("v/frame_{f:05}.vdb"))).unwrap();
+        assert_eq!(&vdb[..8], &0x5644_4220_i64.to_le_bytes(), "OpenVDB's magic number");
+        let manifest: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(format!("v/frame_{f:05}.vdb.json"))).unwrap(),
+        )
+        .unwrap();
+        let names: Vec<&str> =
+            manifest["grids"].as_array().unwrap().iter().map(|g| g["name"].as_str().unwrap()).collect();
+        assert_eq!(names, ["density", "temperature", "emission"]);
+        assert_eq!(manifest["grids"][0]["voxel_size_m"], 0.01);
+        assert!(manifest["grids"][0]["active_voxels"].as_u64().unwrap() > 0);
+    }
+    ok(dir.path(), &["render", &scene, "--out", "c", "--format", "ply", "--frames", "3"]);
+    let ply = std::fs::read(dir.path().join("c/frame_00003.ply")).unwrap();
+    let text = String::from_utf8_lossy(&ply[..400]);
+    assert!(text.starts_with("ply\nformat binary_little_endian 1.0\n"), "{text}");
+    for p in [
+        "property float x",
+        "property float vz",
+        "property float temperature",
+        "property float density",
+        "property uint id",
+    ] {
+        assert!(text.contains(p), "{p} missing:\n{text}");
+    }
+    let n: usize = text.lines().find_map(|l| l.strip_prefix("element vertex ")).unwrap().parse().unwrap();
+    let header = text.find("end_header\n").unwrap() + "end_header\n".len();
+    assert_eq!(ply.len(), header + n * 9 * 4, "9 four-byte properties per particle");
+    // A coarser grid: fewer voxels, and a voxel size out of range is refused.
+    ok(
+        dir.path(),
+        &["render", &scene, "--out", "v2", "--format", "vdb", "--frames", "3", "--voxel-m", "0.04"],
+    );
+    let e = fails(
+        dir.path(),
+        &["render", &scene, "--out", "v3", "--format", "vdb", "--frames", "3", "--voxel-m", "0"],
+    );
+    assert!(e.contains("voxel size 0 m"), "{e}");
+}
+
+#[test]
+fn formats_a_phenomenon_cannot_write_are_refused_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let snow = shipped("snow-table.toml");
+    let e = fails(dir.path(), &["render", &snow, "--out", "o", "--format", "vdb"]);
+    assert!(e.contains("snow scenes are not written as vdb: use png, exr"), "{e}");
+    let aurora = shipped("aurora-scene1.toml");
+    let e = fails(dir.path(), &["render", &aurora, "--out", "o", "--format", "flipbook"]);
+    assert!(e.contains("aurora scenes are not written as flipbook"), "{e}");
+    // A loop longer than half the frames, and a flipbook too large, before simulating.
+    let scene = write(dir.path(), "tiny.toml", TINY_FLAME);
+    let e = fails(dir.path(), &["render", &scene, "--out", "o", "--format", "flipbook", "--loop", "3"]);
+    assert!(e.contains("--loop 3 needs at least 6 frames"), "{e}");
+    let e = fails(dir.path(), &["render", &scene, "--out", "o", "--format", "flipbook", "--width", "9000"]);
+    assert!(e.contains("over 16384 a side"), "{e}");
+    let e = fails(dir.path(), &["render", &scene, "--out", "o", "--format", "flipbook", "--resume"]);
+    assert!(e.contains("--resume"), "{e}");
+    assert!(!dir.path().join("o").join("flipbook.png").exists());
+}
