@@ -111,7 +111,38 @@ pub enum Sampler {
     Direct,
 }
 
+/// Which points lie within L_thr of a shape: its segments bucketed for distance queries.
+#[derive(Clone, Debug)]
+pub struct Nearness {
+    index: SegmentIndex,
+    reach: f32,
+}
+
+impl Nearness {
+    /// The test of distance `reach_km` from `shape`'s segments.
+    pub fn new(shape: &Shape, reach_km: f32) -> Self {
+        Self { index: SegmentIndex::new(shape, reach_km), reach: reach_km }
+    }
+
+    /// Whether `p` lies within the reach of a segment.
+    pub fn covers(&self, p: Vec2) -> bool {
+        self.index.covers(p, self.reach)
+    }
+
+    /// The share of `points` within reach (0 for none), in parallel; the count is exact,
+    /// so any thread count gives the same share.
+    pub fn share(&self, points: &[Vec2]) -> f64 {
+        if points.is_empty() {
+            return 0.0;
+        }
+        let near: usize =
+            points.par_chunks(4096).map(|c| c.iter().filter(|&&p| self.covers(p)).count()).sum();
+        near as f64 / points.len() as f64
+    }
+}
+
 /// Segments bucketed into square cells for distance queries.
+#[derive(Clone, Debug)]
 struct SegmentIndex {
     /// Per segment: start a, direction b - a, and 1/|b - a|² (0 for a point).
     lines: Vec<(Vec2, Vec2, f32)>,

@@ -10,7 +10,9 @@ use phenomena_core::validate::InvalidConfig;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{AuroraConfig, FieldParams};
-use crate::field::{Grid, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential};
+use crate::field::{
+    Grid, Nearness, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential,
+};
 use crate::motion::{ForceModel, MotionError, MotionScratch, Particles, step};
 use crate::shape::{Animation, Shape, ShapeError};
 
@@ -132,6 +134,13 @@ pub struct StepStats {
     pub redistribution_ms: f64,
     /// Time spent on forces and integration, ms.
     pub forces_ms: f64,
+    /// Particles in the fullest near cell of the current field after the frame (cells
+    /// near the intermediate target shape as §2.3.4 judges them; Table 3.3 deletes
+    /// above 500 at each renewal).
+    pub max_near_cell: u32,
+    /// Share of the particles within L_thr of the current intermediate target shape
+    /// after the frame.
+    pub near_share: f64,
 }
 
 /// The aurora simulation (part 1): shapes, field, particles.
@@ -159,8 +168,41 @@ pub struct AuroraSim {
     noise: NoiseSampler,
     particles: Particles,
     field: FieldState,
+    /// Derived from `field` at each renewal: the near cells of §2.3.4 and the L_thr test.
+    near: Near,
     scratch: MotionScratch,
     clock: SharedClock,
+}
+
+/// What §2.3.4 judges near the current intermediate target shape, made with its field.
+#[derive(Clone, Debug)]
+struct Near {
+    /// Per cell: near the shape (charge count and potential tests of Table 3.3).
+    cells: Vec<bool>,
+    /// Points within L_thr of the shape.
+    within: Nearness,
+}
+
+impl Near {
+    fn of(field: &FieldState, r: &crate::config::Redistribution, reach_km: f32) -> Self {
+        Self { cells: near_cells(field, r), within: Nearness::new(&field.shape, reach_km) }
+    }
+}
+
+/// The near cells of §2.3.4 with Table 3.3's thresholds: at least `near_count_ratio` ×
+/// the mean charge count and at most `near_potential_ratio` × the mean potential (and
+/// some charge).
+fn near_cells(field: &FieldState, r: &crate::config::Redistribution) -> Vec<bool> {
+    let cells = field.counts.len().max(1);
+    let mean_n = field.counts.iter().map(|&n| f64::from(n)).sum::<f64>() / cells as f64;
+    let mean_phi = field.potential.iter().sum::<f64>() / cells as f64;
+    (0..field.counts.len())
+        .map(|c| {
+            f64::from(field.counts[c]) >= f64::from(r.near_count_ratio) * mean_n
+                && field.potential[c] <= f64::from(r.near_potential_ratio) * mean_phi
+                && field.counts[c] > 0
+        })
+        .collect()
 }
 
 impl AuroraSim {
@@ -197,6 +239,7 @@ impl AuroraSim {
             noise,
             particles,
             field: FieldState::default(),
+            near: Near { cells: Vec::new(), within: Nearness::new(&Shape::default(), 1.0) },
             scratch: MotionScratch::default(),
             clock: SharedClock::default(),
         };
@@ -265,7 +308,20 @@ impl AuroraSim {
         stats.forces_ms = t.ms();
         self.frame += 1;
         stats.particles = self.particles.len();
+        stats.max_near_cell = self.max_near_cell();
+        stats.near_share = self.near.within.share(&self.particles.position_km);
         Ok(stats)
+    }
+
+    /// Particles in the fullest near cell of the current field.
+    fn max_near_cell(&self) -> u32 {
+        let mut counts = vec![0u32; self.grid.len()];
+        for &x in &self.particles.position_km {
+            if let Some((i, j)) = self.grid.cell_of(x) {
+                counts[self.grid.index(i, j)] += 1;
+            }
+        }
+        counts.iter().zip(&self.near.cells).filter(|(_, near)| **near).map(|(&n, _)| n).max().unwrap_or(0)
     }
 
     /// Renew the intermediate target shape: redistribute against the old field, then
@@ -293,6 +349,7 @@ impl AuroraSim {
             particles: self.particles.len(),
         };
         self.field = FieldState::build(shape, &inputs, stats, &self.clock);
+        self.near = Near::of(&self.field, &self.config.redistribution, self.config.field.reach_km);
     }
 
     /// §2.3.4 with Table 3.3's thresholds: remove particles in cells that are not near
@@ -303,15 +360,7 @@ impl AuroraSim {
         let r = &self.config.redistribution;
         let (grid, field) = (&self.grid, &self.field);
         let cells = grid.len();
-        let mean_n = field.counts.iter().map(|&n| f64::from(n)).sum::<f64>() / cells as f64;
-        let mean_phi = field.potential.iter().sum::<f64>() / cells as f64;
-        let near: Vec<bool> = (0..cells)
-            .map(|c| {
-                f64::from(field.counts[c]) >= f64::from(r.near_count_ratio) * mean_n
-                    && field.potential[c] <= f64::from(r.near_potential_ratio) * mean_phi
-                    && field.counts[c] > 0
-            })
-            .collect();
+        let near = &self.near.cells;
         // Particles per cell, in particle order.
         let p = &self.particles;
         let mut by_cell: Vec<Vec<u32>> = vec![Vec::new(); cells];
@@ -444,6 +493,7 @@ impl AuroraSim {
         self.next_id = state.next_id;
         self.particles = state.particles;
         self.field = state.field;
+        self.near = Near::of(&self.field, &self.config.redistribution, self.config.field.reach_km);
         Ok(())
     }
 }
