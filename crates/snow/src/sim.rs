@@ -516,13 +516,18 @@ impl SnowSim {
             if let Some((o, m)) = joined {
                 return (Target::Map(o as u32, nk as u32), m.surface(nk));
             }
-            // Falling (§2.4.2): the highest map below the source height at that texel.
+            // Falling (§2.4.2): "among the maps with a snow-possible region lower than
+            // the source at that point, the highest": chosen by its ground, below the
+            // source's surface. Its snow may stand higher than the source: the snow is
+            // walled in there and does not move. (Chosen by snow surface before, a texel
+            // whose neighbouring pile had risen above it found no lower map and sent its
+            // snow off the scene from the middle of the yard, under the bench; issue 25.)
             let lower = self
                 .maps
                 .iter()
                 .enumerate()
-                .filter(|(o, m)| *o != mi && m.possible(nk) && m.surface(nk) < h)
-                .max_by(|a, b| a.1.surface(nk).total_cmp(&b.1.surface(nk)).then(b.0.cmp(&a.0)));
+                .filter(|(o, m)| *o != mi && m.possible(nk) && m.ground_m[nk] < h)
+                .max_by(|a, b| a.1.ground_m[nk].total_cmp(&b.1.ground_m[nk]).then(b.0.cmp(&a.0)));
             // The height the slope is measured to: the edge's own ground (a cliff: the
             // pile at the edge may not stand more than the repose above it), or the lower
             // map's snow surface where that is higher (a neighbouring group at about the
