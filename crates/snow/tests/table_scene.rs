@@ -139,25 +139,32 @@ fn snow_sliding_off_the_table_lands_on_the_ground_beside_it() {
 
 #[test]
 fn any_thread_count_gives_the_same_snow() {
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
-            let mut s = sim(10.0, 16, 35.0);
-            for _ in 0..5 {
-                s.step().unwrap();
-            }
-            // Bits, not values: the ground is NaN where a map holds no snow.
-            s.maps()
-                .iter()
-                .flat_map(|m| m.ground_m.iter().chain(&m.snow_m).chain(&m.probability).map(|v| v.to_bits()))
-                .collect::<Vec<u32>>()
-        })
-    };
-    let one = run(1);
-    assert!(one == run(2), "1 vs 2 threads");
-    assert!(one == run(3), "1 vs 3 threads");
-    // 16 directions over 7 threads make 6 shares of 3; and the same simulation moved
-    // from an 8-thread pool to that one keeps no counts from its earlier workers.
-    assert!(one == run(7), "1 vs 7 threads");
+    // Either stabiliser (both sequential; the probability is computed in shares).
+    for stabiliser in [phenomena_snow::Stabiliser::Flood, phenomena_snow::Stabiliser::Relaxation] {
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+                let table = sim(10.0, 16, 35.0);
+                let params = SnowConfig { stabiliser, ..table.config().clone() };
+                let mut s = SnowSim::new(table.mesh().clone(), params, 3).unwrap();
+                for _ in 0..5 {
+                    s.step().unwrap();
+                }
+                // Bits, not values: the ground is NaN where a map holds no snow.
+                s.maps()
+                    .iter()
+                    .flat_map(|m| {
+                        m.ground_m.iter().chain(&m.snow_m).chain(&m.probability).map(|v| v.to_bits())
+                    })
+                    .collect::<Vec<u32>>()
+            })
+        };
+        let one = run(1);
+        assert!(one == run(2), "{stabiliser:?}: 1 vs 2 threads");
+        assert!(one == run(3), "{stabiliser:?}: 1 vs 3 threads");
+        // 16 directions over 7 threads make 6 shares of 3; and the same simulation moved
+        // from an 8-thread pool to that one keeps no counts from its earlier workers.
+        assert!(one == run(7), "{stabiliser:?}: 1 vs 7 threads");
+    }
     let pool = |threads: usize| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     let mut s = sim(10.0, 16, 35.0);
     let reference = s.maps().iter().map(|m| m.probability.clone()).collect::<Vec<_>>();
@@ -274,14 +281,19 @@ fn a_surface_split_between_two_maps_holds_snow_evenly_across_the_join() {
     assert!(s.fallen_off_m3() < wedges, "{} m³ fell off (wedges: {wedges} m³)", s.fallen_off_m3());
 }
 
-/// The stabilisation visits only texels next to a change (issue 25): on the yard (a
+/// The relaxation visits only texels next to a change (issue 25): on the yard (a
 /// steep roof draining onto piles, trees, a fence, a ground split between two maps), it
 /// gives bit for bit the snow, the fallen volume and the passes of the sweep that visits
 /// every texel in every pass. 100² maps: not a whole number of 64-texel words, so the
 /// sets' last word is partly outside the map.
 #[test]
 fn the_sparse_stabilisation_equals_visiting_every_texel() {
-    let params = SnowConfig { map_resolution: 100, directions: 16, ..phenomena_snow::mesh::yard_config() };
+    let params = SnowConfig {
+        map_resolution: 100,
+        directions: 16,
+        stabiliser: phenomena_snow::Stabiliser::Relaxation,
+        ..phenomena_snow::mesh::yard_config()
+    };
     let mut sparse = SnowSim::new(phenomena_snow::mesh::yard_scene(), params, 1).expect("yard");
     let mut dense = sparse.clone();
     dense.set_dense_sweeps(true);
@@ -318,6 +330,7 @@ fn the_sparse_stabilisation_equals_visiting_every_texel_across_a_join() {
         rate_cm_per_h: 10.0,
         time_step_h: 0.5,
         object_groups: Some(vec![0, 1]),
+        stabiliser: phenomena_snow::Stabiliser::Relaxation,
         ..SnowConfig::default()
     };
     let mut sparse = SnowSim::new(mesh, params, 1).expect("split ground");

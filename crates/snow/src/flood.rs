@@ -1,0 +1,652 @@
+//! The flood stabilisation (issue 25): the snow brought to rest at the angle of repose
+//! (§2.4.1) with work that follows the texels that change, not the depth of the snow.
+//!
+//! The texels of all maps are the nodes of one graph whose edges are the repose
+//! comparisons of [`neighbours`]: towards a neighbour's snow surface, or towards a fixed
+//! ground (off the scene, or a cliff down to a lower map: a *sink*, where snow passing
+//! the region's edge falls, §2.4.2). A stable state keeps every snow-covered texel within
+//! the repose rise of each of its comparisons. Three stages:
+//!
+//! 1. **Floor**: the highest stable surface under the snow, found bottom-up (a Dijkstra
+//!    sweep in increasing height: a texel's cap is its lowest comparison plus the rise,
+//!    and lowering it may lower its uphill neighbours' caps). A texel comes down only as
+//!    far as the repose check demands, so snow that lay stable before the step stays.
+//!    What stands above the floor is the surplus, which must move. An avalanche down a
+//!    long slope is settled here in one sweep instead of one texel per pass; the surplus
+//!    of a texel held at the repose above a chain at the repose that ends at a sink (an
+//!    edge face, a roof's wedge over its eave) goes to the sink at once.
+//! 2. **Carry**: the rest of the surplus, visited from the highest texel down (so what
+//!    runs down a slope gathers before it settles). On bare ground steeper than the
+//!    repose it slides on, in equal shares to the neighbours it is steep towards (Fig 6
+//!    (b)-(e)). At the repose, down a chain at the repose to a sink it goes to the sink in
+//!    one hop; an amount no larger than one step's snowfall runs on down the steepest way,
+//!    as the local rule passes an excess on, to where there is room. Where it fits within
+//!    the tolerance it stays; anything else settles by a flood.
+//! 3. **Flood**: water-filling in the heights less the repose cone from the source:
+//!    texels in increasing `key = surface - (source surface - rise · distance)` are
+//!    raised to `source surface - rise · distance + τ`, with τ from the volume (a priority
+//!    flood). The result is within the repose by construction: a pile growing from where
+//!    the snow lands, a layer down a face at the repose, a foot filling up. A sink whose
+//!    key the level reaches takes the rest: it falls (§2.4.2) and settles in turn.
+//!
+//! Sequential, ordered by height with ties broken by node number: the same for any
+//! thread count. Mass is carried in f64 and written as the f32 depths the maps hold.
+
+use std::collections::BinaryHeap;
+
+use crate::sim::{Regions, SnowMap, Target, neighbours};
+
+/// Flag of a flood queue entry that is a sink (an index into `Scratch::sinks`); nodes
+/// (map · texels + texel) stay below it ([`Scratch::fits`]).
+const SINK: u32 = 1 << 31;
+
+/// The stabilisation's buffers, kept between steps; only a cache (a clone starts empty).
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    /// Snow in transit at each node, m of depth over one texel.
+    pending: Vec<f64>,
+    /// Floor sweep (lowest first) and carry (highest first).
+    buckets: Buckets,
+    /// The floor's first candidates: the height each must come down to, node.
+    first: Vec<(f32, u32)>,
+    /// The flood's frontier, lowest key first.
+    frontier: BinaryHeap<u64>,
+    /// The flood's wet texels, highest key first (indices into `reached`).
+    wet: BinaryHeap<u64>,
+    /// Per node: the flood that queued it, the flood that reached it, its distance.
+    queued: Vec<u32>,
+    reached_by: Vec<u32>,
+    distance: Vec<u32>,
+    /// Per node: the carry's memo of where a chain at the repose ends (`MEMO_*`).
+    memo_step: Vec<u32>,
+    memo: Vec<u32>,
+    /// A path being followed for the memo.
+    path: Vec<u32>,
+    /// Texels the current flood reached: node, key, apex (source height less rise · distance).
+    reached: Vec<(u32, f64, f64)>,
+    /// The current flood's sinks.
+    sinks: Vec<Target>,
+    /// Nodes whose snow changed this step (each once).
+    changed: Vec<u32>,
+    changed_step: Vec<u32>,
+    flood: u32,
+    step: u32,
+    /// Snow that left the scene this step, m of depth over one texel.
+    fallen: f64,
+    /// What the last settle did.
+    pub(crate) counts: Counts,
+}
+
+/// What one [`Scratch::settle`] did (for tests and measurements).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counts {
+    /// Texels lowered by the floor.
+    pub lowered: u64,
+    /// Visits of the carry.
+    pub carried: u64,
+    /// Floods.
+    pub floods: u64,
+    /// Texels reached by floods.
+    pub flooded: u64,
+    /// The most texels one flood reached.
+    pub largest_flood: u64,
+    /// Carries sent down a chain to a sink in one hop.
+    pub conduits: u64,
+}
+
+impl Clone for Scratch {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+/// Memo: the chain ends where snow has room (a flood settles it).
+const MEMO_ROOM: u32 = u32::MAX;
+/// Memo: the chain ends off the scene.
+const MEMO_OFF: u32 = u32::MAX - 1;
+
+/// An f32 as a u32 that orders like it (total order; NaN never occurs here).
+fn sortable(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 1 << 31 }
+}
+
+/// The maps and their grid as the stages see them.
+struct Grid<'a> {
+    maps: &'a mut [SnowMap],
+    regions: &'a Regions,
+    n: usize,
+    /// tan(repose) times the texel size, m.
+    rise: f32,
+    /// The repose tolerance, m (`sim::repose_tolerance`).
+    tol: f32,
+}
+
+impl Grid<'_> {
+    fn texels(&self) -> usize {
+        self.n * self.n
+    }
+
+    fn split(&self, node: u32) -> (usize, usize) {
+        let t = self.texels();
+        (node as usize / t, node as usize % t)
+    }
+
+    fn node(&self, mi: usize, k: usize) -> u32 {
+        (mi * self.texels() + k) as u32
+    }
+
+    fn surface(&self, node: u32) -> f32 {
+        let (mi, k) = self.split(node);
+        self.maps[mi].surface(k)
+    }
+
+    fn surface_at(&self, mi: usize, k: usize) -> f32 {
+        self.maps[mi].surface(k)
+    }
+
+    /// Calls `f(target, height, sink)` for each repose comparison of `node`, in
+    /// [`neighbours`]' order; `sink` when the height is a fixed ground (off the scene, or
+    /// a cliff down to a lower map) rather than a surface that snow raises.
+    fn relations(&self, mi: usize, k: usize, mut f: impl FnMut(Target, f32, bool)) {
+        let n = self.n;
+        if self.regions.inner[mi].get(k) {
+            let m = &self.maps[mi];
+            for nk in [k - n, k + 1, k + n, k - 1] {
+                f(Target::Map(mi as u32, nk as u32), m.surface(nk), false);
+            }
+            return;
+        }
+        for (t, c) in neighbours(self.maps, n, mi, k, self.rise) {
+            let sink = match t {
+                Target::Off => true,
+                Target::Map(o, nk) => c != self.maps[o as usize].surface(nk as usize),
+            };
+            f(t, c, sink);
+        }
+    }
+
+    /// The lowest comparison of `node` (the first in order among equals).
+    fn lowest(&self, mi: usize, k: usize) -> (Target, f32, bool) {
+        let mut low = (Target::Off, f32::INFINITY, true);
+        self.relations(mi, k, |t, c, sink| {
+            if c < low.1 {
+                low = (t, c, sink);
+            }
+        });
+        low
+    }
+
+    /// The depth texel `k` of map `mi` must come down to, if it holds snow steeper than
+    /// the repose (beyond the tolerance) towards a comparison: [`kept_depth`] under its
+    /// lowest comparison.
+    fn lowered(&self, mi: usize, k: usize) -> Option<f32> {
+        let m = &self.maps[mi];
+        let s = m.snow_m[k];
+        if !(s > 0.0) {
+            return None;
+        }
+        let low = self.lowest(mi, k).1;
+        (m.surface(k) - low - self.rise > self.tol)
+            .then(|| kept_depth(m.ground_m[k], low, self.rise, self.tol))
+    }
+
+    /// Calls `f(map, texel)` for the texels of other maps next to texel `k` of map `mi`
+    /// where their region ends: past their edge they measure to the surfaces at `k`.
+    fn uphill_across(&self, mi: usize, k: usize, mut f: impl FnMut(usize, usize)) {
+        for (o, r) in self.regions.rim.iter().enumerate() {
+            if o != mi && r.get(k) {
+                for nk in crate::sim::four(self.n, k) {
+                    if self.maps[o].possible(nk) {
+                        f(o, nk);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The most snow, m, a texel of ground `ground` keeps under a comparison at `low`: a
+/// depth whose surface the repose check (`surface - low - rise > tol`, the local rule's
+/// own arithmetic) does not find steep, to within one f32 step of the highest surface it
+/// accepts (found in steps of the surface's own precision: a few). Snow that passed the
+/// check before the step still passes it when nothing under it went down, so the floor
+/// takes no snow that lay stable beyond that rounding (test `flood_matches_relaxation`).
+fn kept_depth(ground: f32, low: f32, rise: f32, tol: f32) -> f32 {
+    let steep = |d: f32| (ground + d) - low - rise > tol;
+    // One step of the surface's precision at depth `d`, as a depth.
+    let step = |d: f32| {
+        let h = ground + d;
+        (h.next_up() - h).max(f32::MIN_POSITIVE)
+    };
+    let mut d = (low + rise + tol - ground).max(0.0);
+    while d > 0.0 && steep(d) {
+        d = (d - step(d)).max(0.0);
+    }
+    while !steep(d + step(d)) {
+        d += step(d);
+    }
+    d
+}
+
+/// Most buckets of a [`Buckets`] queue.
+const MAX_BUCKETS: usize = 1 << 16;
+
+/// Nodes queued by height in buckets of a fixed width, emptied lowest or highest bucket
+/// first (last in, first out within one): O(1) a node. With buckets narrower than the
+/// repose rise, a node's uphill neighbours (the floor) or downhill targets (the carry)
+/// always fall in another bucket, so the order within a bucket does not matter.
+#[derive(Debug, Default)]
+struct Buckets {
+    lists: Vec<Vec<u32>>,
+    base: f32,
+    per_m: f32,
+    /// No bucket before this one (in emptying order) holds a node.
+    at: usize,
+    highest_first: bool,
+}
+
+impl Buckets {
+    /// Empty, for heights in `lo..=hi` (others go to the end buckets) in buckets of
+    /// `width` (wider when more than `MAX_BUCKETS` would be needed).
+    fn reset(&mut self, lo: f32, hi: f32, width: f32, highest_first: bool) {
+        let span = (hi - lo).max(0.0);
+        let count = ((span / width).ceil() as usize + 1).clamp(1, MAX_BUCKETS);
+        for l in &mut self.lists {
+            l.clear();
+        }
+        self.lists.resize_with(count.max(self.lists.len()), Vec::new);
+        self.lists.truncate(count);
+        self.base = lo;
+        self.per_m = if span > 0.0 { (count - 1) as f32 / span } else { 0.0 };
+        self.highest_first = highest_first;
+        self.at = if highest_first { 0 } else { count - 1 };
+    }
+
+    fn push(&mut self, height: f32, node: u32) {
+        let b = (((height - self.base) * self.per_m).max(0.0) as usize).min(self.lists.len() - 1);
+        self.lists[b].push(node);
+        self.at = if self.highest_first { self.at.max(b) } else { self.at.min(b) };
+    }
+
+    fn pop(&mut self) -> Option<u32> {
+        loop {
+            if let Some(node) = self.lists[self.at].pop() {
+                return Some(node);
+            }
+            if self.highest_first {
+                self.at = self.at.checked_sub(1)?;
+            } else if self.at + 1 < self.lists.len() {
+                self.at += 1;
+            } else {
+                return None;
+            }
+        }
+    }
+}
+
+impl Scratch {
+    /// Whether `maps` maps of `texels` texels can be numbered below [`SINK`] (and the
+    /// memo's marks): 127 maps of 4096² texels, far past any memory budget.
+    pub(crate) fn fits(maps: usize, texels: usize) -> bool {
+        maps.checked_mul(texels).is_some_and(|nodes| nodes < MEMO_OFF.min(SINK) as usize)
+    }
+
+    /// The nodes (map · texels + texel) whose snow the last [`Scratch::settle`] changed.
+    pub(crate) fn changed(&self) -> &[u32] {
+        &self.changed
+    }
+
+    /// Bring the snow of `maps` to rest (the module's three stages). Returns the snow that
+    /// left the scene, m of depth over one texel.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn settle(
+        &mut self,
+        maps: &mut [SnowMap],
+        regions: &Regions,
+        n: usize,
+        rise: f32,
+        tol: f32,
+        small: f32,
+    ) -> f64 {
+        let nodes = maps.len() * n * n;
+        for v in
+            [&mut self.queued, &mut self.reached_by, &mut self.distance, &mut self.memo_step, &mut self.memo]
+        {
+            v.resize(nodes, 0);
+        }
+        self.changed_step.resize(nodes, 0);
+        // Every carry empties what it takes: only the length changes.
+        self.pending.resize(nodes, 0.0);
+        self.step = self.step.wrapping_add(1);
+        if self.step == 0 {
+            // After 2³² steps: the stamps start again.
+            self.memo_step.fill(0);
+            self.changed_step.fill(0);
+            self.step = 1;
+        }
+        self.changed.clear();
+        self.fallen = 0.0;
+        self.counts = Counts::default();
+        let mut grid = Grid { maps, regions, n, rise, tol };
+        let (lo, hi) = self.floor(&mut grid);
+        self.carry(&mut grid, lo, hi, small);
+        self.fallen
+    }
+
+    fn note_change(&mut self, node: u32) {
+        if self.changed_step[node as usize] != self.step {
+            self.changed_step[node as usize] = self.step;
+            self.changed.push(node);
+        }
+    }
+
+    /// Stage 1: lower every snow surface to the highest stable one under it, lowest
+    /// first; what comes off is left in `pending`. Returns the lowest ground and the
+    /// highest surface of the maps.
+    fn floor(&mut self, g: &mut Grid) -> (f32, f32) {
+        let texels = g.texels();
+        let n = g.n;
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut first: Vec<(f32, u32)> = std::mem::take(&mut self.first);
+        first.clear();
+        for mi in 0..g.maps.len() {
+            let m = &g.maps[mi];
+            let inner = &g.regions.inner[mi];
+            for k in 0..texels {
+                let ground = m.ground_m[k];
+                lo = lo.min(ground);
+                let s = m.snow_m[k];
+                if !(s > 0.0) {
+                    continue;
+                }
+                let h = ground + s;
+                hi = hi.max(h);
+                let low = if inner.get(k) {
+                    m.surface(k - n).min(m.surface(k + 1)).min(m.surface(k + n)).min(m.surface(k - 1))
+                } else {
+                    g.lowest(mi, k).1
+                };
+                if h - low - g.rise > g.tol {
+                    first.push(((low + g.rise).max(ground), g.node(mi, k)));
+                }
+            }
+        }
+        if !lo.is_finite() || !hi.is_finite() {
+            self.first = first;
+            return (0.0, 0.0);
+        }
+        let mut queue = std::mem::take(&mut self.buckets);
+        queue.reset(lo, hi, 0.5 * g.rise, false);
+        for &(v, node) in &first {
+            queue.push(v, node);
+        }
+        self.first = first;
+        while let Some(node) = queue.pop() {
+            let (mi, k) = g.split(node);
+            let Some(new) = g.lowered(mi, k) else { continue };
+            let m = &mut g.maps[mi];
+            let old = m.snow_m[k];
+            if !(new < old) {
+                continue;
+            }
+            m.snow_m[k] = new;
+            self.counts.lowered += 1;
+            self.note_change(node);
+            let surplus = f64::from(old) - f64::from(new);
+            // Held at the repose on a chain at the repose down to a sink (an edge face, a
+            // roof's wedge): the chain below is settled (lower texels first), so the
+            // surplus goes to the sink now, as the carry would send it.
+            match (new > 0.0).then(|| self.conduit(g, node)).flatten() {
+                Some(Target::Off) => {
+                    self.counts.conduits += 1;
+                    self.fallen += surplus;
+                }
+                Some(Target::Map(o, nk)) => {
+                    self.counts.conduits += 1;
+                    let target = g.node(o as usize, nk as usize);
+                    self.pending[target as usize] += surplus;
+                    self.note_change(target);
+                }
+                None => self.pending[node as usize] += surplus,
+            }
+            // Uphill: a neighbour on this map is steep towards this texel when it stands
+            // more than the rise (and the tolerance) above the new surface; across a
+            // region's edge the comparison is worked out in full.
+            let v = g.surface_at(mi, k);
+            let m = &g.maps[mi];
+            for j in crate::sim::four(n, k) {
+                if m.snow_m[j] > 0.0 && m.surface(j) - (v + g.rise) > g.tol {
+                    queue.push((v + g.rise).max(m.ground_m[j]), g.node(mi, j));
+                }
+            }
+            if g.regions.any_rim.get(k) {
+                g.uphill_across(mi, k, |o, j| {
+                    if let Some(d) = g.lowered(o, j) {
+                        queue.push(g.maps[o].ground_m[j] + d, g.node(o, j));
+                    }
+                });
+            }
+        }
+        self.buckets = queue;
+        (lo, hi)
+    }
+
+    /// Stage 2: move the surplus downhill, highest texel first, until it is settled or has
+    /// left the scene.
+    fn carry(&mut self, g: &mut Grid, lo: f32, hi: f32, small: f32) {
+        self.buckets.reset(lo, hi, 0.5 * g.rise, true);
+        for i in 0..self.changed.len() {
+            let node = self.changed[i];
+            if self.pending[node as usize] > 0.0 {
+                self.buckets.push(g.surface(node), node);
+            }
+        }
+        while let Some(node) = self.buckets.pop() {
+            let amount = std::mem::take(&mut self.pending[node as usize]);
+            if !(amount > 0.0) {
+                continue;
+            }
+            self.counts.carried += 1;
+            let (mi, k) = g.split(node);
+            let h = g.surface_at(mi, k);
+            let (_, low, _) = g.lowest(mi, k);
+            let over = h - low - g.rise;
+            if over > g.tol {
+                // Bare ground steeper than the repose: the snow slides on, in equal shares
+                // to every comparison it is steep towards (Fig 6 (b)-(e)).
+                let mut steep = [Target::Off; 4];
+                let mut count = 0;
+                g.relations(mi, k, |t, c, _| {
+                    if h - c - g.rise > g.tol {
+                        steep[count] = t;
+                        count += 1;
+                    }
+                });
+                for &t in &steep[..count] {
+                    self.deliver(g, t, amount / count as f64);
+                }
+            } else if over >= -g.tol
+                && let Some(t) = self.conduit(g, node)
+            {
+                self.counts.conduits += 1;
+                self.deliver(g, t, amount);
+            } else if over >= -g.tol && amount <= f64::from(small) {
+                // At the repose with room further down: a small amount runs down the
+                // steepest way to where there is room, as the local rule passes an excess
+                // on (merging with what else runs there).
+                let (t, _, _) = g.lowest(mi, k);
+                self.deliver(g, t, amount);
+            } else if let depth = f64::from(g.maps[mi].snow_m[k]) + amount
+                && f64::from(kept_depth(g.maps[mi].ground_m[k], low, g.rise, g.tol)) >= depth
+            {
+                // Room for all of it within the tolerance: it stays (a flood would raise
+                // this texel alone).
+                g.maps[mi].snow_m[k] = depth as f32;
+                self.note_change(node);
+            } else {
+                self.flood(g, node, amount);
+            }
+        }
+    }
+
+    /// Send `amount` to `target`: off the scene, or to a node's `pending` (queued for the
+    /// carry at its height).
+    fn deliver(&mut self, g: &Grid, target: Target, amount: f64) {
+        match target {
+            Target::Off => self.fallen += amount,
+            Target::Map(o, nk) => {
+                let node = g.node(o as usize, nk as usize);
+                self.pending[node as usize] += amount;
+                self.buckets.push(g.surface_at(o as usize, nk as usize), node);
+            }
+        }
+    }
+
+    /// Where a chain of texels at (or over) the repose starting at `node` ends, if it
+    /// ends at a sink: each texel's lowest comparison is within the tolerance of its
+    /// surface less the rise, so snow arriving anywhere on it cannot stop before the sink
+    /// (an edge face, or a roof's held wedge above its eave). `None` when the chain
+    /// reaches a texel with room. Memoised for the step.
+    fn conduit(&mut self, g: &Grid, node: u32) -> Option<Target> {
+        self.path.clear();
+        let mut cur = node;
+        let end = loop {
+            if self.memo_step[cur as usize] == self.step {
+                break self.memo[cur as usize];
+            }
+            self.path.push(cur);
+            let (mi, k) = g.split(cur);
+            let (t, low, sink) = g.lowest(mi, k);
+            if g.surface_at(mi, k) < low + g.rise - g.tol {
+                break MEMO_ROOM;
+            }
+            match (t, sink) {
+                (Target::Off, _) => break MEMO_OFF,
+                (Target::Map(o, nk), true) => break g.node(o as usize, nk as usize),
+                (Target::Map(o, nk), false) => cur = g.node(o as usize, nk as usize),
+            }
+        };
+        for &p in &self.path {
+            self.memo_step[p as usize] = self.step;
+            self.memo[p as usize] = end;
+        }
+        match end {
+            MEMO_ROOM => None,
+            MEMO_OFF => Some(Target::Off),
+            sink => {
+                let (o, nk) = g.split(sink);
+                Some(Target::Map(o as u32, nk as u32))
+            }
+        }
+    }
+
+    /// Stage 3: settle `amount` arriving at `source` by water-filling in `key = surface -
+    /// apex`, apex = source surface - rise · distance (distance through the texels reached,
+    /// so neighbours' apexes differ by at most one rise): the texels below the level τ
+    /// are raised to apex + τ. A sink reached first caps τ at its key and takes the rest.
+    fn flood(&mut self, g: &mut Grid, source: u32, amount: f64) {
+        self.flood = self.flood.wrapping_add(1);
+        if self.flood == 0 {
+            self.queued.fill(0);
+            self.reached_by.fill(0);
+            self.flood = 1;
+        }
+        let id = self.flood;
+        self.frontier.clear();
+        self.wet.clear();
+        self.reached.clear();
+        self.sinks.clear();
+        let top = f64::from(g.surface(source));
+        let rise = f64::from(g.rise);
+        let entry = |key: f64, tag: u32| u64::from(!sortable(key as f32)) << 32 | u64::from(tag);
+        let key_of = |e: u64| {
+            let b = !((e >> 32) as u32);
+            f32::from_bits(if b >> 31 == 1 { b & !(1 << 31) } else { !b })
+        };
+        self.queued[source as usize] = id;
+        self.distance[source as usize] = 0;
+        self.frontier.push(entry(0.0, source));
+        let (mut sum, mut count) = (0.0f64, 0usize);
+        let level = loop {
+            let next = self.frontier.peek().map_or(f64::INFINITY, |&e| f64::from(key_of(e)));
+            if count > 0 && (amount + sum) / count as f64 <= next {
+                break (amount + sum) / count as f64;
+            }
+            let Some(e) = self.frontier.pop() else { break (amount + sum) / count as f64 };
+            let tag = e as u32;
+            if tag & SINK != 0 {
+                // The level reaches an edge: it stays there and the rest falls.
+                let cap = next;
+                while let Some(&w) = self.wet.peek() {
+                    let key = self.reached[(w as u32) as usize].1;
+                    if key < cap {
+                        break;
+                    }
+                    self.wet.pop();
+                    sum -= key;
+                    count -= 1;
+                }
+                let held = count as f64 * cap - sum;
+                let target = self.sinks[(tag & !SINK) as usize];
+                self.deliver(g, target, (amount - held).max(0.0));
+                break cap;
+            }
+            if self.reached_by[tag as usize] == id {
+                continue;
+            }
+            self.reached_by[tag as usize] = id;
+            let d = self.distance[tag as usize];
+            let apex = top - rise * f64::from(d);
+            let (tm, tk) = g.split(tag);
+            let key = f64::from(g.surface_at(tm, tk)) - apex;
+            let i = self.reached.len() as u32;
+            self.reached.push((tag, key, apex));
+            self.wet.push(u64::from(sortable(key as f32)) << 32 | u64::from(i));
+            sum += key;
+            count += 1;
+            // Texels the level does not reach stay dry (their neighbours stay queued).
+            while let Some(&w) = self.wet.peek() {
+                let key = self.reached[(w as u32) as usize].1;
+                if key < (amount + sum) / count as f64 {
+                    break;
+                }
+                self.wet.pop();
+                sum -= key;
+                count -= 1;
+            }
+            let below = apex - rise;
+            let (frontier, sinks, queued, reached_by, distance) =
+                (&mut self.frontier, &mut self.sinks, &mut self.queued, &self.reached_by, &mut self.distance);
+            g.relations(tm, tk, |t, c, sink| {
+                if sink {
+                    frontier.push(entry(f64::from(c) - below, SINK | sinks.len() as u32));
+                    sinks.push(t);
+                    return;
+                }
+                let Target::Map(o, nk) = t else { return };
+                let m = g.node(o as usize, nk as usize) as usize;
+                if reached_by[m] == id || (queued[m] == id && distance[m] <= d + 1) {
+                    return;
+                }
+                queued[m] = id;
+                distance[m] = d + 1;
+                frontier.push(entry(f64::from(c) - below, m as u32));
+            });
+        };
+        self.counts.floods += 1;
+        self.counts.flooded += self.reached.len() as u64;
+        self.counts.largest_flood = self.counts.largest_flood.max(self.reached.len() as u64);
+        for idx in 0..self.wet.len() {
+            let (node, _, apex) = self.reached[(self.wet.as_slice()[idx] as u32) as usize];
+            let (mi, k) = g.split(node);
+            let m = &mut g.maps[mi];
+            let depth = (apex + level - f64::from(m.ground_m[k])) as f32;
+            if depth > m.snow_m[k] {
+                m.snow_m[k] = depth;
+                self.memo_step[node as usize] = 0;
+                self.note_change(node);
+            }
+        }
+    }
+}
