@@ -43,8 +43,10 @@ const SINK: u32 = 1 << 31;
 /// The stabilisation's buffers, kept between steps; only a cache (a clone starts empty).
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
-    /// Snow in transit at each node, m of depth over one texel.
-    pending: Vec<f64>,
+    /// Per node: the carry's state.
+    node: Vec<NodeState>,
+    /// Per node: the flood's marks.
+    seen: Vec<Seen>,
     /// Floor sweep (lowest first) and carry (highest first).
     buckets: Buckets,
     /// The floor's first candidates: the height each must come down to, node.
@@ -53,13 +55,6 @@ pub(crate) struct Scratch {
     frontier: BinaryHeap<u64>,
     /// The flood's wet texels, highest key first (indices into `reached`).
     wet: BinaryHeap<u64>,
-    /// Per node: the flood that queued it, the flood that reached it, its distance.
-    queued: Vec<u32>,
-    reached_by: Vec<u32>,
-    distance: Vec<u32>,
-    /// Per node: the carry's memo of where a chain at the repose ends (`MEMO_*`).
-    memo_step: Vec<u32>,
-    memo: Vec<u32>,
     /// A path being followed for the memo.
     path: Vec<u32>,
     /// Texels the current flood reached: node, key, apex (source height less rise · distance).
@@ -68,7 +63,6 @@ pub(crate) struct Scratch {
     sinks: Vec<Target>,
     /// Nodes whose snow changed this step (each once).
     changed: Vec<u32>,
-    changed_step: Vec<u32>,
     flood: u32,
     step: u32,
     /// Snow that left the scene this step, m of depth over one texel.
@@ -92,6 +86,28 @@ pub struct Counts {
     pub largest_flood: u64,
     /// Carries sent down a chain to a sink in one hop.
     pub conduits: u64,
+}
+
+/// A node's state for the floor and the carry, together in memory (one cache line holds
+/// what a visit needs).
+#[derive(Clone, Copy, Debug, Default)]
+struct NodeState {
+    /// Snow in transit, m of depth over one texel.
+    pending: f64,
+    /// The step in which the node's snow last changed.
+    changed: u32,
+    /// The step of `memo`, and where a chain at the repose from it ends (`MEMO_*`).
+    memo_step: u32,
+    memo: u32,
+}
+
+/// A node's marks for the flood: the flood that queued it, the one that reached it, and
+/// its distance from the source.
+#[derive(Clone, Copy, Debug, Default)]
+struct Seen {
+    queued: u32,
+    reached: u32,
+    distance: u32,
 }
 
 impl Clone for Scratch {
@@ -310,19 +326,13 @@ impl Scratch {
         small: f32,
     ) -> f64 {
         let nodes = maps.len() * n * n;
-        for v in
-            [&mut self.queued, &mut self.reached_by, &mut self.distance, &mut self.memo_step, &mut self.memo]
-        {
-            v.resize(nodes, 0);
-        }
-        self.changed_step.resize(nodes, 0);
         // Every carry empties what it takes: only the length changes.
-        self.pending.resize(nodes, 0.0);
+        self.node.resize(nodes, NodeState::default());
+        self.seen.resize(nodes, Seen::default());
         self.step = self.step.wrapping_add(1);
         if self.step == 0 {
             // After 2³² steps: the stamps start again.
-            self.memo_step.fill(0);
-            self.changed_step.fill(0);
+            self.node.iter_mut().for_each(|v| (v.changed, v.memo_step) = (0, 0));
             self.step = 1;
         }
         self.changed.clear();
@@ -335,8 +345,8 @@ impl Scratch {
     }
 
     fn note_change(&mut self, node: u32) {
-        if self.changed_step[node as usize] != self.step {
-            self.changed_step[node as usize] = self.step;
+        if self.node[node as usize].changed != self.step {
+            self.node[node as usize].changed = self.step;
             self.changed.push(node);
         }
     }
@@ -405,10 +415,10 @@ impl Scratch {
                 Some(Target::Map(o, nk)) => {
                     self.counts.conduits += 1;
                     let target = g.node(o as usize, nk as usize);
-                    self.pending[target as usize] += surplus;
+                    self.node[target as usize].pending += surplus;
                     self.note_change(target);
                 }
-                None => self.pending[node as usize] += surplus,
+                None => self.node[node as usize].pending += surplus,
             }
             // Uphill: a neighbour on this map is steep towards this texel when it stands
             // more than the rise (and the tolerance) above the new surface; across a
@@ -438,12 +448,12 @@ impl Scratch {
         self.buckets.reset(lo, hi, 0.5 * g.rise, true);
         for i in 0..self.changed.len() {
             let node = self.changed[i];
-            if self.pending[node as usize] > 0.0 {
+            if self.node[node as usize].pending > 0.0 {
                 self.buckets.push(g.surface(node), node);
             }
         }
         while let Some(node) = self.buckets.pop() {
-            let amount = std::mem::take(&mut self.pending[node as usize]);
+            let amount = std::mem::take(&mut self.node[node as usize].pending);
             if !(amount > 0.0) {
                 continue;
             }
@@ -497,7 +507,7 @@ impl Scratch {
             Target::Off => self.fallen += amount,
             Target::Map(o, nk) => {
                 let node = g.node(o as usize, nk as usize);
-                self.pending[node as usize] += amount;
+                self.node[node as usize].pending += amount;
                 self.buckets.push(g.surface_at(o as usize, nk as usize), node);
             }
         }
@@ -512,8 +522,8 @@ impl Scratch {
         self.path.clear();
         let mut cur = node;
         let end = loop {
-            if self.memo_step[cur as usize] == self.step {
-                break self.memo[cur as usize];
+            if self.node[cur as usize].memo_step == self.step {
+                break self.node[cur as usize].memo;
             }
             self.path.push(cur);
             let (mi, k) = g.split(cur);
@@ -528,8 +538,8 @@ impl Scratch {
             }
         };
         for &p in &self.path {
-            self.memo_step[p as usize] = self.step;
-            self.memo[p as usize] = end;
+            self.node[p as usize].memo_step = self.step;
+            self.node[p as usize].memo = end;
         }
         match end {
             MEMO_ROOM => None,
@@ -548,8 +558,7 @@ impl Scratch {
     fn flood(&mut self, g: &mut Grid, source: u32, amount: f64) {
         self.flood = self.flood.wrapping_add(1);
         if self.flood == 0 {
-            self.queued.fill(0);
-            self.reached_by.fill(0);
+            self.seen.fill(Seen::default());
             self.flood = 1;
         }
         let id = self.flood;
@@ -564,8 +573,8 @@ impl Scratch {
             let b = !((e >> 32) as u32);
             f32::from_bits(if b >> 31 == 1 { b & !(1 << 31) } else { !b })
         };
-        self.queued[source as usize] = id;
-        self.distance[source as usize] = 0;
+        self.seen[source as usize].queued = id;
+        self.seen[source as usize].distance = 0;
         self.frontier.push(entry(0.0, source));
         let (mut sum, mut count) = (0.0f64, 0usize);
         let level = loop {
@@ -592,11 +601,11 @@ impl Scratch {
                 self.deliver(g, target, (amount - held).max(0.0));
                 break cap;
             }
-            if self.reached_by[tag as usize] == id {
+            if self.seen[tag as usize].reached == id {
                 continue;
             }
-            self.reached_by[tag as usize] = id;
-            let d = self.distance[tag as usize];
+            self.seen[tag as usize].reached = id;
+            let d = self.seen[tag as usize].distance;
             let apex = top - rise * f64::from(d);
             let (tm, tk) = g.split(tag);
             let key = f64::from(g.surface_at(tm, tk)) - apex;
@@ -616,8 +625,7 @@ impl Scratch {
                 count -= 1;
             }
             let below = apex - rise;
-            let (frontier, sinks, queued, reached_by, distance) =
-                (&mut self.frontier, &mut self.sinks, &mut self.queued, &self.reached_by, &mut self.distance);
+            let (frontier, sinks, seen) = (&mut self.frontier, &mut self.sinks, &mut self.seen);
             g.relations(tm, tk, |t, c, sink| {
                 if sink {
                     frontier.push(entry(f64::from(c) - below, SINK | sinks.len() as u32));
@@ -626,11 +634,12 @@ impl Scratch {
                 }
                 let Target::Map(o, nk) = t else { return };
                 let m = g.node(o as usize, nk as usize) as usize;
-                if reached_by[m] == id || (queued[m] == id && distance[m] <= d + 1) {
+                let v = &mut seen[m];
+                if v.reached == id || (v.queued == id && v.distance <= d + 1) {
                     return;
                 }
-                queued[m] = id;
-                distance[m] = d + 1;
+                v.queued = id;
+                v.distance = d + 1;
                 frontier.push(entry(f64::from(c) - below, m as u32));
             });
         };
@@ -644,7 +653,7 @@ impl Scratch {
             let depth = (apex + level - f64::from(m.ground_m[k])) as f32;
             if depth > m.snow_m[k] {
                 m.snow_m[k] = depth;
-                self.memo_step[node as usize] = 0;
+                self.node[node as usize].memo_step = 0;
                 self.note_change(node);
             }
         }

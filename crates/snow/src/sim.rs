@@ -534,13 +534,14 @@ impl SnowSim {
             let tol = repose_tolerance(self.footprint);
             let fallen = scratch.settle(&mut self.maps, &regions, n, rise, tol, small);
             self.fallen_off_m3 += fallen * f64::from(self.footprint.texel_m).powi(2);
-            // The local rule then looks at every texel that changed and at what that change
-            // may have made steep; it finds the flood's result stable (test
-            // `the_flood_leaves_nothing_for_the_local_rule`).
+            // The local rule then looks at every texel that changed and at the other maps'
+            // texels next to it (a gain can make only the texel itself steep; what a loss
+            // makes steep uphill, the flood's floor has settled); it finds the flood's
+            // result stable (test `the_flood_leaves_nothing_for_the_local_rule`).
             let mut spare: Vec<Bits> = self.maps.iter().map(|_| Bits::new(texels)).collect();
             for &node in scratch.changed() {
                 let (mi, k) = (node as usize / texels, node as usize % texels);
-                mark(&regions, n, &mut active, &mut spare, mi, k, true);
+                mark(&regions, n, &mut active, &mut spare, mi, k, false);
             }
             self.flood = Some(scratch);
         } else {
