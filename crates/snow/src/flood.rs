@@ -127,6 +127,18 @@ fn sortable(x: f32) -> u32 {
     if b >> 31 == 1 { !b } else { b | 1 << 31 }
 }
 
+/// A flood frontier entry: lowest `key` first (ties: larger tag first), with `tag` a
+/// node or a `SINK` index.
+fn frontier_entry(key: f64, tag: u32) -> u64 {
+    u64::from(!sortable(key as f32)) << 32 | u64::from(tag)
+}
+
+/// The key of a [`frontier_entry`].
+fn frontier_key(e: u64) -> f32 {
+    let b = !((e >> 32) as u32);
+    f32::from_bits(if b >> 31 == 1 { b & !(1 << 31) } else { !b })
+}
+
 /// The maps and their grid as the stages see them.
 struct Grid<'a> {
     maps: &'a mut [SnowMap],
@@ -301,6 +313,57 @@ impl Buckets {
     }
 }
 
+/// The floor's first candidates in `first`: every snow-covered texel steeper than the
+/// repose after the snowfall, with the height it must come down to (for the queue's
+/// order). Returns the lowest ground and the highest surface of the maps.
+fn steep_at_first(g: &Grid, first: &mut Vec<(f32, u32)>) -> (f32, f32) {
+    let n = g.n;
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    first.clear();
+    for (mi, m) in g.maps.iter().enumerate() {
+        let inner = &g.regions.inner[mi];
+        for k in 0..g.texels() {
+            let ground = m.ground_m[k];
+            lo = lo.min(ground);
+            let s = m.snow_m[k];
+            if !(s > 0.0) {
+                continue;
+            }
+            let h = ground + s;
+            hi = hi.max(h);
+            let low = if inner.get(k) {
+                m.surface(k - n).min(m.surface(k + 1)).min(m.surface(k + n)).min(m.surface(k - 1))
+            } else {
+                g.lowest(mi, k).1
+            };
+            if h - low - g.rise > g.tol {
+                first.push(((low + g.rise).max(ground), g.node(mi, k)));
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Queue for the floor what lowering texel `k` of map `mi` made steep: a neighbour on
+/// its map that stands more than the rise (and the tolerance) above the new surface;
+/// across a region's edge the comparison is worked out in full.
+fn queue_uphill(g: &Grid, queue: &mut Buckets, mi: usize, k: usize) {
+    let v = g.surface_at(mi, k);
+    let m = &g.maps[mi];
+    for j in crate::sim::four(g.n, k) {
+        if m.snow_m[j] > 0.0 && m.surface(j) - (v + g.rise) > g.tol {
+            queue.push((v + g.rise).max(m.ground_m[j]), g.node(mi, j));
+        }
+    }
+    if g.regions.any_rim.get(k) {
+        g.uphill_across(mi, k, |o, j| {
+            if let Some(d) = g.lowered(o, j) {
+                queue.push(g.maps[o].ground_m[j] + d, g.node(o, j));
+            }
+        });
+    }
+}
+
 impl Scratch {
     /// Whether `maps` maps of `texels` texels can be numbered below [`SINK`] (and the
     /// memo's marks): 127 maps of 4096² texels, far past any memory budget.
@@ -352,36 +415,11 @@ impl Scratch {
     }
 
     /// Stage 1: lower every snow surface to the highest stable one under it, lowest
-    /// first; what comes off is left in `pending`. Returns the lowest ground and the
-    /// highest surface of the maps.
+    /// first; what comes off is left in `pending` (or sent to a sink). Returns the lowest
+    /// ground and the highest surface of the maps.
     fn floor(&mut self, g: &mut Grid) -> (f32, f32) {
-        let texels = g.texels();
-        let n = g.n;
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut first: Vec<(f32, u32)> = std::mem::take(&mut self.first);
-        first.clear();
-        for mi in 0..g.maps.len() {
-            let m = &g.maps[mi];
-            let inner = &g.regions.inner[mi];
-            for k in 0..texels {
-                let ground = m.ground_m[k];
-                lo = lo.min(ground);
-                let s = m.snow_m[k];
-                if !(s > 0.0) {
-                    continue;
-                }
-                let h = ground + s;
-                hi = hi.max(h);
-                let low = if inner.get(k) {
-                    m.surface(k - n).min(m.surface(k + 1)).min(m.surface(k + n)).min(m.surface(k - 1))
-                } else {
-                    g.lowest(mi, k).1
-                };
-                if h - low - g.rise > g.tol {
-                    first.push(((low + g.rise).max(ground), g.node(mi, k)));
-                }
-            }
-        }
+        let mut first = std::mem::take(&mut self.first);
+        let (lo, hi) = steep_at_first(g, &mut first);
         if !lo.is_finite() || !hi.is_finite() {
             self.first = first;
             return (0.0, 0.0);
@@ -395,51 +433,38 @@ impl Scratch {
         while let Some(node) = queue.pop() {
             let (mi, k) = g.split(node);
             let Some(new) = g.lowered(mi, k) else { continue };
-            let m = &mut g.maps[mi];
-            let old = m.snow_m[k];
+            let old = g.maps[mi].snow_m[k];
             if !(new < old) {
                 continue;
             }
-            m.snow_m[k] = new;
+            g.maps[mi].snow_m[k] = new;
             self.counts.lowered += 1;
             self.note_change(node);
-            let surplus = f64::from(old) - f64::from(new);
-            // Held at the repose on a chain at the repose down to a sink (an edge face, a
-            // roof's wedge): the chain below is settled (lower texels first), so the
-            // surplus goes to the sink now, as the carry would send it.
-            match (new > 0.0).then(|| self.conduit(g, node)).flatten() {
-                Some(Target::Off) => {
-                    self.counts.conduits += 1;
-                    self.fallen += surplus;
-                }
-                Some(Target::Map(o, nk)) => {
-                    self.counts.conduits += 1;
-                    let target = g.node(o as usize, nk as usize);
-                    self.node[target as usize].pending += surplus;
-                    self.note_change(target);
-                }
-                None => self.node[node as usize].pending += surplus,
-            }
-            // Uphill: a neighbour on this map is steep towards this texel when it stands
-            // more than the rise (and the tolerance) above the new surface; across a
-            // region's edge the comparison is worked out in full.
-            let v = g.surface_at(mi, k);
-            let m = &g.maps[mi];
-            for j in crate::sim::four(n, k) {
-                if m.snow_m[j] > 0.0 && m.surface(j) - (v + g.rise) > g.tol {
-                    queue.push((v + g.rise).max(m.ground_m[j]), g.node(mi, j));
-                }
-            }
-            if g.regions.any_rim.get(k) {
-                g.uphill_across(mi, k, |o, j| {
-                    if let Some(d) = g.lowered(o, j) {
-                        queue.push(g.maps[o].ground_m[j] + d, g.node(o, j));
-                    }
-                });
-            }
+            self.surplus(g, node, f64::from(old) - f64::from(new), new > 0.0);
+            queue_uphill(g, &mut queue, mi, k);
         }
         self.buckets = queue;
         (lo, hi)
+    }
+
+    /// Where the floor puts the `surplus` it took from `node`: held at the repose
+    /// (`holds`) on a chain at the repose down to a sink (an edge face, a roof's wedge),
+    /// straight to the sink, as the carry would send it (the chain below is settled:
+    /// lower texels first); else in `pending`, for the carry.
+    fn surplus(&mut self, g: &Grid, node: u32, surplus: f64, holds: bool) {
+        match holds.then(|| self.conduit(g, node)).flatten() {
+            Some(Target::Off) => {
+                self.counts.conduits += 1;
+                self.fallen += surplus;
+            }
+            Some(Target::Map(o, nk)) => {
+                self.counts.conduits += 1;
+                let target = g.node(o as usize, nk as usize);
+                self.node[target as usize].pending += surplus;
+                self.note_change(target);
+            }
+            None => self.node[node as usize].pending += surplus,
+        }
     }
 
     /// Stage 2: move the surplus downhill, highest texel first, until it is settled or has
@@ -567,85 +592,88 @@ impl Scratch {
         self.reached.clear();
         self.sinks.clear();
         let top = f64::from(g.surface(source));
-        let rise = f64::from(g.rise);
-        let entry = |key: f64, tag: u32| u64::from(!sortable(key as f32)) << 32 | u64::from(tag);
-        let key_of = |e: u64| {
-            let b = !((e >> 32) as u32);
-            f32::from_bits(if b >> 31 == 1 { b & !(1 << 31) } else { !b })
-        };
         self.seen[source as usize].queued = id;
         self.seen[source as usize].distance = 0;
-        self.frontier.push(entry(0.0, source));
-        let (mut sum, mut count) = (0.0f64, 0usize);
+        self.frontier.push(frontier_entry(0.0, source));
+        // The wet texels' keys: their sum and count give the level that holds `amount`.
+        let mut wet = (0.0f64, 0usize);
+        let level = |(sum, count): (f64, usize)| (amount + sum) / count as f64;
         let level = loop {
-            let next = self.frontier.peek().map_or(f64::INFINITY, |&e| f64::from(key_of(e)));
-            if count > 0 && (amount + sum) / count as f64 <= next {
-                break (amount + sum) / count as f64;
+            let next = self.frontier.peek().map_or(f64::INFINITY, |&e| f64::from(frontier_key(e)));
+            if wet.1 > 0 && level(wet) <= next {
+                break level(wet);
             }
-            let Some(e) = self.frontier.pop() else { break (amount + sum) / count as f64 };
+            let Some(e) = self.frontier.pop() else { break level(wet) };
             let tag = e as u32;
             if tag & SINK != 0 {
                 // The level reaches an edge: it stays there and the rest falls.
-                let cap = next;
-                while let Some(&w) = self.wet.peek() {
-                    let key = self.reached[(w as u32) as usize].1;
-                    if key < cap {
-                        break;
-                    }
-                    self.wet.pop();
-                    sum -= key;
-                    count -= 1;
-                }
-                let held = count as f64 * cap - sum;
+                self.dry(&mut wet, |_| next);
+                let held = wet.1 as f64 * next - wet.0;
                 let target = self.sinks[(tag & !SINK) as usize];
                 self.deliver(g, target, (amount - held).max(0.0));
-                break cap;
+                break next;
             }
-            if self.seen[tag as usize].reached == id {
-                continue;
+            if self.seen[tag as usize].reached != id {
+                let key = self.reach(g, tag, id, top);
+                wet = (wet.0 + key, wet.1 + 1);
+                // Texels the level does not reach stay dry (their neighbours stay queued).
+                self.dry(&mut wet, level);
             }
-            self.seen[tag as usize].reached = id;
-            let d = self.seen[tag as usize].distance;
-            let apex = top - rise * f64::from(d);
-            let (tm, tk) = g.split(tag);
-            let key = f64::from(g.surface_at(tm, tk)) - apex;
-            let i = self.reached.len() as u32;
-            self.reached.push((tag, key, apex));
-            self.wet.push(u64::from(sortable(key as f32)) << 32 | u64::from(i));
-            sum += key;
-            count += 1;
-            // Texels the level does not reach stay dry (their neighbours stay queued).
-            while let Some(&w) = self.wet.peek() {
-                let key = self.reached[(w as u32) as usize].1;
-                if key < (amount + sum) / count as f64 {
-                    break;
-                }
-                self.wet.pop();
-                sum -= key;
-                count -= 1;
-            }
-            let below = apex - rise;
-            let (frontier, sinks, seen) = (&mut self.frontier, &mut self.sinks, &mut self.seen);
-            g.relations(tm, tk, |t, c, sink| {
-                if sink {
-                    frontier.push(entry(f64::from(c) - below, SINK | sinks.len() as u32));
-                    sinks.push(t);
-                    return;
-                }
-                let Target::Map(o, nk) = t else { return };
-                let m = g.node(o as usize, nk as usize) as usize;
-                let v = &mut seen[m];
-                if v.reached == id || (v.queued == id && v.distance <= d + 1) {
-                    return;
-                }
-                v.queued = id;
-                v.distance = d + 1;
-                frontier.push(entry(f64::from(c) - below, m as u32));
-            });
         };
         self.counts.floods += 1;
         self.counts.flooded += self.reached.len() as u64;
         self.counts.largest_flood = self.counts.largest_flood.max(self.reached.len() as u64);
+        self.fill(g, level);
+    }
+
+    /// The flood reaches `node` (flood `id`, from a source at `top`): recorded as wet with
+    /// its key, and its comparisons queued (sinks as such). Returns its key.
+    fn reach(&mut self, g: &Grid, node: u32, id: u32, top: f64) -> f64 {
+        let rise = f64::from(g.rise);
+        self.seen[node as usize].reached = id;
+        let d = self.seen[node as usize].distance;
+        let apex = top - rise * f64::from(d);
+        let (mi, k) = g.split(node);
+        let key = f64::from(g.surface_at(mi, k)) - apex;
+        let i = self.reached.len() as u32;
+        self.reached.push((node, key, apex));
+        self.wet.push(u64::from(sortable(key as f32)) << 32 | u64::from(i));
+        let below = apex - rise;
+        let (frontier, sinks, seen) = (&mut self.frontier, &mut self.sinks, &mut self.seen);
+        g.relations(mi, k, |t, c, sink| {
+            if sink {
+                frontier.push(frontier_entry(f64::from(c) - below, SINK | sinks.len() as u32));
+                sinks.push(t);
+                return;
+            }
+            let Target::Map(o, nk) = t else { return };
+            let m = g.node(o as usize, nk as usize) as usize;
+            let v = &mut seen[m];
+            if v.reached == id || (v.queued == id && v.distance <= d + 1) {
+                return;
+            }
+            v.queued = id;
+            v.distance = d + 1;
+            frontier.push(frontier_entry(f64::from(c) - below, m as u32));
+        });
+        key
+    }
+
+    /// Leave dry, highest key first, the wet texels whose key is at or over `level` of
+    /// the rest (`wet`: the sum and count of the wet keys).
+    fn dry(&mut self, wet: &mut (f64, usize), level: impl Fn((f64, usize)) -> f64) {
+        while let Some(&w) = self.wet.peek() {
+            let key = self.reached[(w as u32) as usize].1;
+            if key < level(*wet) {
+                break;
+            }
+            self.wet.pop();
+            *wet = (wet.0 - key, wet.1 - 1);
+        }
+    }
+
+    /// Raise the flood's wet texels to apex + `level`.
+    fn fill(&mut self, g: &mut Grid, level: f64) {
         for idx in 0..self.wet.len() {
             let (node, _, apex) = self.reached[(self.wet.as_slice()[idx] as u32) as usize];
             let (mi, k) = g.split(node);
