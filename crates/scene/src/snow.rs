@@ -255,7 +255,7 @@ impl Phenomenon for SnowScene {
             ("frame and depth buffer", w * h * 20.0),
         ];
         if c.stabiliser == phenomena_snow::Stabiliser::Flood {
-            parts.insert(1, ("flood stabilisation's buffers", maps * n2 * 32.0));
+            parts.insert(1, ("flood stabilisation's buffers", maps * n2 * 36.0));
         }
         Estimate::of(
             format!(
