@@ -234,7 +234,8 @@ impl Phenomenon for SnowScene {
     }
 
     /// The snow maps (one per polygon group: ground, snow, probability and the
-    /// stabilisation's scratch per texel), one depth map per worker thread for the
+    /// stabilisation's scratch per texel), the flood stabilisation's buffers (snow in
+    /// transit, marks and distances per texel of every map), one depth map per worker thread for the
     /// probability (depth and id per pixel, the rasteriser's parts), the scene's
     /// triangles twice (as given and ordered for culling), the snow mesh drawn each
     /// frame, and the frame with its depth buffer.
@@ -246,18 +247,22 @@ impl Phenomenon for SnowScene {
         let threads = rayon::current_num_threads() as f64;
         let triangles = files.mesh.len() as f64;
         let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
+        let mut parts = vec![
+            ("snow maps", maps * n2 * 32.0),
+            ("depth maps (one per thread)", threads * s2 * 16.0),
+            ("scene triangles", triangles * 2.0 * 40.0),
+            ("snow mesh drawn each frame", maps * n2 * 2.0 * 40.0),
+            ("frame and depth buffer", w * h * 20.0),
+        ];
+        if c.stabiliser == phenomena_snow::Stabiliser::Flood {
+            parts.insert(1, ("flood stabilisation's buffers", maps * n2 * 36.0));
+        }
         Estimate::of(
             format!(
                 "{} directions × {}² depth-map pixels per probability; {maps:.0} maps of {}² texels, up to {} stabilisation passes a step; {triangles:.0} triangles; {w}x{h} pixels",
                 c.directions, c.shadow_resolution, c.map_resolution, c.max_passes
             ),
-            vec![
-                ("snow maps", maps * n2 * 32.0),
-                ("depth maps (one per thread)", threads * s2 * 16.0),
-                ("scene triangles", triangles * 2.0 * 40.0),
-                ("snow mesh drawn each frame", maps * n2 * 2.0 * 40.0),
-                ("frame and depth buffer", w * h * 20.0),
-            ],
+            parts,
         )
     }
 

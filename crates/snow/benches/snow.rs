@@ -77,15 +77,16 @@ fn step(c: &mut Criterion) {
 }
 
 /// Issue 25's workload: `scenes/snow-yard.toml` (256² maps, 64 directions, 4 cm/h in
-/// 0.25 h steps, repose 35°), one step early in the snowfall and one after 9 hours, when
-/// the piles under the eaves are deep. Target: every step ≤ 30 ms, the late step ≤ 2× the
-/// early one.
+/// 0.25 h steps, repose 35°): criterion's times for one step early in the snowfall, one
+/// after 9 hours and the last of 12 hours, when the piles under the eaves are deep; then
+/// [`yard_steps`], every step of the 12 hours.
 fn yard(c: &mut Criterion) {
     let params = yard_config();
-    let mut sim = SnowSim::new(yard_scene(), params, 1).expect("yard");
+    let fresh = SnowSim::new(yard_scene(), params, 1).expect("yard");
+    let mut sim = fresh.clone();
     let mut group = c.benchmark_group("snow_yard_256");
     group.sample_size(10);
-    for (label, until) in [("step_at_0h25", 1), ("step_at_9h", 36)] {
+    for (label, until) in [("step_at_0h25", 1), ("step_at_9h", 36), ("step_at_11h45", 47)] {
         while sim.steps() < until {
             sim.step().unwrap();
         }
@@ -94,6 +95,48 @@ fn yard(c: &mut Criterion) {
         });
     }
     group.finish();
+    yard_steps(&fresh);
+}
+
+/// Issue 25's target, checked over every step of the 12 hours (48 steps): each step within
+/// 30 ms, and the last at most twice the median of the first ten. The 12 hours are run
+/// five times from the same start and each step's time is its median over the runs (the
+/// machine is shared: a median drops the runs another process slowed). Printed, not
+/// asserted: timings are the machine's as much as the code's.
+#[allow(clippy::print_stderr, reason = "the bench reports the per-step check beside criterion's times")]
+fn yard_steps(fresh: &SnowSim) {
+    const STEPS: usize = 48;
+    const RUNS: usize = 5;
+    let mut times: Vec<Vec<f64>> = (0..STEPS).map(|_| Vec::with_capacity(RUNS)).collect();
+    for _ in 0..RUNS {
+        let mut sim = fresh.clone();
+        for t in &mut times {
+            let start = std::time::Instant::now();
+            black_box(sim.step().unwrap());
+            t.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let per_step: Vec<f64> = times.iter_mut().map(median).collect();
+    let first_ten = median(&mut per_step[..10].to_vec());
+    let (worst, at) =
+        per_step.iter().enumerate().fold((0.0, 0), |w, (i, &t)| if t > w.0 { (t, i) } else { w });
+    let last = per_step[STEPS - 1];
+    let met = worst <= 30.0 && last <= 2.0 * first_ten;
+    eprintln!(
+        "snow_yard_256/12h: median of the first ten steps {first_ten:.1} ms, last (step {}) {last:.1} ms ({:.2}x), slowest step {at} {worst:.1} ms; target (every step <= 30 ms, last <= 2x the first ten): {}",
+        STEPS - 1,
+        last / first_ten,
+        if met { "met" } else { "NOT met" }
+    );
+    let row = |range: std::ops::Range<usize>| {
+        per_step[range].iter().map(|t| format!("{t:.1}")).collect::<Vec<_>>().join(" ")
+    };
+    eprintln!("  steps 0-23, ms: {}", row(0..24));
+    eprintln!("  steps 24-47, ms: {}", row(24..STEPS));
 }
 
 criterion_group!(benches, reference::reference, probability, village, step, yard);

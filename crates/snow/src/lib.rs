@@ -22,6 +22,7 @@
 //!   where the `dxf` crate's `uuid` dependency has no source of randomness.
 
 pub mod export;
+mod flood;
 pub mod groups;
 pub mod load;
 pub mod mesh;
@@ -29,8 +30,10 @@ pub mod reference;
 pub mod render;
 mod sim;
 
+#[doc(hidden)]
+pub use flood::Counts as FloodCounts;
 pub use phenomena_core::phenomenon::RenderError;
 pub use render::{Background, Flakes, SnowRenderSettings, SnowRenderer, SnowView};
 pub use sim::{
-    Footprint, SnowConfig, SnowError, SnowMap, SnowSim, SnowState, StepStats, snowfall_directions,
+    Footprint, SnowConfig, SnowError, SnowMap, SnowSim, SnowState, Stabiliser, StepStats, snowfall_directions,
 };

@@ -40,7 +40,10 @@ pub struct SnowConfig {
     pub time_step_h: f32,
     /// Angle of repose, degrees (the paper's experiments: 45; fresh dry snow 40-50).
     pub repose_deg: f32,
-    /// Most stabilisation passes per step.
+    /// How snow is moved to rest at the angle of repose (§2.4).
+    pub stabiliser: Stabiliser,
+    /// Most passes of the local rule per step (all of them with `stabiliser =
+    /// "relaxation"`, the final check's with `"flood"`).
     pub max_passes: u32,
     /// Group per object instead of the automatic grouping (one entry per object).
     pub object_groups: Option<Vec<u32>>,
@@ -61,6 +64,7 @@ impl Default for SnowConfig {
             rate_cm_per_h: 2.0,
             time_step_h: 0.1,
             repose_deg: 45.0,
+            stabiliser: Stabiliser::Flood,
             max_passes: 4096,
             object_groups: None,
             probability_every_steps: 0,
@@ -86,6 +90,25 @@ impl SnowConfig {
         i.count("max_passes", u64::from(self.max_passes), 1..=1_000_000);
         i.into_result()
     }
+}
+
+/// How the snow is brought to rest at the angle of repose after each accumulation (§2.4).
+/// Both keep §2.4.1's rule (no snow surface steeper than the repose towards any of its 4
+/// neighbours; what must go moves downhill) and §2.4.2's (past a region's edge it falls
+/// to the highest lower map, or off the scene), and every gram of snow.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stabiliser {
+    /// The surplus over the highest stable surface under the snow, found bottom-up in one
+    /// ordered sweep, carried downhill in height order and settled by priority floods
+    /// (`flood.rs`); then the paper's local rule checks the result. The work follows the
+    /// texels that change, not the depth of the snow (issue 25).
+    #[default]
+    Flood,
+    /// The paper's local rule of Fig 6 (§2.4.1) swept over the maps until no slope
+    /// exceeds the repose: each steep texel gives snow to its steep neighbours. The
+    /// reference: its passes grow with the length of the slopes and the depth.
+    Relaxation,
 }
 
 /// Why a snow simulation cannot be made.
@@ -181,7 +204,8 @@ pub struct StepStats {
     pub volume_m3: f64,
     /// Snow volume that has left the scene over its edge so far, m³.
     pub fallen_off_m3: f64,
-    /// Stabilisation passes this step.
+    /// Passes of the local rule this step: all of the relaxation's, or those of the check
+    /// after the flood (0 when the flood left nothing steep, as it does).
     pub passes: u32,
     /// Whether the stabilisation met the angle of repose (else it hit `max_passes`).
     pub stable: bool,
@@ -206,6 +230,8 @@ pub struct SnowSim {
     exposure: Exposure,
     /// The regions' shapes for the stabilisation, once made (None after `maps_mut`).
     regions: Option<Regions>,
+    /// The flood stabilisation's buffers, kept between steps.
+    flood: Option<crate::flood::Scratch>,
     /// Visit every texel in every stabilisation pass (the check of the sparse sweep).
     dense_sweeps: bool,
     fallen_off_m3: f64,
@@ -292,6 +318,7 @@ impl SnowSim {
             closed_triangles,
             exposure: Exposure::default(),
             regions: None,
+            flood: None,
             dense_sweeps: false,
             fallen_off_m3: 0.0,
             time_h: 0.0,
@@ -342,6 +369,12 @@ impl SnowSim {
     #[doc(hidden)]
     pub fn set_dense_sweeps(&mut self, on: bool) {
         self.dense_sweeps = on;
+    }
+
+    /// What the flood stabilisation did in the last step (zero with the relaxation).
+    #[doc(hidden)]
+    pub fn flood_counts(&self) -> crate::flood::Counts {
+        self.flood.as_ref().map(|f| f.counts).unwrap_or_default()
     }
 
     /// Steps taken so far.
@@ -479,150 +512,85 @@ impl SnowSim {
         worst
     }
 
-    /// The four neighbours of texel `k` of map `mi`: where snow would go and the height
-    /// it is compared with. Inside the map's region: the neighbour's surface. Past the
-    /// region's edge: the source's own ground (snow stands up to the repose slope at an
-    /// edge) and the destination is the highest lower map at that texel, or off the scene.
-    /// `rise` is tan(repose) times the texel size, m.
+    /// [`neighbours`] on this simulation's maps.
     fn neighbours(&self, mi: usize, k: usize, rise: f32) -> impl Iterator<Item = (Target, f32)> + '_ {
-        let n = self.footprint.n;
-        let (i, j) = (k % n, k / n);
-        let map = &self.maps[mi];
-        let h = map.surface(k);
-        [(0i64, -1i64), (1, 0), (0, 1), (-1, 0)].into_iter().map(move |(dx, dz)| {
-            let (ni, nj) = (i as i64 + dx, j as i64 + dz);
-            if ni < 0 || nj < 0 || ni >= n as i64 || nj >= n as i64 {
-                return (Target::Off, map.ground_m[k]);
-            }
-            let nk = nj as usize * n + ni as usize;
-            if map.possible(nk) {
-                return (Target::Map(mi as u32, nk as u32), map.surface(nk));
-            }
-            // Another group's region continuing this one: a surface split between two
-            // maps (a ground square whose two triangles fell into different groups), its
-            // ground within the repose rise of this texel's. The two are one surface and
-            // the slope is measured to the other's snow surface, higher or lower.
-            // (Before, a neighbour a little higher than this texel was not "lower", the
-            // texel measured to its own ground, and snow deeper than the rise fell off
-            // the scene along the join: a V-shaped trench along the ground's diagonal,
-            // found on the yard scene; issue 25.)
-            let g = map.ground_m[k];
-            let joined = self
-                .maps
-                .iter()
-                .enumerate()
-                .filter(|(o, m)| *o != mi && m.possible(nk) && (m.ground_m[nk] - g).abs() <= rise)
-                .min_by(|a, b| {
-                    let (da, db) = ((a.1.ground_m[nk] - g).abs(), (b.1.ground_m[nk] - g).abs());
-                    da.total_cmp(&db).then(a.0.cmp(&b.0))
-                });
-            if let Some((o, m)) = joined {
-                return (Target::Map(o as u32, nk as u32), m.surface(nk));
-            }
-            // Falling (§2.4.2): the highest map below the source height at that texel.
-            let lower = self
-                .maps
-                .iter()
-                .enumerate()
-                .filter(|(o, m)| *o != mi && m.possible(nk) && m.surface(nk) < h)
-                .max_by(|a, b| a.1.surface(nk).total_cmp(&b.1.surface(nk)).then(b.0.cmp(&a.0)));
-            // The height the slope is measured to: the edge's own ground (a cliff: the
-            // pile at the edge may not stand more than the repose above it), or the lower
-            // map's snow surface where that is higher (a neighbouring group at about the
-            // same height: the two behave as one surface; measuring to the own ground
-            // there sent snow back and forth between the two edges for ever, found on
-            // the Stanford bunny).
-            match lower {
-                Some((o, m)) => (Target::Map(o as u32, nk as u32), map.ground_m[k].max(m.surface(nk))),
-                None => (Target::Off, map.ground_m[k]),
-            }
-        })
+        neighbours(&self.maps, self.footprint.n, mi, k, rise)
     }
 
-    /// Move snow until no slope exceeds the angle of repose (§2.4.1, Fig 6): a snow-covered
-    /// texel whose slope to some of its 4 neighbours exceeds the repose gives half the
-    /// largest excess (the amount that levels a pair to the repose) times an
-    /// over-relaxation factor `OVER_RELAXATION` (at most all its snow), in equal shares,
-    /// to those neighbours; past the edge of its region the snow falls to the highest
-    /// lower map or off the scene (§2.4.2). Texels are visited in place, maps in order and
-    /// texels alternately forwards and backwards, so an avalanche runs across a map in one
-    /// pass (a Gauss-Seidel sweep; sequential, hence the same for any thread count). A
-    /// pass visits only the texels a change may have made steep (bit sets), in the order
-    /// of the full sweep: the result is bit for bit that of visiting every texel (test
-    /// `the_sparse_stabilisation_equals_visiting_every_texel`), the cost that of the
-    /// texels that move. Returns the passes and whether the repose was met.
+    /// Bring the snow to rest (§2.4) by the configured [`Stabiliser`]. Returns the passes
+    /// of the local rule and whether the repose was met.
     fn stabilise(&mut self) -> (u32, bool) {
-        let tan = self.params.repose_deg.to_radians().tan();
-        let t = self.footprint.texel_m;
-        // Half of issue 5's 1e-4 slope tolerance, so that f32 rounding of the final
-        // heights cannot push a slope past it.
-        let tol = 0.5e-4 * t;
         let n = self.footprint.n;
         let texels = n * n;
-        let maps = self.maps.len();
-        // Texels to look at, one bit each: those with snow at first, then those next to a
-        // change. The sweep visits only set bits, in the same order as a sweep over every
-        // texel, and a texel not marked cannot move snow (neither it nor a neighbour
-        // changed since it was last found stable), so the result is that of the full
-        // sweep while the cost follows the texels that move (issue 25).
-        let mut active: Vec<Bits> = self
-            .maps
-            .iter()
-            .map(|m| {
-                let mut b = Bits::new(texels);
+        // The regions' shapes, kept between steps (the grounds change only through
+        // `maps_mut`, which drops them).
+        let regions = self.regions.take().unwrap_or_else(|| Regions::new(&self.maps, n));
+        let mut active: Vec<Bits> = self.maps.iter().map(|_| Bits::new(texels)).collect();
+        // The flood numbers every texel of every map in 31 bits; past that (far past any
+        // memory budget) the relaxation does the work.
+        let flood = self.params.stabiliser == Stabiliser::Flood
+            && crate::flood::Scratch::fits(self.maps.len(), texels);
+        if flood {
+            let mut scratch = self.flood.take().unwrap_or_default();
+            let rise = self.params.repose_deg.to_radians().tan() * self.footprint.texel_m;
+            let small = self.params.rate_cm_per_h * 0.01 * self.params.time_step_h;
+            let tol = repose_tolerance(self.footprint);
+            let fallen = scratch.settle(&mut self.maps, &regions, n, rise, tol, small);
+            self.fallen_off_m3 += fallen * f64::from(self.footprint.texel_m).powi(2);
+            // The local rule then looks at every texel that changed and at the other maps'
+            // texels next to it (a gain can make only the texel itself steep; what a loss
+            // makes steep uphill, the flood's floor has settled); it finds the flood's
+            // result stable (test `the_flood_leaves_nothing_for_the_local_rule`).
+            let mut spare: Vec<Bits> = self.maps.iter().map(|_| Bits::new(texels)).collect();
+            for &node in scratch.changed() {
+                let (mi, k) = (node as usize / texels, node as usize % texels);
+                mark(&regions, n, &mut active, &mut spare, mi, k, false);
+            }
+            self.flood = Some(scratch);
+        } else {
+            for (b, m) in active.iter_mut().zip(&self.maps) {
                 for (k, &s) in m.snow_m.iter().enumerate() {
                     if s > 0.0 {
                         b.set(k);
                     }
                 }
-                b
-            })
-            .collect();
+            }
+        }
+        let result = self.relax(&regions, active);
+        self.regions = Some(regions);
+        result
+    }
+
+    /// The paper's local rule until no slope exceeds the angle of repose (§2.4.1, Fig 6): a
+    /// snow-covered texel whose slope to some of its 4 neighbours exceeds the repose gives
+    /// half the largest excess (the amount that levels a pair to the repose) times an
+    /// over-relaxation factor `OVER_RELAXATION` (at most all its snow), in equal shares,
+    /// to those neighbours; past the edge of its region the snow falls to the highest
+    /// lower map or off the scene (§2.4.2). Texels are visited in place, maps in order and
+    /// texels alternately forwards and backwards, so an avalanche runs across a map in one
+    /// pass (a Gauss-Seidel sweep; sequential, hence the same for any thread count). A
+    /// pass visits only the texels a change may have made steep (bit sets, starting from
+    /// `active`), in the order of the full sweep: the result is bit for bit that of
+    /// visiting every texel (test `the_sparse_stabilisation_equals_visiting_every_texel`),
+    /// the cost that of the texels that move. Returns the passes and whether the repose
+    /// was met.
+    fn relax(&mut self, regions: &Regions, mut active: Vec<Bits>) -> (u32, bool) {
+        let tan = self.params.repose_deg.to_radians().tan();
+        let t = self.footprint.texel_m;
+        let tol = repose_tolerance(self.footprint);
+        let n = self.footprint.n;
+        let texels = n * n;
+        let maps = self.maps.len();
+        // Texels to look at, one bit each: `active` at first, then those next to a
+        // change. The sweep visits only set bits, in the same order as a sweep over every
+        // texel, and a texel not marked cannot move snow (neither it nor a neighbour
+        // changed since it was last found stable), so the result is that of the full
+        // sweep while the cost follows the texels that move (issue 25).
         if self.dense_sweeps {
             active.iter_mut().for_each(|b| b.fill(texels));
         }
         let mut next: Vec<Bits> = (0..maps).map(|_| Bits::new(texels)).collect();
-        // The regions' shapes, kept between steps (the grounds change only through
-        // `maps_mut`, which drops them).
-        let regions = self.regions.take().unwrap_or_else(|| Regions::new(&self.maps, n));
-        let Regions { rim, inner, any_rim } = &regions;
-        // Marks, for the rest of this pass and all of the next, what a change of texel k
-        // of map mi can make steep: k itself; when k lost snow, its neighbours on the map
-        // (their slopes towards k grew; a gain only lowers them); and, either way, the
-        // texels of other maps next to k where their region ends (past the edge the slope
-        // is measured to the surface at k, and whether that map counts as the lower one
-        // depends on it).
-        let mark = |active: &mut [Bits], next: &mut [Bits], mi: usize, k: usize, lost: bool| {
-            let (i, j) = (k % n, k / n);
-            let mut both = |o: usize, nk: usize| {
-                active[o].set(nk);
-                next[o].set(nk);
-            };
-            both(mi, k);
-            if lost {
-                if i > 0 {
-                    both(mi, k - 1);
-                }
-                if i + 1 < n {
-                    both(mi, k + 1);
-                }
-                if j > 0 {
-                    both(mi, k - n);
-                }
-                if j + 1 < n {
-                    both(mi, k + n);
-                }
-            }
-            if any_rim.get(k) {
-                for (o, r) in rim.iter().enumerate() {
-                    if o != mi && r.get(k) {
-                        for nk in four(n, k) {
-                            both(o, nk);
-                        }
-                    }
-                }
-            }
-        };
+        let inner = &regions.inner;
         let rise = tan * t;
         for pass in 0..self.params.max_passes {
             let mut moved = false;
@@ -677,7 +645,7 @@ impl SnowSim {
                             Target::Map(o, nk) => {
                                 self.maps[o as usize].snow_m[nk as usize] += share;
                                 // Later texels of this pass and all of the next see it.
-                                mark(&mut active, &mut next, o as usize, nk as usize, false);
+                                mark(regions, n, &mut active, &mut next, o as usize, nk as usize, false);
                             }
                             Target::Off => {
                                 self.fallen_off_m3 += f64::from(share) * f64::from(t) * f64::from(t)
@@ -686,11 +654,10 @@ impl SnowSim {
                     }
                     let left = &mut self.maps[mi].snow_m[k];
                     *left = (*left - share * count as f32).max(0.0);
-                    mark(&mut active, &mut next, mi, k, true);
+                    mark(regions, n, &mut active, &mut next, mi, k, true);
                 }
             }
             if !moved {
-                self.regions = Some(regions);
                 return (pass, true);
             }
             std::mem::swap(&mut active, &mut next);
@@ -698,13 +665,133 @@ impl SnowSim {
                 active.iter_mut().for_each(|b| b.fill(texels));
             }
         }
-        self.regions = Some(regions);
         (self.params.max_passes, false)
     }
 
     /// Highest point of the scene plus a metre: where the top-down camera sits.
     pub fn top_y(&self) -> f32 {
         self.top_y
+    }
+}
+
+/// The four neighbours of texel `k` of map `mi`: where snow would go and the height
+/// it is compared with. Inside the map's region: the neighbour's surface. Past the
+/// region's edge: the source's own ground (snow stands up to the repose slope at an
+/// edge) and the destination is the highest lower map at that texel, or off the scene.
+/// `rise` is tan(repose) times the texel size, m; the maps share an `n`×`n` grid.
+pub(crate) fn neighbours(
+    maps: &[SnowMap],
+    n: usize,
+    mi: usize,
+    k: usize,
+    rise: f32,
+) -> impl Iterator<Item = (Target, f32)> + '_ {
+    let (i, j) = (k % n, k / n);
+    let map = &maps[mi];
+    let h = map.surface(k);
+    [(0i64, -1i64), (1, 0), (0, 1), (-1, 0)].into_iter().map(move |(dx, dz)| {
+        let (ni, nj) = (i as i64 + dx, j as i64 + dz);
+        if ni < 0 || nj < 0 || ni >= n as i64 || nj >= n as i64 {
+            return (Target::Off, map.ground_m[k]);
+        }
+        let nk = nj as usize * n + ni as usize;
+        if map.possible(nk) {
+            return (Target::Map(mi as u32, nk as u32), map.surface(nk));
+        }
+        // Another group's region continuing this one: a surface split between two
+        // maps (a ground square whose two triangles fell into different groups), its
+        // ground within the repose rise of this texel's. The two are one surface and
+        // the slope is measured to the other's snow surface, higher or lower.
+        // (Before, a neighbour a little higher than this texel was not "lower", the
+        // texel measured to its own ground, and snow deeper than the rise fell off
+        // the scene along the join: a V-shaped trench along the ground's diagonal,
+        // found on the yard scene; issue 25.)
+        let g = map.ground_m[k];
+        let joined = maps
+            .iter()
+            .enumerate()
+            .filter(|(o, m)| *o != mi && m.possible(nk) && (m.ground_m[nk] - g).abs() <= rise)
+            .min_by(|a, b| {
+                let (da, db) = ((a.1.ground_m[nk] - g).abs(), (b.1.ground_m[nk] - g).abs());
+                da.total_cmp(&db).then(a.0.cmp(&b.0))
+            });
+        if let Some((o, m)) = joined {
+            return (Target::Map(o as u32, nk as u32), m.surface(nk));
+        }
+        // Falling (§2.4.2): "among the maps with a snow-possible region lower than the
+        // source at that point, the highest": chosen by its ground, below the source's
+        // surface. Its snow may stand higher than the source: the snow is walled in there
+        // and does not move. (Chosen by snow surface before, a texel whose neighbouring
+        // pile had risen above it found no lower map and sent its snow off the scene from
+        // the middle of the yard, under the bench; issue 25.)
+        let lower = maps
+            .iter()
+            .enumerate()
+            .filter(|(o, m)| *o != mi && m.possible(nk) && m.ground_m[nk] < h)
+            .max_by(|a, b| a.1.ground_m[nk].total_cmp(&b.1.ground_m[nk]).then(b.0.cmp(&a.0)));
+        // The height the slope is measured to: the edge's own ground (a cliff: the
+        // pile at the edge may not stand more than the repose above it), or the lower
+        // map's snow surface where that is higher (a neighbouring group at about the
+        // same height: the two behave as one surface; measuring to the own ground
+        // there sent snow back and forth between the two edges for ever, found on
+        // the Stanford bunny).
+        match lower {
+            Some((o, m)) => (Target::Map(o as u32, nk as u32), map.ground_m[k].max(m.surface(nk))),
+            None => (Target::Off, map.ground_m[k]),
+        }
+    })
+}
+
+/// How far past the repose a slope may be before snow moves, as a height over one texel:
+/// half of issue 5's 1e-4 slope tolerance, so that f32 rounding of the final heights
+/// cannot push a slope past it.
+pub(crate) fn repose_tolerance(fp: Footprint) -> f32 {
+    0.5e-4 * fp.texel_m
+}
+
+/// Marks, in `active` (the rest of this pass) and `next` (all of the next), what a change
+/// of texel `k` of map `mi` can make steep: `k` itself; when `k` lost snow (`lost`), its
+/// neighbours on the map (their slopes towards `k` grew; a gain only lowers them); and,
+/// either way, the texels of other maps next to `k` where their region ends (past the
+/// edge the slope is measured to the surface at `k`, and whether that map counts as the
+/// lower one depends on it).
+fn mark(
+    regions: &Regions,
+    n: usize,
+    active: &mut [Bits],
+    next: &mut [Bits],
+    mi: usize,
+    k: usize,
+    lost: bool,
+) {
+    let (i, j) = (k % n, k / n);
+    let mut both = |o: usize, nk: usize| {
+        active[o].set(nk);
+        next[o].set(nk);
+    };
+    both(mi, k);
+    if lost {
+        if i > 0 {
+            both(mi, k - 1);
+        }
+        if i + 1 < n {
+            both(mi, k + 1);
+        }
+        if j > 0 {
+            both(mi, k - n);
+        }
+        if j + 1 < n {
+            both(mi, k + n);
+        }
+    }
+    if regions.any_rim.get(k) {
+        for (o, r) in regions.rim.iter().enumerate() {
+            if o != mi && r.get(k) {
+                for nk in four(n, k) {
+                    both(o, nk);
+                }
+            }
+        }
     }
 }
 
@@ -716,7 +803,7 @@ impl SnowSim {
 const OVER_RELAXATION: f32 = 1.95;
 
 /// The 4-neighbours of texel `k` on an `n`×`n` grid that lie on the grid.
-fn four(n: usize, k: usize) -> impl Iterator<Item = usize> {
+pub(crate) fn four(n: usize, k: usize) -> impl Iterator<Item = usize> {
     let (i, j) = (k % n, k / n);
     [(i > 0).then(|| k - 1), (i + 1 < n).then(|| k + 1), (j > 0).then(|| k - n), (j + 1 < n).then(|| k + n)]
         .into_iter()
@@ -725,14 +812,14 @@ fn four(n: usize, k: usize) -> impl Iterator<Item = usize> {
 
 /// The shape of the snow maps' regions as the stabilisation needs it (issue 25).
 #[derive(Clone, Debug)]
-struct Regions {
+pub(crate) struct Regions {
     /// Per map, the texels outside its region next to one inside it: a change there
     /// steepens slopes measured past the region's edge (to the lower map's surface).
-    rim: Vec<Bits>,
+    pub(crate) rim: Vec<Bits>,
     /// Per map, the texels whose four neighbours are all in its region.
-    inner: Vec<Bits>,
+    pub(crate) inner: Vec<Bits>,
     /// Texels on any map's rim: most changes are not next to another region.
-    any_rim: Bits,
+    pub(crate) any_rim: Bits,
 }
 
 impl Regions {
@@ -765,35 +852,35 @@ impl Regions {
 
 /// A set of texels, one bit each, walked in either direction.
 #[derive(Clone, Debug)]
-struct Bits(Vec<u64>);
+pub(crate) struct Bits(Vec<u64>);
 
 impl Bits {
-    fn new(len: usize) -> Self {
+    pub(crate) fn new(len: usize) -> Self {
         Self(vec![0; len.div_ceil(64)])
     }
 
-    fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.0.fill(0);
     }
 
     /// Every texel of `len`.
-    fn fill(&mut self, len: usize) {
+    pub(crate) fn fill(&mut self, len: usize) {
         self.0.fill(!0);
         if !len.is_multiple_of(64) {
             self.0[len / 64] = (1 << (len % 64)) - 1;
         }
     }
 
-    fn set(&mut self, k: usize) {
+    pub(crate) fn set(&mut self, k: usize) {
         self.0[k / 64] |= 1 << (k % 64);
     }
 
-    fn get(&self, k: usize) -> bool {
+    pub(crate) fn get(&self, k: usize) -> bool {
         self.0[k / 64] >> (k % 64) & 1 == 1
     }
 
     /// The first set bit at `from` or after.
-    fn next_from(&self, from: usize) -> Option<usize> {
+    pub(crate) fn next_from(&self, from: usize) -> Option<usize> {
         let mut w = from / 64;
         let mut word = *self.0.get(w)? & (!0u64 << (from % 64));
         loop {
@@ -806,7 +893,7 @@ impl Bits {
     }
 
     /// The last set bit before `end`.
-    fn prev_before(&self, end: usize) -> Option<usize> {
+    pub(crate) fn prev_before(&self, end: usize) -> Option<usize> {
         if end == 0 {
             return None;
         }
@@ -829,7 +916,7 @@ impl Bits {
 
 /// Where moved snow goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Target {
+pub(crate) enum Target {
     /// Map index and texel.
     Map(u32, u32),
     /// Off the scene (counted).
