@@ -103,6 +103,24 @@ fn full_frame(c: &mut Criterion) {
         });
         eprintln!("{name}: {} particles, {:?}", sim.particles().len(), sky.timings());
     }
+    // Issue 23 item 2: a paper-mode frame (§2.4 as printed, exact free paths) at Table
+    // 3.2's 120,000 particles within 1 s.
+    let mut config = AuroraConfig::default();
+    config.redistribution.enabled = false;
+    let mut sim = AuroraSim::new(config, 1).expect("default aurora");
+    for _ in 0..20 {
+        sim.step().expect("step");
+    }
+    let settings = SkySettings { mode: phenomena_aurora::ColourMode::Paper, ..SkySettings::default() };
+    let mut sky = SkyRenderer::new(settings, 1280, 720, None).expect("sky");
+    group.sample_size(10);
+    group.bench_function("paper_frame_120k_1280x720", |b| {
+        b.iter(|| {
+            sim.step().expect("step");
+            black_box(sky.render(&sim));
+        })
+    });
+    eprintln!("paper_frame_120k_1280x720: {} particles, {:?}", sim.particles().len(), sky.timings());
     group.finish();
 }
 
