@@ -2,7 +2,8 @@
 //! renewal of the intermediate shape's field and one motion step (issue 3's targets:
 //! ≤ 20 ms and ≤ 15 ms), the Poisson solvers alone, and the full frame of issue 4
 //! (step + emission + splat + colour at 1280×720: ≤ 250 ms) and its 640×360 preview
-//! with 30,000 particles (≥ 20 frames per second, i.e. ≤ 50 ms); the five line volumes
+//! with 30,000 particles (≥ 20 frames per second, i.e. ≤ 50 ms), and the physical
+//! mode's column tables that a renderer builds once (issue 20); the five line volumes
 //! of a frame as one OpenVDB file (issue 21: ≤ 200 ms).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
@@ -103,6 +104,19 @@ fn full_frame(c: &mut Criterion) {
         });
         eprintln!("{name}: {} particles, {:?}", sim.particles().len(), sky.timings());
     }
+    // The physical mode's tables, built once per renderer (issue 20: ionisation, ion
+    // chemistry and electron degradation at every altitude, then the samplers).
+    group.bench_function("column_model_build", |b| {
+        b.iter(|| {
+            let settings = SkySettings::default();
+            let column = phenomena_aurora::deposition::ColumnModel::new(
+                phenomena_aurora::atmosphere::Atmosphere::msis21(),
+                &settings.precipitation,
+                &settings.yields,
+            );
+            black_box(column.altitude_sampler())
+        })
+    });
     // Issue 23 item 2: a paper-mode frame (§2.4 as printed, exact free paths) at Table
     // 3.2's 120,000 particles within 1 s.
     let mut config = AuroraConfig::default();

@@ -206,6 +206,85 @@ impl Atmosphere {
     }
 }
 
+/// The embedded minor-species table: `altitude_km,n_n,n_no`, the altitudes of
+/// main table.
+const MSIS21_MINOR_CSV: &str = include_str!("../data/atmosphere_msis21_minor.csv");
+
+/// Atomic nitrogen N(⁴S) and nitric oxide at one altitude, m⁻³ (the physical mode's ion
+/// chemistry: O₂⁺ + NO → NO⁺ + O₂ and O₂⁺ + N → NO⁺ + O compete with O₂⁺'s
+/// dissociative recombination, the red line's second source).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MinorSample {
+    /// Atomic nitrogen in its ground state N(⁴S), m⁻³ (NRLMSIS 2.1 has none below about
+    /// 92 km: 0 there).
+    pub n_n_m3: f64,
+    /// Nitric oxide, m⁻³.
+    pub n_no_m3: f64,
+}
+
+/// N(⁴S) and NO from NRLMSIS 2.1 for the conditions of [`Atmosphere::msis21`] (same
+/// run of `tools/gen_atmosphere.py`), at even altitude steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MinorSpecies {
+    altitudes_km: Vec<f64>,
+    samples: Vec<MinorSample>,
+}
+
+impl MinorSpecies {
+    /// The table shipped with the crate (80-500 km at 1 km).
+    pub fn msis21() -> &'static MinorSpecies {
+        static TABLE: OnceLock<MinorSpecies> = OnceLock::new();
+        TABLE.get_or_init(|| {
+            MinorSpecies::from_csv(MSIS21_MINOR_CSV).expect("the embedded minor-species table is valid")
+        })
+    }
+
+    /// Parse a table with the header `altitude_km,n_n,n_no`: at least two rows at
+    /// increasing altitudes, densities finite and not negative.
+    pub fn from_csv(text: &str) -> Result<Self, String> {
+        let mut lines = text.lines().enumerate();
+        match lines.next() {
+            Some((_, "altitude_km,n_n,n_no")) => {}
+            other => return Err(format!("line 1: expected the header altitude_km,n_n,n_no, got {other:?}")),
+        }
+        let (mut altitudes_km, mut samples) = (Vec::new(), Vec::new());
+        for (k, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+            let v: Vec<f64> = line
+                .split(',')
+                .map(|f| f.trim().parse::<f64>().map_err(|e| format!("line {}: {f:?}: {e}", k + 1)))
+                .collect::<Result<_, _>>()?;
+            let [altitude_km, n_n_m3, n_no_m3] = v[..] else {
+                return Err(format!("line {}: expected 3 fields, got {}", k + 1, v.len()));
+            };
+            if ![n_n_m3, n_no_m3].iter().all(|x| x.is_finite() && *x >= 0.0) {
+                return Err(format!("line {}: densities must be finite and not negative", k + 1));
+            }
+            if altitudes_km.last().is_some_and(|&last| altitude_km <= last) {
+                return Err(format!("line {}: altitudes must increase", k + 1));
+            }
+            altitudes_km.push(altitude_km);
+            samples.push(MinorSample { n_n_m3, n_no_m3 });
+        }
+        if samples.len() < 2 {
+            return Err("the table needs at least two altitudes".into());
+        }
+        Ok(Self { altitudes_km, samples })
+    }
+
+    /// The densities at `altitude_km`, clamped to the table: interpolated linearly in
+    /// their logarithm between two positive samples (as [`Atmosphere::at`]), linearly
+    /// where one of them is 0.
+    pub fn at(&self, altitude_km: f64) -> MinorSample {
+        let z = &self.altitudes_km;
+        let a = if altitude_km.is_nan() { z[0] } else { altitude_km.clamp(z[0], z[z.len() - 1]) };
+        let k = z.partition_point(|&x| x <= a).clamp(1, z.len() - 1) - 1;
+        let t = (a - z[k]) / (z[k + 1] - z[k]);
+        let lerp = |p: f64, q: f64| if p > 0.0 && q > 0.0 { p * (q / p).powf(t) } else { p + (q - p) * t };
+        let (s0, s1) = (self.samples[k], self.samples[k + 1]);
+        MinorSample { n_n_m3: lerp(s0.n_n_m3, s1.n_n_m3), n_no_m3: lerp(s0.n_no_m3, s1.n_no_m3) }
+    }
+}
+
 /// ∫ over `length_m` of a density falling exponentially from `rho_start` to `rho_end`:
 /// length·(ρs - ρe)/ln(ρs/ρe), or length·ρ when the two are equal.
 fn exponential_integral(rho_start: f64, rho_end: f64, length_m: f64) -> f64 {
@@ -298,6 +377,23 @@ mod tests {
             let got = air.column_mass_above_kg_m2(z);
             assert!((got / want - 1.0).abs() < 1e-9, "z {z}: {got} vs {want}");
         }
+    }
+
+    #[test]
+    fn the_minor_species_have_the_magnitudes_of_the_thermosphere() {
+        // NO peaks near 100 km at some 1e14 m⁻³ (1e8 cm⁻³) and falls above; N(⁴S) rises
+        // to its maximum of ~1e13 m⁻³ near 180-200 km (NRLMSIS 2.1's climatology).
+        let m = MinorSpecies::msis21();
+        let no_100 = m.at(100.0).n_no_m3;
+        assert!((5e13..1e15).contains(&no_100), "NO at 100 km {no_100}");
+        assert!(m.at(300.0).n_no_m3 < 1e-2 * no_100);
+        let n_max = (80..=500).map(|z| m.at(f64::from(z)).n_n_m3).fold(0.0, f64::max);
+        assert!((3e12..5e13).contains(&n_max), "N max {n_max}");
+        assert_eq!(m.at(85.0).n_n_m3, 0.0, "no N below 92 km in NRLMSIS 2.1");
+        // Interpolation between the zero and the first positive sample stays finite.
+        assert!(m.at(91.5).n_n_m3.is_finite() && m.at(91.5).n_n_m3 >= 0.0);
+        assert!(MinorSpecies::from_csv("altitude_km,n_n,n_no\n80,1,1\n").is_err());
+        assert!(MinorSpecies::from_csv("altitude_km,n_n,n_no\n80,1,1\n79,1,1\n").is_err());
     }
 
     #[test]

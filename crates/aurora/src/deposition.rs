@@ -14,10 +14,14 @@
 //!   Rees's auroral models).
 //! - Yields ([`Yields`]): 391.4 nm = 0.07 photons per N2 ionisation (Richards and Torr
 //!   1985); 427.8 nm from the same N2⁺(B) states with branching 0.20 against 0.65
-//!   (ratio 3.25); O(¹S) mostly from N2(A³Σu⁺) energy transfer to O (GLOW); O(¹D) from
-//!   impact on O, dissociative recombination of O2⁺ and the O(¹S) cascade. The
-//!   metastable oxygen lines then radiate the share A/(1/τ + Σ k n) of
-//!   [`Line::radiated_fraction`].
+//!   (ratio 3.25); O(¹S) mostly from N2(A³Σu⁺) energy transfer to O (GLOW). O(¹S)
+//!   radiates the share A/(1/τ + Σ k n) of [`Line::radiated_fraction`].
+//! - The red line (issue 20): O(¹D) from every source of
+//!   [`crate::chemistry::O1dSource`], electron impact on O per ion pair from the local
+//!   degradation of [`crate::degradation`], dissociative recombination of O₂⁺ with the
+//!   electron density of the ion balance of [`crate::chemistry`], N(²D) + O₂, N⁺ + O₂,
+//!   dissociation of O₂ and the O(¹S) cascade; it radiates 630.0 nm at
+//!   A/(1/τ + Σ k n + k_e nₑ), quenched by N₂, O₂, O and electrons.
 //!
 //! Units: densities in the atmosphere table are m⁻³; rates here are per cm³ per second
 //! (the customary aeronomy unit, and the unit of `phenomena export aurora-profile`).
@@ -26,8 +30,14 @@ use phenomena_core::color::BOLTZMANN_J_PER_K;
 use phenomena_core::validate::Issues;
 use serde::{Deserialize, Serialize};
 
-use crate::atmosphere::{Atmosphere, Sample};
+use crate::atmosphere::{Atmosphere, MinorSpecies, Sample};
+use crate::chemistry::{
+    Air as ChemistryAir, Column, IonProduction, O1dSource, o_plus_diffusion_rate_s, red_line_sources,
+};
 use crate::emission::Line;
+
+/// m⁻³ to cm⁻³.
+const M3_TO_CM3: f64 = 1e-6;
 
 /// Energy spectrum of the precipitating electrons.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -132,12 +142,18 @@ pub fn fang2010_dissipation(energy_kev: f64, y: f64) -> f64 {
 const G0_M_S2: f64 = 9.806_65;
 const EARTH_RADIUS_KM: f64 = 6371.0;
 
+/// Gravity at `altitude_km`, m s⁻², falling off as the inverse square of the distance
+/// from the Earth's centre.
+pub fn gravity_m_s2(altitude_km: f64) -> f64 {
+    G0_M_S2 * (EARTH_RADIUS_KM / (EARTH_RADIUS_KM + altitude_km)).powi(2)
+}
+
 /// Scale height kT/(m̄ g) at the sample, m, with m̄ the mean molecular mass and g
 /// falling off as the inverse square of the distance from the Earth's centre.
 pub fn scale_height_m(s: &Sample) -> f64 {
     let n = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
     let mean_mass_kg = s.mass_density_kg_m3() / n;
-    let g = G0_M_S2 * (EARTH_RADIUS_KM / (EARTH_RADIUS_KM + s.altitude_km)).powi(2);
+    let g = gravity_m_s2(s.altitude_km);
     BOLTZMANN_J_PER_K * s.temperature_k / (mean_mass_kg * g)
 }
 
@@ -150,7 +166,9 @@ pub fn fang2010_ionisation(s: &Sample, energy_kev: f64, flux_kev_cm2_s: f64) -> 
     fang2010_dissipation(energy_kev, y) * flux_kev_cm2_s / (KEV_PER_ION_PAIR * h_cm)
 }
 
-/// Excitation yields of the `physical` mode (`[render.sky.yields]`).
+/// Excitation yields of the `physical` mode (`[render.sky.yields]`). The red line's
+/// O(¹D) has no yields to set: it is computed from cross sections and the ion chemistry
+/// ([`crate::chemistry`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Yields {
@@ -167,22 +185,11 @@ pub struct Yields {
     /// O(¹S) made directly per O ionisation (electron impact; assumed 0.03, the minor
     /// source that alone would put the green line too high).
     pub o1s_per_o_ion: f64,
-    /// O(¹D) made per O ionisation by electron impact (assumed 0.5).
-    pub o1d_per_o_ion: f64,
-    /// O(¹D) made per O2 ionisation by dissociative recombination of O2⁺ (assumed 0.5).
-    pub o1d_per_o2_ion: f64,
 }
 
 impl Default for Yields {
     fn default() -> Self {
-        Self {
-            n2p391_per_n2_ion: 0.07,
-            n2_670_per_n2_ion: 0.014,
-            o1s_per_n2_ion: 0.11,
-            o1s_per_o_ion: 0.03,
-            o1d_per_o_ion: 0.5,
-            o1d_per_o2_ion: 0.5,
-        }
+        Self { n2p391_per_n2_ion: 0.07, n2_670_per_n2_ion: 0.014, o1s_per_n2_ion: 0.11, o1s_per_o_ion: 0.03 }
     }
 }
 
@@ -194,8 +201,6 @@ impl Yields {
             ("n2_670_per_n2_ion", self.n2_670_per_n2_ion),
             ("o1s_per_n2_ion", self.o1s_per_n2_ion),
             ("o1s_per_o_ion", self.o1s_per_o_ion),
-            ("o1d_per_o_ion", self.o1d_per_o_ion),
-            ("o1d_per_o2_ion", self.o1d_per_o2_ion),
         ] {
             issues.range(&format!("{prefix}.{name}"), v, 0.0..=10.0);
         }
@@ -215,6 +220,10 @@ pub struct ColumnModel {
     altitudes_km: Vec<f64>,
     /// Total ionisation rate, cm⁻³ s⁻¹.
     ionisation: Vec<f64>,
+    /// Electron density of the ion balance, cm⁻³.
+    electron_density: Vec<f64>,
+    /// O(¹D) production per source ([`O1dSource::ALL`] order), cm⁻³ s⁻¹.
+    o1d_production: [Vec<f64>; 8],
     /// Volume emission rate per line ([`Line::ALL`] order), photons cm⁻³ s⁻¹.
     ver: [Vec<f64>; 5],
     /// Effective lifetime of each line's upper state at each altitude, s.
@@ -239,32 +248,63 @@ impl ColumnModel {
         let altitudes_km: Vec<f64> = samples.iter().map(|s| s.altitude_km).collect();
         let ionisation: Vec<f64> =
             samples.iter().map(|s| bins.iter().map(|&(e, q)| fang2010_ionisation(s, e, q)).sum()).collect();
+        let minor = MinorSpecies::msis21();
+        let (wn2, wo2, wo) = IONISATION_WEIGHTS;
+        // Per altitude: the ionisation of each species, O(¹S) and the chemistry's input.
+        let columns: Vec<Column> = samples
+            .iter()
+            .zip(&ionisation)
+            .map(|(s, &q)| {
+                let weighted = wn2 * s.n_n2_m3 + wo2 * s.n_o2_m3 + wo * s.n_o_m3;
+                let production = IonProduction {
+                    o: q * wo * s.n_o_m3 / weighted,
+                    o2: q * wo2 * s.n_o2_m3 / weighted,
+                    n2: q * wn2 * s.n_n2_m3 / weighted,
+                };
+                let o1s = yields.o1s_per_n2_ion * production.n2 + yields.o1s_per_o_ion * production.o;
+                // Every O(¹S) that emits 557.7 nm lands in O(¹D).
+                let o1s_cascade = o1s * Line::O557.radiated_fraction(s);
+                let m = minor.at(s.altitude_km);
+                let air = ChemistryAir {
+                    n_o: s.n_o_m3 * M3_TO_CM3,
+                    n_o2: s.n_o2_m3 * M3_TO_CM3,
+                    n_n2: s.n_n2_m3 * M3_TO_CM3,
+                    n_n: m.n_n_m3 * M3_TO_CM3,
+                    n_no: m.n_no_m3 * M3_TO_CM3,
+                    temperature_k: s.temperature_k,
+                    o_plus_diffusion_s: o_plus_diffusion_rate_s(
+                        s.n_o_m3 * M3_TO_CM3,
+                        s.temperature_k,
+                        gravity_m_s2(s.altitude_km),
+                    ),
+                };
+                Column { air, production, o1s_cascade }
+            })
+            .collect();
+        let red = red_line_sources(&columns);
+        let electron_density: Vec<f64> = red.iter().map(|r| r.electron_density_cm3).collect();
+        let o1d_production = std::array::from_fn(|k| red.iter().map(|r| r.o1d_production[k]).collect());
         let mut ver: [Vec<f64>; 5] = Default::default();
         let mut lifetime: [Vec<f64>; 5] = Default::default();
-        for (s, &q) in samples.iter().zip(&ionisation) {
-            let (wn2, wo2, wo) = IONISATION_WEIGHTS;
-            let weighted = wn2 * s.n_n2_m3 + wo2 * s.n_o2_m3 + wo * s.n_o_m3;
-            let (q_n2, q_o2, q_o) = (
-                q * wn2 * s.n_n2_m3 / weighted,
-                q * wo2 * s.n_o2_m3 / weighted,
-                q * wo * s.n_o_m3 / weighted,
-            );
-            let green = Line::O557.radiated_fraction(s);
-            let o1s = yields.o1s_per_n2_ion * q_n2 + yields.o1s_per_o_ion * q_o;
-            // Every O(¹S) that emits 557.7 nm lands in O(¹D).
-            let o1d = yields.o1d_per_o_ion * q_o + yields.o1d_per_o2_ion * q_o2 + o1s * green;
-            let v391 = yields.n2p391_per_n2_ion * q_n2;
+        for ((s, c), r) in samples.iter().zip(&columns).zip(&red) {
+            let ne = r.electron_density_cm3;
+            let v391 = yields.n2p391_per_n2_ion * c.production.n2;
+            let o1d: f64 = r.o1d_production.iter().sum();
             let rates = [
                 v391,
                 v391 * N2P428_PER_391,
-                o1s * green,
-                o1d * Line::O630.radiated_fraction(s),
-                yields.n2_670_per_n2_ion * q_n2,
+                c.o1s_cascade,
+                o1d * Line::O630.radiated_fraction_with_electrons(s, ne, s.temperature_k),
+                yields.n2_670_per_n2_ion * c.production.n2,
             ];
             for (k, line) in Line::ALL.iter().enumerate() {
                 ver[k].push(rates[k]);
                 let tau = match line.metastable_rates() {
-                    Some((_, total)) => 1.0 / (total + line.quenching_rate_s(s)),
+                    Some((_, total)) => {
+                        1.0 / (total
+                            + line.quenching_rate_s(s)
+                            + line.electron_quenching_rate_s(ne, s.temperature_k))
+                    }
                     None => 0.0,
                 };
                 lifetime[k].push(tau);
@@ -290,7 +330,7 @@ impl ColumnModel {
                 })
                 .collect()
         });
-        Self { altitudes_km, ionisation, ver, lifetime, cumulative, guide }
+        Self { altitudes_km, ionisation, electron_density, o1d_production, ver, lifetime, cumulative, guide }
     }
 
     /// The altitudes, km (those of the atmosphere table).
@@ -301,6 +341,17 @@ impl ColumnModel {
     /// Total ionisation rate at each altitude, cm⁻³ s⁻¹.
     pub fn ionisation(&self) -> &[f64] {
         &self.ionisation
+    }
+
+    /// Electron density at each altitude, cm⁻³ (the balance of ionisation and
+    /// recombination of [`crate::chemistry::electron_density`]).
+    pub fn electron_density_cm3(&self) -> &[f64] {
+        &self.electron_density
+    }
+
+    /// Production of O(¹D) by `source` at each altitude, cm⁻³ s⁻¹.
+    pub fn o1d_production(&self, source: O1dSource) -> &[f64] {
+        &self.o1d_production[source.index()]
     }
 
     /// Volume emission rate of `line` at each altitude, photons cm⁻³ s⁻¹.
@@ -382,6 +433,30 @@ impl ColumnModel {
                 .collect()
         });
         AltitudeSampler { knots }
+    }
+
+    /// The red line's budget as CSV: `altitude_km,electron_density_cm3`, the O(¹D)
+    /// production of each source of [`O1dSource::ALL`] (`p_electron_impact`, ...,
+    /// cm⁻³ s⁻¹), `radiated_share` (the share of O(¹D) made that emits 630.0 nm) and
+    /// `v_630_0`, one row per altitude (`phenomena export aurora-profile --red-line`).
+    pub fn red_line_csv(&self) -> String {
+        let mut out = String::from("altitude_km,electron_density_cm3");
+        for s in O1dSource::ALL {
+            out.push_str(&format!(",p_{}", s.name()));
+        }
+        out.push_str(",radiated_share,v_630_0\n");
+        let red = &self.ver[Line::O630.index()];
+        for (i, z) in self.altitudes_km.iter().enumerate() {
+            out.push_str(&format!("{z},{:.6e}", self.electron_density[i]));
+            let mut total = 0.0;
+            for p in &self.o1d_production {
+                out.push_str(&format!(",{:.6e}", p[i]));
+                total += p[i];
+            }
+            let share = if total > 0.0 { red[i] / total } else { 0.0 };
+            out.push_str(&format!(",{share:.6e},{:.6e}\n", red[i]));
+        }
+        out
     }
 
     /// The column as CSV: `altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5`
@@ -608,5 +683,56 @@ mod tests {
         let rows: Vec<_> = lines.collect();
         assert_eq!(rows.len(), 421);
         assert!(rows[0].starts_with("80,") && rows[420].starts_with("500,"));
+    }
+
+    #[test]
+    fn the_red_line_budget_adds_up() {
+        // Each row's sources times the radiated share give the 630.0 nm emission, and
+        // that share never exceeds the branching ratio A(630.0)·τ = 0.76.
+        let m = model(Spectrum::Maxwellian, 2.0, 1.0);
+        let csv = m.red_line_csv();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(header.len(), 2 + 8 + 2);
+        assert_eq!(header[2], "p_electron_impact");
+        for line in lines {
+            let v: Vec<f64> = line.split(',').map(|f| f.parse().unwrap()).collect();
+            let total: f64 = v[2..10].iter().sum();
+            assert!(v[2..10].iter().all(|&p| p >= 0.0));
+            assert!(v[10] <= 0.00585 / 0.0077 + 1e-9);
+            assert!((total * v[10] - v[11]).abs() <= 1e-5 * v[11].max(1e-30), "{line}");
+        }
+    }
+
+    #[test]
+    fn the_red_line_is_quenched_away_low_down() {
+        // Quenching limit: at 110 km O(¹D) meets N₂ at ~50 s⁻¹ against 1/τ = 0.0077 s⁻¹,
+        // so under 1/2000 of what is made there radiates; at 300 km, more than a third.
+        // (Hard aurora makes so much O(¹D) low down that even so a tenth or more of its
+        // red column can come from below 150 km, as in GLOW's 5 keV profile.)
+        let m = model(Spectrum::Maxwellian, 5.0, 1.0);
+        let z = m.altitudes_km();
+        let share = |a: f64| {
+            let k = z.iter().position(|&x| x == a).unwrap();
+            let made: f64 = O1dSource::ALL.iter().map(|&s| m.o1d_production(s)[k]).sum();
+            m.volume_emission(Line::O630)[k] / made
+        };
+        assert!(share(110.0) < 5e-4, "{}", share(110.0));
+        assert!(share(300.0) > 0.33, "{}", share(300.0));
+        // The electron density is positive wherever there is ionisation, and above the
+        // F region (where O⁺'s diffusion outruns its chemistry) it falls off.
+        for e0 in [1.0, 5.0] {
+            let m = model(Spectrum::Maxwellian, e0, 1.0);
+            let ne = m.electron_density_cm3();
+            assert!(ne.iter().zip(m.ionisation()).all(|(&n, &q)| q <= 0.0 || n > 0.0));
+            let at = |a: f64| ne[z.iter().position(|&x| x == a).unwrap()];
+            assert!(
+                at(500.0) < at(400.0) && at(400.0) < at(350.0),
+                "{e0} keV: {} {} {}",
+                at(350.0),
+                at(400.0),
+                at(500.0)
+            );
+        }
     }
 }

@@ -5,7 +5,9 @@
 //!   hard-sphere collision probability P_v = 1 - exp(-√2 n π r² v_a τ) (eq 2.25) with the
 //!   mean thermal speed v_a = √(8 k_B T / (π m_a)) (eq 2.26);
 //! - the `physical` mode's: the fraction A_line / (1/τ + Σ k_i n_i) with measured rate
-//!   coefficients k_i (NCAR GLOW, `gchem.f90`, as tabulated in shared/aurora-physics.md).
+//!   coefficients k_i (NCAR GLOW, `gchem.f90`, as tabulated in shared/aurora-physics.md,
+//!   with the sources GLOW cites; O(¹D) + O temperature-dependent after Sun and Dalgarno
+//!   1992, and O(¹D) + e, see [`Line::electron_quenching_rate_s`]).
 //!
 //! With real densities the first quenches the green line almost completely at 110 km,
 //! where real aurora is brightest; the second leaves most of it (tested below).
@@ -106,19 +108,59 @@ impl Line {
         self.metastable_rates().map_or(0.0, |(_, total)| 1.0 / total)
     }
 
-    /// Collisional de-excitation rate Σ k_i n_i of the upper state, s⁻¹ (GLOW's rate
-    /// coefficients; 0 for the prompt bands).
+    /// Collisional de-excitation rate Σ k_i n_i of the upper state by the neutrals, s⁻¹
+    /// (0 for the prompt bands):
+    /// - O(¹S) + O: 2.0e-14 cm³ s⁻¹ (Slanger and Black 1981); O(¹S) + O₂:
+    ///   4.0e-12 exp(-865/T) (Slanger et al. 1972) (GLOW's k11, k36);
+    /// - O(¹D) + N₂: 2.0e-11 exp(107.8/T); O(¹D) + O₂: 2.9e-11 exp(67.5/T) (Streit et al.
+    ///   1976, J. Chem. Phys. 65, 4761, as GLOW's k8, k9 and shared/aurora-physics.md
+    ///   have them; the JPL evaluation's 2.15e-11 exp(110/T) and 3.3e-11 exp(55/T) are
+    ///   within 9 % and 13 % of these over 200-1100 K);
+    /// - O(¹D) + O: (3.73 + 0.11965 √T - 6.5898e-4 T) × 1e-12 (Sun and Dalgarno 1992, J.
+    ///   Chem. Phys. 96, 5017, quantum scattering on the O₂ potential curves; 5.6e-12 at
+    ///   300 K, 6.9e-12 at 1000 K), in place of GLOW's constant 3.0e-12 (Abreu et al.
+    ///   1986), which the "temperature-dependent" asks to replace.
     pub fn quenching_rate_s(self, air: &Sample) -> f64 {
         let t = air.temperature_k;
         let (n_o, n_n2, n_o2) = (air.n_o_m3 * M3_PER_CM3, air.n_n2_m3 * M3_PER_CM3, air.n_o2_m3 * M3_PER_CM3);
         match self {
-            // O(¹S) + O: 2.0e-14; O(¹S) + O2: 4.0e-12 exp(-865/T).
             Line::O557 => 2.0e-14 * n_o + 4.0e-12 * (-865.0 / t).exp() * n_o2,
-            // O(¹D) + N2: 2.0e-11 exp(107.8/T); + O2: 2.9e-11 exp(67.5/T); + O: 3.0e-12.
             Line::O630 => {
-                2.0e-11 * (107.8 / t).exp() * n_n2 + 2.9e-11 * (67.5 / t).exp() * n_o2 + 3.0e-12 * n_o
+                2.0e-11 * (107.8 / t).exp() * n_n2
+                    + 2.9e-11 * (67.5 / t).exp() * n_o2
+                    + o1d_o_rate_cm3_s(t) * n_o
             }
             _ => 0.0,
+        }
+    }
+
+    /// Collisional de-excitation rate of the upper state by thermal electrons of
+    /// `electron_density_cm3` at `electron_temperature_k`, s⁻¹: O(¹D) + e,
+    /// 8.1e-10 (Tₑ/300)^0.5 cm³ s⁻¹ (Link 1982, GLOW's k10); negligible for O(¹S) and 0
+    /// for the prompt bands.
+    pub fn electron_quenching_rate_s(self, electron_density_cm3: f64, electron_temperature_k: f64) -> f64 {
+        match self {
+            Line::O630 => 8.1e-10 * (electron_temperature_k / 300.0).sqrt() * electron_density_cm3,
+            _ => 0.0,
+        }
+    }
+
+    /// [`Line::radiated_fraction`] with the thermal electrons' quenching too:
+    /// A_line / (1/τ + Σ k_i n_i + k_e nₑ).
+    pub fn radiated_fraction_with_electrons(
+        self,
+        air: &Sample,
+        electron_density_cm3: f64,
+        electron_temperature_k: f64,
+    ) -> f64 {
+        match self.metastable_rates() {
+            Some((a_line, total)) => {
+                a_line
+                    / (total
+                        + self.quenching_rate_s(air)
+                        + self.electron_quenching_rate_s(electron_density_cm3, electron_temperature_k))
+            }
+            None => 1.0,
         }
     }
 
@@ -131,6 +173,13 @@ impl Line {
             None => 1.0,
         }
     }
+}
+
+/// O(¹D) + O → O(³P) + O, cm³ s⁻¹ at `temperature_k`: Sun and Dalgarno (1992)'s fit
+/// (3.73 + 0.11965 √T - 6.5898e-4 T) × 1e-12.
+pub fn o1d_o_rate_cm3_s(temperature_k: f64) -> f64 {
+    let t = temperature_k;
+    (3.73 + 0.11965 * t.sqrt() - 6.5898e-4 * t) * 1e-12
 }
 
 /// XYZ to RGB by the matrix of the thesis's eq (2.30) as printed (the sRGB / BT.709
@@ -207,6 +256,12 @@ mod tests {
         // At 300 km quenching of O(¹D) is comparable to its radiative rate.
         let red_high = Line::O630.radiated_fraction(&air.at(300.0));
         assert!((0.3..0.76).contains(&red_high), "630.0 nm at 300 km: {red_high}");
+        // Electrons: 1e5 cm⁻³ at 1000 K quench at 1.5e-4 s⁻¹, 2 % of 1/τ.
+        let e = Line::O630.electron_quenching_rate_s(1e5, 1000.0);
+        assert!((1.4e-4..1.6e-4).contains(&e), "{e}");
+        assert_eq!(Line::N2p428.electron_quenching_rate_s(1e5, 1000.0), 0.0);
+        // Sun and Dalgarno's O(¹D) + O at its published anchors (5.6e-12 at 300 K).
+        assert!((o1d_o_rate_cm3_s(300.0) / 5.6e-12 - 1.0).abs() < 0.01);
         // The red line's share grows with altitude through the thermosphere.
         let mut last = 0.0;
         for z in (120..=500).step_by(20) {

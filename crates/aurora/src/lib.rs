@@ -15,7 +15,9 @@
 //! Lengths are km in the x-z plane; y (up) is the magnetic field's direction.
 
 pub mod atmosphere;
+pub mod chemistry;
 mod config;
+pub mod degradation;
 pub mod deposition;
 pub mod editor;
 pub mod emission;

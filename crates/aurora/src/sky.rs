@@ -251,7 +251,7 @@ pub struct SkySettings {
     /// `physical` mode: excitation yields.
     pub yields: Yields,
     /// `physical` mode: each line's image decays with the line's effective lifetime over
-    /// frames instead of following the particles at once (630.0 nm lingers ~a minute).
+    /// frames instead of following the particles at once (630.0 nm lingers ~half a minute).
     pub afterglow: bool,
     /// Draw a night sky of stars behind the aurora (fixed per seed; brightness from
     /// visual magnitudes, in the same units as the aurora).

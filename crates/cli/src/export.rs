@@ -104,6 +104,7 @@ pub(crate) fn aurora_profile(
     spectrum: phenomena_aurora::deposition::Spectrum,
     flux_erg: f64,
     out: &Path,
+    red_line: Option<&Path>,
 ) -> Result<String> {
     use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
     let precipitation = Precipitation { spectrum, energy_kev, flux_erg_cm2_s: flux_erg };
@@ -127,11 +128,22 @@ pub(crate) fn aurora_profile(
         ensure_dir(parent)?;
     }
     write_bytes_atomic(out, model.to_csv().as_bytes())?;
-    let green = model.column_photons_cm2_s(phenomena_aurora::emission::Line::O557) / 1e6;
+    use phenomena_aurora::emission::Line;
+    let mut also = String::new();
+    if let Some(path) = red_line {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            ensure_dir(parent)?;
+        }
+        write_bytes_atomic(path, model.red_line_csv().as_bytes())?;
+        also = format!(" and the red line's budget to {}", path.display());
+    }
     Ok(format!(
-        "wrote the column model ({} rows; 557.7 nm column {green:.0} R, peak at {} km) to {}",
+        "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; 630.0 nm {:.0} R, peak at {} km) to {}{also}",
         model.altitudes_km().len(),
-        model.peak_altitude_km(phenomena_aurora::emission::Line::O557),
+        model.column_photons_cm2_s(Line::O557) / 1e6,
+        model.peak_altitude_km(Line::O557),
+        model.column_photons_cm2_s(Line::O630) / 1e6,
+        model.peak_altitude_km(Line::O630),
         out.display()
     ))
 }

@@ -395,6 +395,10 @@ enum ExportWhat {
         /// Output file.
         #[arg(long)]
         out: PathBuf,
+        /// Also write the red line's budget (electron density, O(¹D) production by
+        /// source, the share that radiates, 630.0 nm) as CSV to this file.
+        #[arg(long)]
+        red_line: Option<PathBuf>,
     },
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
@@ -537,13 +541,21 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             export::atmosphere(&out)
         }
         Command::Export {
-            what: ExportWhat::AuroraProfile { energy_kev, spectrum, flux_erg, format: DataFormat::Csv, out },
+            what:
+                ExportWhat::AuroraProfile {
+                    energy_kev,
+                    spectrum,
+                    flux_erg,
+                    format: DataFormat::Csv,
+                    out,
+                    red_line,
+                },
         } => {
             let spectrum = match spectrum {
                 SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
                 SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
             };
-            export::aurora_profile(energy_kev, spectrum, flux_erg, &out)
+            export::aurora_profile(energy_kev, spectrum, flux_erg, &out, red_line.as_deref())
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
             let format = match format {

@@ -115,6 +115,8 @@ fn the_aurora_profile_has_the_issues_header_and_its_green_peak() {
         "csv",
         "--out",
         "p/profile.csv",
+        "--red-line",
+        "p/red.csv",
     ];
     ok(dir.path(), &args);
     let text = std::fs::read_to_string(dir.path().join("p/profile.csv")).unwrap();
@@ -125,6 +127,20 @@ fn the_aurora_profile_has_the_issues_header_and_its_green_peak() {
     assert_eq!((rows[0][0], rows[420][0]), (80.0, 500.0));
     let peak = rows.iter().max_by(|a, b| a[3].total_cmp(&b[3])).unwrap()[0];
     assert!((100.0..=130.0).contains(&peak), "557.7 nm peak at {peak} km");
+    // The red line's budget (issue 20): its sources, and the same 630.0 nm as the profile.
+    let red = std::fs::read_to_string(dir.path().join("p/red.csv")).unwrap();
+    let mut red_lines = red.lines();
+    let header = red_lines.next().unwrap();
+    assert!(
+        header.starts_with("altitude_km,electron_density_cm3,p_electron_impact,p_o2p_recombination"),
+        "{header}"
+    );
+    assert!(header.ends_with(",radiated_share,v_630_0"), "{header}");
+    let last: Vec<f64> = red_lines.clone().map(|l| l.rsplit(',').next().unwrap().parse().unwrap()).collect();
+    assert_eq!(last.len(), 421);
+    for (a, row) in last.iter().zip(&rows) {
+        assert!((a - row[4]).abs() <= 1e-5 * row[4].abs().max(1e-30), "{a} vs {}", row[4]);
+    }
     // Out-of-range energy: the flag, the value and the range.
     let err = fails(dir.path(), &["export", "aurora-profile", "--energy-kev", "0.01", "--out", "x.csv"]);
     assert!(err.contains("--energy-kev") && err.contains("0.01") && err.contains("1000"), "{err}");
