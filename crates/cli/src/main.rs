@@ -126,6 +126,20 @@ struct Cli {
     command: Command,
 }
 
+/// What `render` and `farm` may override of the scene.
+#[derive(clap::Args, Debug, Clone, Copy)]
+struct Overrides {
+    /// Image width in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    width: Option<u32>,
+    /// Image height in pixels (overrides the scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    height: Option<u32>,
+    /// Random seed (overrides the scene).
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Simulate a scene file and write its frames as DIR/frame_00000.png, ...
@@ -139,15 +153,8 @@ enum Command {
         /// simulated but not written. Default: all of the scene's frames.
         #[arg(long, value_parser = render::parse_frame_range)]
         frames: Option<std::ops::Range<u32>>,
-        /// Image width in pixels (overrides the scene).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-        width: Option<u32>,
-        /// Image height in pixels (overrides the scene).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-        height: Option<u32>,
-        /// Random seed (overrides the scene).
-        #[arg(long)]
-        seed: Option<u64>,
+        #[command(flatten)]
+        overrides: Overrides,
         /// Worker threads (default: one per core). Output is identical for any count.
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
@@ -283,15 +290,8 @@ enum FarmManager {
         /// The phenomena binary the jobs run, as the compute nodes see it (default: this one).
         #[arg(long, value_name = "PATH")]
         phenomena: Option<PathBuf>,
-        /// Image width in pixels (overrides the scene).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-        width: Option<u32>,
-        /// Image height in pixels (overrides the scene).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
-        height: Option<u32>,
-        /// Random seed (overrides the scene).
-        #[arg(long)]
-        seed: Option<u64>,
+        #[command(flatten)]
+        overrides: Overrides,
         /// Image format.
         #[arg(long, value_enum, default_value_t = FormatArg::Png)]
         format: FormatArg,
@@ -445,9 +445,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             scene,
             out,
             frames,
-            width,
-            height,
-            seed,
+            overrides: Overrides { width, height, seed },
             threads,
             format,
             resume,
@@ -497,9 +495,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     submit,
                     cpus_per_task,
                     phenomena,
-                    width,
-                    height,
-                    seed,
+                    overrides: Overrides { width, height, seed },
                     format,
                     view,
                 },
