@@ -340,10 +340,12 @@ fn ions_at(p: &IonProduction, a: &Air, r: &Rates, ne: f64, n2d: f64) -> IonDensi
 }
 
 /// The electron density (cm⁻³) at which the ions in equilibrium add up to it, and those
-/// ions, for ionisation `p` in air `a` with `n2d` cm⁻³ of N(²D). Every ion's density
-/// falls as the electron density rises (more recombination), so Σ ions(nₑ) - nₑ falls
-/// strictly and has one root: found by bisection on log nₑ in [1e-3, 1e9] cm⁻³ to
-/// 1e-12 relative. No ionisation: no electrons.
+/// ions, for ionisation `p` in air `a` with `n2d` cm⁻³ of N(²D). Σ ions(nₑ) - nₑ is
+/// positive at the bracket's low end and negative at its high end (recombination grows
+/// with nₑ), and bisection on log nₑ in [1e-3, 1e9] cm⁻³ finds a root to 1e-12
+/// relative. Not every ion falls as nₑ rises (more electrons quench O⁺(²D, ²P) into
+/// O⁺(⁴S) instead of letting them charge-transfer to N₂⁺), so a single root is not
+/// proven, only found. No ionisation: no electrons.
 pub fn electron_density(p: &IonProduction, a: &Air, n2d: f64) -> (f64, IonDensities) {
     if !(p.o + p.o2 + p.n2 > 0.0) {
         return (0.0, IonDensities::default());

@@ -18,14 +18,21 @@
 //! the continuous loss to thermal electrons. The counts per ionisation then multiply
 //! the ionisation rate of Fang et al. (2010), which carries the transport of the
 //! primaries. Why local: the yields per ion pair are nearly independent of the primary
-//! energy above a few hundred eV (Green et al.'s yield spectra; measured while building
-//! this: O(¹D) per ion pair from 1 keV and 5 keV injections within 3 %, from 300 eV
-//! and 1 keV within 7 %, test `yields_do_not_depend_on_the_injection`),
-//! and below ~250 km an electron of 2-20 eV loses its energy within a few km, far less
-//! than the scale height, so transport moves little of it. Above ~250 km transport
-//! does matter; the local model neither spreads secondaries up the field line nor lets
-//! them escape. A two-stream solver would cost a tridiagonal solve per energy bin and
-//! column, on every scene's precipitation; this costs one sweep.
+//! energy above a few hundred eV (Green et al.'s yield spectra; test
+//! `yields_do_not_depend_on_the_injection`), and low down the secondaries lose their
+//! energy close to where they are made. A two-stream solver would cost a tridiagonal
+//! solve per energy bin and column, on every scene's precipitation; this costs one
+//! sweep.
+//!
+//! **Known limit (review of 2026-12-03, issue 20):** at the red line's altitudes the
+//! local assumption fails for the 4-10 eV electrons that make most O(¹D) (the cross
+//! section peaks near 5.9 eV): at 200-220 km they need 160-480 km of path to lose their
+//! energy to the neutrals and, with elastic mean free paths of 1.7-3 km, diffuse some
+//! 20-40 km, comparable to N₂'s scale height. So the O(¹D) yield per ion pair here rises
+//! steadily with altitude (2 keV: 0.74 at 197 km, 0.81 at 221, 0.86 at 245, 0.90 at
+//! 300), where GLOW's transported yield (`jlocal = 0`) peaks near 0.87 at 210 km and
+//! falls (0.73 at 245, 0.37 at 300). That is the main reason our 630.0 nm peak sits
+//! ~25 km above GLOW's; the cure is the two-stream transport term, not a fitted shape.
 //!
 //! Cross sections:
 //! - excitation: the analytic form of Green and Stolarski (1972, J. Atmos. Terr. Phys.

@@ -34,10 +34,7 @@ use crate::atmosphere::{Atmosphere, MinorSpecies, Sample};
 use crate::chemistry::{
     Air as ChemistryAir, Column, IonProduction, O1dSource, o_plus_diffusion_rate_s, red_line_sources,
 };
-use crate::emission::Line;
-
-/// m⁻³ to cm⁻³.
-const M3_TO_CM3: f64 = 1e-6;
+use crate::emission::{Line, M3_PER_CM3};
 
 /// Energy spectrum of the precipitating electrons.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -266,14 +263,14 @@ impl ColumnModel {
                 let o1s_cascade = o1s * Line::O557.radiated_fraction(s);
                 let m = minor.at(s.altitude_km);
                 let air = ChemistryAir {
-                    n_o: s.n_o_m3 * M3_TO_CM3,
-                    n_o2: s.n_o2_m3 * M3_TO_CM3,
-                    n_n2: s.n_n2_m3 * M3_TO_CM3,
-                    n_n: m.n_n_m3 * M3_TO_CM3,
-                    n_no: m.n_no_m3 * M3_TO_CM3,
+                    n_o: s.n_o_m3 * M3_PER_CM3,
+                    n_o2: s.n_o2_m3 * M3_PER_CM3,
+                    n_n2: s.n_n2_m3 * M3_PER_CM3,
+                    n_n: m.n_n_m3 * M3_PER_CM3,
+                    n_no: m.n_no_m3 * M3_PER_CM3,
                     temperature_k: s.temperature_k,
                     o_plus_diffusion_s: o_plus_diffusion_rate_s(
-                        s.n_o_m3 * M3_TO_CM3,
+                        s.n_o_m3 * M3_PER_CM3,
                         s.temperature_k,
                         gravity_m_s2(s.altitude_km),
                     ),

@@ -30,7 +30,7 @@ use phenomena_core::color::{BOLTZMANN_J_PER_K, Observer, spectral_line_xyz};
 use crate::atmosphere::Sample;
 
 /// m³ per cm³: rate coefficients are tabulated in cm³ s⁻¹, densities kept in m⁻³.
-const M3_PER_CM3: f64 = 1e-6;
+pub(crate) const M3_PER_CM3: f64 = 1e-6;
 
 /// The five lines of the thesis (§2.4.2, Table 2.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

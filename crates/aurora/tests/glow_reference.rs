@@ -193,19 +193,23 @@ fn the_red_line_sources_are_those_that_matter_in_glow() {
 /// The issue's last tolerance, the 630.0 nm peak within 15 km of GLOW's, is not met,
 /// and this test says so rather than loosening it: ours peaks at 223 km for each of
 /// 1, 2, 5 keV against GLOW's 197, 197, 263 km (measured 2026-12-03). Our profiles are
-/// flat-topped (within 2 % of their peak from 210 to 240 km), so the argmax is fragile;
-/// the differences we traced:
-/// - GLOW computes the electron density only below 200 km (kchem = 4) and takes IRI's
-///   night F region above, 5-10x lower at 205-240 km, so its O₂⁺ recombination source
-///   drops by 10x at 205 km. Holding GLOW's own recombination-to-ionisation ratio
-///   above 197 km moves its 1 keV peak to 213 km and leaves its 2 and 5 keV profiles
-///   flat from 197 to 213 km (done with the committed columns).
+/// flat-topped (within 2 % of their peak from 210 to 240 km), so the argmax is fragile.
+/// What a review of 2026-12-03 traced (a Python copy of `degradation.rs` reproducing
+/// its O(¹D) yield to 1 %, and GLOW re-run at our atmosphere's conditions: same date,
+/// 69.6° N, F10.7 = 150, Ap = 15):
+/// - The main cause is ours: the local energy degradation (`degradation.rs`, "Known
+///   limit") makes the O(¹D) yield per ion pair rise with altitude above 200 km where
+///   GLOW's transported yield falls; with GLOW's yield shape our peak would be at
+///   213/206/205 km.
+/// - GLOW's 197 km is partly its own: it computes the electron density only below
+///   200 km (kchem = 4) and takes IRI's night F region above, so its O₂⁺ recombination
+///   source drops by 10x at 205 km; holding its recombination-to-ionisation ratio above
+///   197 km moves its peaks to 221/213/205 km in the matched run.
 /// - GLOW's 5 keV peak at 263 km is its F-region background (17.7 R peaking at 272 km
-///   with no precipitation); without it GLOW's 5 keV peak is at 197 km. Our model has
-///   no background ionosphere.
-/// - Our atmosphere (F10.7 = 150) is hotter than GLOW's (F10.7 = 100): N₂ is 1.3-2x
-///   denser at 200-250 km, which raises the quenching altitude; a Python prototype of
-///   this model run over GLOW's own neutral atmosphere peaked at 217, 220, 222 km.
+///   with no precipitation); our model has no background ionosphere.
+/// - Not the atmosphere: GLOW at our conditions still peaks at 197/197 km for 1 and
+///   2 keV (an earlier note here blamed our hotter atmosphere; the matched run refutes
+///   it).
 #[test]
 #[ignore = "issue 20's 15 km criterion for the 630.0 nm peak is not met (ours 223 km, GLOW 197/197/263 km)"]
 fn red_line_peaks() {

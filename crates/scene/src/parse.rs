@@ -151,6 +151,33 @@ pub fn parse(text: &str, file: impl AsRef<Path>) -> Result<Scene, SceneErrors> {
     Ok(scene.with_source(source))
 }
 
+/// Keys that scene files once held, with what to do instead: an old scene's unknown
+/// field then says why rather than only listing the fields there are.
+const REMOVED_KEYS: &[(&str, &str)] = &[
+    (
+        "o1d_per_o_ion",
+        "removed: the aurora's O(¹D) (the 630.0 nm line) is now computed from its sources, \
+         electron impact and the ion chemistry; delete the line",
+    ),
+    (
+        "o1d_per_o2_ion",
+        "removed: the aurora's O(¹D) (the 630.0 nm line) is now computed from its sources, \
+         electron impact and the ion chemistry; delete the line",
+    ),
+];
+
+/// `message` with a hint appended when it names an unknown field listed in [`REMOVED_KEYS`].
+fn with_removal_hint(message: &str) -> String {
+    let hint = REMOVED_KEYS
+        .iter()
+        .find(|(key, _)| message.starts_with(&format!("unknown field `{key}`")))
+        .map(|(_, hint)| hint);
+    match hint {
+        Some(hint) => format!("{message} ({hint})"),
+        None => message.to_string(),
+    }
+}
+
 /// Deserialize, collecting every unknown key and bad value rather than stopping at the
 /// first: after each error the offending `key = value` is blanked out (positions kept)
 /// and the text is read again. Returns (byte offset, message) per problem.
@@ -164,7 +191,7 @@ pub(crate) fn deserialize_all<T: serde::de::DeserializeOwned>(text: &str) -> Res
             Ok(_) => break,
             Err(e) => {
                 let offset = e.span().map_or(0, |s| s.start);
-                let message = e.message().trim().to_string();
+                let message = with_removal_hint(e.message().trim());
                 if errors.last().is_some_and(|last| last.0 == offset && last.1 == message) {
                     break; // blanking did not remove the cause (e.g. a missing field)
                 }
@@ -293,6 +320,15 @@ mod tests {
         let e = errors("[flame]\n[flame.sph]\nsupport_radius = 0.1\n");
         assert_eq!(e.len(), 1);
         assert!(e[0].starts_with("s.toml:3:1: unknown field `support_radius`"), "{e:?}");
+    }
+    /// A key scene files once held says it was removed and what to do.
+    #[test]
+    fn removed_keys_say_so() {
+        let text = "[aurora]\n[render.sky.yields]\no1d_per_o_ion = 0.5\n";
+        let Err(errors) = parse(text, "s.toml") else { panic!("an old key was accepted") };
+        let e: Vec<String> = errors.0.iter().map(ToString::to_string).collect();
+        assert!(e[0].starts_with("s.toml:3:1: unknown field `o1d_per_o_ion`"), "{e:?}");
+        assert!(e[0].contains("computed from its sources"), "{e:?}");
     }
 
     #[test]
