@@ -241,12 +241,42 @@ impl Default for MotionParams {
     }
 }
 
+/// Which rules redistribution (§2.3.4) follows at each renewal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RedistributionRule {
+    /// §2.3.4 as printed: particles in cells that are not near the old shape are removed,
+    /// near cells over `remove_above` lose at most `remove_max` of their farthest
+    /// particles, near cells under `add_below` gain at most `add_max` particles anywhere
+    /// in the cell.
+    Paper,
+    /// The printed rules with three changes that keep the promise of Table 3.3's
+    /// thresholds (issue 20 part 2):
+    /// - a near cell over `remove_above` loses its whole excess (farthest first), so no
+    ///   cell holds more than `remove_above` right after a renewal; `remove_max` does not
+    ///   apply (on the thesis scenes it never bound: no cell was left crowded);
+    /// - particles farther than L_thr from the old shape are removed too, not only those
+    ///   in cells that are not near: a cell is near when a charge within L_thr lands in
+    ///   it, so near cells reach up to a cell diagonal past L_thr, and what lies there has
+    ///   been pulled off the sheet (the field of the whole shape draws particles towards
+    ///   its centre of charge: the mean radial velocity beyond L_thr is outwards);
+    /// - particles are added only within L_thr (positions drawn in the cell until one is
+    ///   within L_thr, at most 16 draws each), and a cell only partly within L_thr is
+    ///   topped up to that part of `add_below`, so the edge of the sheet is not denser
+    ///   than its middle.
+    #[default]
+    Reach,
+}
+
 /// Redistribution thresholds (Table 3.3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Redistribution {
     /// Whether to redistribute at all (Fig 2.14 compares both).
     pub enabled: bool,
+    /// Which rules: the thesis's as printed (`"paper"`) or with the changes that keep
+    /// its thresholds' promise (`"reach"`, the default); see [`RedistributionRule`].
+    pub rule: RedistributionRule,
     /// A cell is near the shape if its charge count is at least this × the mean count.
     pub near_count_ratio: f32,
     /// ... and its potential at most this × the mean potential (potentials are negative
@@ -258,7 +288,8 @@ pub struct Redistribution {
     pub add_max: u32,
     /// Near cells with more particles than this lose their farthest from the shape.
     pub remove_above: u32,
-    /// At most this many particles are removed per cell per renewal.
+    /// At most this many particles are removed per cell per renewal (rule `"paper"`
+    /// only: rule `"reach"` removes the whole excess).
     pub remove_max: u32,
 }
 
@@ -266,6 +297,7 @@ impl Default for Redistribution {
     fn default() -> Self {
         Self {
             enabled: true,
+            rule: RedistributionRule::Reach,
             near_count_ratio: 0.10,
             near_potential_ratio: 0.25,
             add_below: 50,
