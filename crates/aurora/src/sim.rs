@@ -126,10 +126,12 @@ pub struct StepStats {
     /// Cells still over the upper threshold after redistribution (its per-cell removal
     /// cap was not enough).
     pub crowded_cells: usize,
-    /// Particles in the fullest cell right after this frame's redistribution, before the
-    /// particles move (0 when the frame did not redistribute): every particle left is in
-    /// a near cell of the old shape, so this is the largest near-cell count the renewal
-    /// left (Table 3.3's upper threshold bounds it under rule `"reach"`).
+    /// Particles in the fullest cell right after this frame's redistribution (0 when the
+    /// frame did not redistribute): every particle left is in a near cell of the old
+    /// shape, so this is the largest near-cell count the renewal left (Table 3.3's upper
+    /// threshold bounds it under rule `"reach"`). A frame ends with its renewal, so
+    /// `max_near_cell` of a renewal frame counts the same particles (over the new
+    /// shape's near cells).
     pub redistributed_max_cell: u32,
     /// Time spent placing charges, ms.
     pub sampling_ms: f64,
@@ -294,13 +296,13 @@ impl AuroraSim {
         &self.animation
     }
 
-    /// Advance one frame: renew the shape every K frames, then move the particles.
+    /// Advance one frame: move the particles, then, every K frames, renew the shape
+    /// (redistributing against the old one first). §2.3.4 redistributes "after the
+    /// position update", at the renewal; a frame ends with it, so the frame's particles
+    /// (and its stats: `max_near_cell` at most `remove_above` under rule `"reach"`) are
+    /// those right after redistribution.
     pub fn step(&mut self) -> Result<StepStats, AuroraError> {
         let mut stats = StepStats::default();
-        let k = u64::from(self.config.shape.renew_every_frames);
-        if self.frame > 0 && self.frame.is_multiple_of(k) {
-            self.renew(&mut stats, self.config.redistribution.enabled);
-        }
         let t = self.clock.stopwatch();
         stats.left_plane = step(
             &mut self.particles,
@@ -312,6 +314,10 @@ impl AuroraSim {
         )?;
         stats.forces_ms = t.ms();
         self.frame += 1;
+        let k = u64::from(self.config.shape.renew_every_frames);
+        if self.frame.is_multiple_of(k) {
+            self.renew(&mut stats, self.config.redistribution.enabled);
+        }
         stats.particles = self.particles.len();
         stats.max_near_cell = self.max_near_cell();
         stats.near_share = self.near.within.share(&self.particles.position_km);
