@@ -266,7 +266,8 @@ pub enum RedistributionRule {
     /// thresholds (issue 20 part 2):
     /// - a near cell over `remove_above` loses its whole excess (farthest first), so no
     ///   cell holds more than `remove_above` right after a renewal; `remove_max` does not
-    ///   apply (on the thesis scenes it never bound: no cell was left crowded);
+    ///   apply (with it, at the default damping, scenes 1 and 2 leave 1 and 6 cells over
+    ///   500 after a renewal);
     /// - particles farther than L_thr from the old shape are removed too, not only those
     ///   in cells that are not near: a cell is near when a charge within L_thr lands in
     ///   it, so near cells reach up to a cell diagonal past L_thr, and what lies there has
@@ -276,6 +277,10 @@ pub enum RedistributionRule {
     ///   within L_thr, at most 16 draws each), and a cell only partly within L_thr is
     ///   topped up to that part of `add_below`, so the edge of the sheet is not denser
     ///   than its middle.
+    ///
+    /// Worst share of particles within L_thr over the last 40 frames of thesis scenes 1-5
+    /// at the default damping: 0.955/0.987/0.970/0.937/0.877 with `"paper"`,
+    /// 0.970/0.995/0.978/0.964/0.928 with `"reach"` (`examples/redistribution_report.rs`).
     #[default]
     Reach,
 }
