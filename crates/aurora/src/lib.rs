@@ -32,7 +32,8 @@ pub mod sky;
 pub mod volume;
 
 pub use config::{
-    AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, ShapeParams,
+    AuroraConfig, CoulombKernels, FieldParams, MotionParams, Plane, Redistribution, RedistributionRule,
+    ShapeParams,
 };
 pub use plane::PlaneView;
 pub use render::{AuroraRenderer, AuroraView, LINE_LAYERS, RenderError, RenderSettings};

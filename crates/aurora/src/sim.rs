@@ -9,7 +9,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::InvalidConfig;
 use serde::{Deserialize, Serialize};
 
-use crate::config::{AuroraConfig, FieldParams};
+use crate::config::{AuroraConfig, FieldParams, RedistributionRule};
 use crate::field::{
     Grid, Nearness, add_noise, count_per_cell, electric_field, sample_near_shape, solve_potential,
 };
@@ -126,6 +126,13 @@ pub struct StepStats {
     /// Cells still over the upper threshold after redistribution (its per-cell removal
     /// cap was not enough).
     pub crowded_cells: usize,
+    /// Particles in the fullest cell right after this frame's redistribution (0 when the
+    /// frame did not redistribute): every particle left is in a near cell of the old
+    /// shape, so this is the largest near-cell count the renewal left (Table 3.3's upper
+    /// threshold bounds it under rule `"reach"`). A frame ends with its renewal, so
+    /// `max_near_cell` of a renewal frame counts the same particles (over the new
+    /// shape's near cells).
+    pub redistributed_max_cell: u32,
     /// Time spent placing charges, ms.
     pub sampling_ms: f64,
     /// Time spent solving the Poisson equation, adding noise and differentiating, ms.
@@ -289,13 +296,13 @@ impl AuroraSim {
         &self.animation
     }
 
-    /// Advance one frame: renew the shape every K frames, then move the particles.
+    /// Advance one frame: move the particles, then, every K frames, renew the shape
+    /// (redistributing against the old one first). §2.3.4 redistributes "after the
+    /// position update", at the renewal; a frame ends with it, so the frame's particles
+    /// (and its stats: `max_near_cell` at most `remove_above` under rule `"reach"`) are
+    /// those right after redistribution.
     pub fn step(&mut self) -> Result<StepStats, AuroraError> {
         let mut stats = StepStats::default();
-        let k = u64::from(self.config.shape.renew_every_frames);
-        if self.frame > 0 && self.frame.is_multiple_of(k) {
-            self.renew(&mut stats, self.config.redistribution.enabled);
-        }
         let t = self.clock.stopwatch();
         stats.left_plane = step(
             &mut self.particles,
@@ -307,6 +314,10 @@ impl AuroraSim {
         )?;
         stats.forces_ms = t.ms();
         self.frame += 1;
+        let k = u64::from(self.config.shape.renew_every_frames);
+        if self.frame.is_multiple_of(k) {
+            self.renew(&mut stats, self.config.redistribution.enabled);
+        }
         stats.particles = self.particles.len();
         stats.max_near_cell = self.max_near_cell();
         stats.near_share = self.near.within.share(&self.particles.position_km);
@@ -331,8 +342,12 @@ impl AuroraSim {
         if redistribute && !self.field.counts.is_empty() {
             let clock = self.clock.clone();
             let t = clock.stopwatch();
-            (stats.redistributed_removed, stats.redistributed_added, stats.crowded_cells) =
-                self.redistribute();
+            (
+                stats.redistributed_removed,
+                stats.redistributed_added,
+                stats.crowded_cells,
+                stats.redistributed_max_cell,
+            ) = self.redistribute();
             stats.redistribution_ms = t.ms();
         }
         let renewal = if self.field.counts.is_empty() { 0 } else { self.field.renewal + 1 };
@@ -355,24 +370,39 @@ impl AuroraSim {
     /// §2.3.4 with Table 3.3's thresholds: remove particles in cells that are not near
     /// the (old) shape, thin crowded near cells from the particle farthest from the shape
     /// on, and top up sparse near cells with particles at random positions moving with
-    /// their neighbours' mean velocity. Returns (removed, added, cells still crowded).
-    fn redistribute(&mut self) -> (usize, usize, usize) {
+    /// their neighbours' mean velocity; rule `"reach"` also removes particles beyond
+    /// L_thr, removes a crowded cell's whole excess and adds only within L_thr
+    /// ([`RedistributionRule`]). Returns (removed, added, cells still crowded, particles
+    /// in the fullest cell afterwards).
+    fn redistribute(&mut self) -> (usize, usize, usize, u32) {
         let r = &self.config.redistribution;
+        let reach_rule = r.rule == RedistributionRule::Reach;
         let (grid, field) = (&self.grid, &self.field);
         let cells = grid.len();
         let near = &self.near.cells;
+        let within = &self.near.within;
         // Particles per cell, in particle order.
         let p = &self.particles;
         let mut by_cell: Vec<Vec<u32>> = vec![Vec::new(); cells];
         let mut keep = vec![true; p.len()];
+        let mut beyond = 0usize;
         for (i, &x) in p.position_km.iter().enumerate() {
             match grid.cell_of(x) {
-                Some((ci, cj)) => by_cell[grid.index(ci, cj)].push(i as u32),
+                Some((ci, cj)) => {
+                    let c = grid.index(ci, cj);
+                    if reach_rule && near[c] && !within.covers(x) {
+                        keep[i] = false;
+                        beyond += 1;
+                    } else {
+                        by_cell[c].push(i as u32);
+                    }
+                }
                 None => keep[i] = false,
             }
         }
-        let mut removed = 0usize;
+        let mut removed = beyond;
         let mut crowded = 0usize;
+        let mut fullest = 0u32;
         let mut additions: Vec<(u64, Vec2, Vec2)> = Vec::new();
         for c in 0..cells {
             let members = &by_cell[c];
@@ -384,9 +414,20 @@ impl AuroraSim {
                 continue;
             }
             let count = members.len() as u32;
+            let (ci, cj) = (c % grid.nx, c / grid.nx);
+            let corner = grid.origin_km + Vec2::new(ci as f32, cj as f32) * grid.cell_km;
+            // Rule "reach": the part of `add_below` the cell's share within L_thr asks for.
+            let add_below = if reach_rule && count < r.add_below {
+                let covered = covered_share(within, corner, grid.cell_km);
+                (f64::from(r.add_below) * covered).round() as u32
+            } else {
+                r.add_below
+            };
             if count > r.remove_above {
-                let excess = ((count - r.remove_above).min(r.remove_max)) as usize;
+                let cap = if reach_rule { u32::MAX } else { r.remove_max };
+                let excess = ((count - r.remove_above).min(cap)) as usize;
                 crowded += usize::from(count - excess as u32 > r.remove_above);
+                fullest = fullest.max(count - excess as u32);
                 let mut by_distance: Vec<(f32, u32)> =
                     members.iter().map(|&i| (field.shape.distance(p.position_km[i as usize]), i)).collect();
                 // Farthest first; ties broken by index for determinism.
@@ -395,9 +436,8 @@ impl AuroraSim {
                     keep[i as usize] = false;
                 }
                 removed += excess;
-            } else if count < r.add_below {
-                let add = (r.add_below - count).min(r.add_max);
-                let (ci, cj) = (c % grid.nx, c / grid.nx);
+            } else if count < add_below {
+                let add = (add_below - count).min(r.add_max);
                 let mut mean_v = Vec2::ZERO;
                 let mut neighbours = 0usize;
                 for nj in cj.saturating_sub(1)..=(cj + 1).min(grid.nz - 1) {
@@ -412,11 +452,25 @@ impl AuroraSim {
                     mean_v /= neighbours as f32;
                 }
                 let mut rng = Stream::new(self.seed, REDISTRIBUTE, field.renewal * cells as u64 + c as u64);
-                let corner = grid.origin_km + Vec2::new(ci as f32, cj as f32) * grid.cell_km;
+                let mut placed = 0u32;
                 for _ in 0..add {
-                    let x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
+                    let mut x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
+                    if reach_rule {
+                        let mut draws = 1;
+                        while !within.covers(x) && draws < ADD_DRAWS {
+                            x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
+                            draws += 1;
+                        }
+                        if !within.covers(x) {
+                            continue;
+                        }
+                    }
                     additions.push((0, x, mean_v));
+                    placed += 1;
                 }
+                fullest = fullest.max(count + placed);
+            } else {
+                fullest = fullest.max(count);
             }
         }
         let added = additions.len();
@@ -425,8 +479,24 @@ impl AuroraSim {
             self.particles.push(self.next_id, x, v);
             self.next_id += 1;
         }
-        (removed, added, crowded)
+        (removed, added, crowded, fullest)
     }
+}
+
+/// Draws per added particle to find a position within L_thr (rule `"reach"`).
+const ADD_DRAWS: u32 = 16;
+
+/// The share of the cell at `corner` (side `cell_km`) within reach, from an 8 × 8
+/// lattice of its points.
+fn covered_share(within: &Nearness, corner: Vec2, cell_km: f32) -> f64 {
+    const N: u32 = 8;
+    let inside = (0..N * N)
+        .filter(|k| {
+            let q = Vec2::new((k % N) as f32 + 0.5, (k / N) as f32 + 0.5) / N as f32;
+            within.covers(corner + q * cell_km)
+        })
+        .count();
+    inside as f64 / f64::from(N * N)
 }
 
 /// A checkpoint: everything an [`AuroraSim`] built from the same configuration and
