@@ -3,7 +3,7 @@
 //! before it (issue 22). Encoding and decoding only; [`crate::output`] writes and finds
 //! the files.
 //!
-//! # Format, version 1
+//! # Format, version 2
 //! All integers little-endian.
 //!
 //! | bytes | what |
@@ -29,8 +29,12 @@ use xxhash_rust::xxh3::xxh3_64;
 
 /// The file's first bytes.
 pub const MAGIC: &[u8; 8] = b"PHNMCKPT";
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this build writes and reads. Raised whenever a simulation's
+/// state or what a frame's state means changes, so that an older checkpoint is refused
+/// (and the render falls back to simulating) instead of resuming wrongly. 2: an aurora
+/// frame ends with its renewal (issue 20 part 2), so a version-1 state taken on a
+/// renewal frame would skip that renewal.
+pub const FORMAT_VERSION: u32 = 2;
 /// Largest state a checkpoint may hold, bytes (a larger length is a corrupt file, not
 /// an allocation to attempt).
 pub const MAX_STATE_BYTES: u64 = 16 << 30;
@@ -257,9 +261,12 @@ mod tests {
         longer.push(0);
         assert_eq!(open(&longer).err(), Some(CheckpointError::Checksum));
         assert_eq!(open(b"PNG\r\n\x1a\n").err(), Some(CheckpointError::NotACheckpoint));
-        let mut v2 = bytes.clone();
-        v2[8] = 2;
-        assert_eq!(open(&v2).err(), Some(CheckpointError::Version { found: 2 }));
+        // Another version (an older build's, or a newer one's) is refused by name.
+        for other in [FORMAT_VERSION - 1, FORMAT_VERSION + 1] {
+            let mut b = bytes.clone();
+            b[8..12].copy_from_slice(&other.to_le_bytes());
+            assert_eq!(open(&b).err(), Some(CheckpointError::Version { found: other }));
+        }
     }
 
     #[test]
