@@ -34,12 +34,15 @@ def poisson_cdf_lt(lam,k):
     for i in range(k):
         s+=term; term*=lam/(i+1)
     return s
-def run(quench, yields, label):
+def run(quench, yields, label, budgets=((100, 1.0),)):
+    """Print the curtain's thirds for falls whose collision budgets are `budgets`
+    ((collisions, weight) pairs, weights summing to 1)."""
     N=0.0; prof=[]
     for a in alts:
         o,n2,o2,t=interp(nO,a),interp(nN2,a),interp(nO2,a),interpT(a)
         tot=o+n2+o2
-        coll=sig*tot*dz*1e3*poisson_cdf_lt(sig*N,100)  # collisions in this slab
+        alive=sum(w*poisson_cdf_lt(sig*N,k) for k,w in budgets)
+        coll=sig*tot*dz*1e3*alive  # collisions in this slab
         N+=tot*dz*1e3
         pO,pN=o/tot,n2/tot
         s557,s630=quench(o,n2,o2,t,tot)
@@ -76,39 +79,10 @@ run(measured,{'g':0.9,'r':0.1,'n':(0.65,0.2,0.15)},"measured k, g .9")
 ipc=100/35
 run(measured,{'g':1.0,'r':1.0,'n':(0.07*ipc,0.07/3.25*ipc,0.014*ipc)},"measured, O all, N2 phys yields")
 
-def run_spectrum(quench, yields, label, E0):
-    # budgets k with weight k exp(-k/E0) (Maxwellian number flux), mean 2 E0
-    ks=list(range(1,1000)); w=[k*math.exp(-k/E0) for k in ks]; W=sum(w); w=[x/W for x in w]
-    N=0.0; prof=[]
-    for a in alts:
-        o,n2,o2,t=interp(nO,a),interp(nN2,a),interp(nO2,a),interpT(a)
-        tot=o+n2+o2
-        lam=sig*N
-        # P(Poisson(lam)<k) averaged over k
-        pmf=math.exp(-lam); cdf=0.0; alive=0.0
-        for k,wk in zip(ks,w):
-            cdf+=pmf; pmf*=lam/k
-            alive+=wk*cdf
-        coll=sig*tot*dz*1e3*alive
-        N+=tot*dz*1e3
-        pO,pN=o/tot,n2/tot
-        s557,s630=quench(o,n2,o2,t,tot)
-        em={557.7:pO*yields['g']*s557,630.0:pO*yields['r']*s630,391.4:pN*yields['n'][0],427.8:pN*yields['n'][1],670.5:pN*yields['n'][2]}
-        X=sum(coll*em[l]*cmf[l][0] for l in em);Y=sum(coll*em[l]*cmf[l][1] for l in em);Z=sum(coll*em[l]*cmf[l][2] for l in em)
-        prof.append((a,srgb(X,Y,Z),Y))
-    ymax=max(p[2] for p in prof)
-    lit=[p for p in prof if p[2]>=0.02*ymax]
-    hi,lo=lit[0][0],lit[-1][0]; span=hi-lo
-    def band(f0,f1):
-        R=G=B=0
-        for a,(rr,gg,bb),y in lit:
-            f=(hi-a)/span
-            if f0<=f<f1: R+=rr;G+=gg;B+=bb
-        return R,G,B
-    top3,mid3=band(0,1/3),band(1/3,2/3)
-    peak=max(prof,key=lambda p:p[2])[0]
-    mag=[a for a,(rr,gg,bb),y in lit if rr>gg and bb>gg]
-    print(f"{label}: lit {lo:.0f}-{hi:.0f} km, lum peak {peak:.0f}; top R/G {top3[0]/top3[1]:.3f} mid R/G {mid3[0]/mid3[1]:.3f} ratio {(top3[0]/top3[1])/(mid3[0]/mid3[1]):.2f}; mid RGB {tuple(round(x/max(mid3),2) for x in mid3)}; magenta {min(mag) if mag else None}-{max(mag) if mag else None}")
+def maxwellian_budgets(E0):
+    """Budgets k with weight k exp(-k/E0) (a Maxwellian number flux), mean 2 E0."""
+    ks=range(1,1000); w=[k*math.exp(-k/E0) for k in ks]; W=sum(w)
+    return [(k,x/W) for k,x in zip(ks,w) if x/W>1e-12]
 for E0 in (50,20,10):
-    run_spectrum(measured,{'g':0.5,'r':0.5,'n':(0.65,0.2,0.15)},f"measured, Maxwellian budgets E0={E0}",E0)
-    run_spectrum(measured,{'g':0.9,'r':0.1,'n':(0.65,0.2,0.15)},f"measured g.9, Maxwellian budgets E0={E0}",E0)
+    run(measured,{'g':0.5,'r':0.5,'n':(0.65,0.2,0.15)},f"measured, Maxwellian budgets E0={E0}",maxwellian_budgets(E0))
+    run(measured,{'g':0.9,'r':0.1,'n':(0.65,0.2,0.15)},f"measured g.9, Maxwellian budgets E0={E0}",maxwellian_budgets(E0))
