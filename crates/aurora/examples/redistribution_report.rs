@@ -14,20 +14,11 @@
 use std::io::Write;
 use std::time::Instant;
 
-use phenomena_aurora::{AuroraConfig, AuroraSim, MotionParams, Redistribution, RedistributionRule};
-use serde::Deserialize;
+use phenomena_aurora::{AuroraSim, MotionParams, Redistribution, RedistributionRule};
 
-#[derive(Deserialize)]
-struct SceneFile {
-    scene: SceneTable,
-    aurora: AuroraConfig,
-}
-
-#[derive(Deserialize)]
-struct SceneTable {
-    frames: u32,
-    seed: u64,
-}
+/// The scenario tests' scene loading.
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -50,11 +41,8 @@ fn main() {
     if scenes.is_empty() {
         scenes = (1..=5).collect();
     }
-    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes");
     for i in scenes {
-        let text = std::fs::read_to_string(format!("{root}/aurora-scene{i}.toml")).expect("scene file");
-        let file: SceneFile = toml::from_str(&text).expect("valid scene");
-        let mut config = file.aurora;
+        let (mut config, frames, seed) = common::load(&format!("aurora-scene{i}.toml"));
         config.motion = MotionParams::default();
         config.redistribution = Redistribution::default();
         if let Some(r) = rule {
@@ -63,8 +51,7 @@ fn main() {
         if let Some(d) = damping {
             config.motion.damping_per_s = d;
         }
-        let frames = file.scene.frames;
-        let mut sim = AuroraSim::new(config, file.scene.seed).expect("valid aurora");
+        let mut sim = AuroraSim::new(config, seed).expect("valid aurora");
         let (mut redistributed, mut after_step, mut crowded, mut worst) = (0u32, 0u32, 0usize, 1.0f64);
         let start = Instant::now();
         for frame in 1..=frames {
