@@ -156,7 +156,13 @@ function onScene(msg) {
   const controls = catalogue.controls[msg.phenomenon] || [];
   buildForm($('form'), controls, hello.featured[msg.phenomenon] || [], msg.scene, setParam);
   $('seed').value = msg.scene.scene.seed;
-  $('final-frames').value = msg.scene.scene.frames;
+  // The frames to render follow the scene only when the phenomenon or its frame
+  // count changed: a re-sent scene (a parameter, a re-opened tab) keeps what was typed.
+  const framesKey = `${msg.phenomenon}:${msg.scene.scene.frames}`;
+  if (studio.framesKey !== framesKey) {
+    studio.framesKey = framesKey;
+    $('final-frames').value = msg.scene.scene.frames;
+  }
   const view = controls.find((c) => c.path === 'render.view');
   const toggle = $('view-toggle');
   toggle.replaceChildren();
