@@ -21,8 +21,9 @@ fi
 rm -rf "$out"
 mkdir -p "$out"
 # VDB_CHECK_PROFILE: the cargo profile to build the sample writer with (CI passes
-# `test`, whose dependencies `cargo test` has already built).
-(cd "$root" && cargo run --quiet --profile "${VDB_CHECK_PROFILE:-release}" -p phenomena-core --example vdb_sample -- "$out")
+# `test`, whose dependencies `cargo test` has already built; no `-p`, so the features
+# are the workspace's and nothing is compiled again).
+(cd "$root" && cargo run --quiet --profile "${VDB_CHECK_PROFILE:-release}" --example vdb_sample -- "$out")
 set --
 for json in "$out"/*.json; do
     set -- "$@" "${json%.json}.vdb" "$json"
