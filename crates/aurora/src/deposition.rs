@@ -223,6 +223,9 @@ pub struct ColumnModel {
     o1d_production: [Vec<f64>; 8],
     /// Volume emission rate per line ([`Line::ALL`] order), photons cm⁻³ s⁻¹.
     ver: [Vec<f64>; 5],
+    /// Production of each line's upper state ([`Line::ALL`] order; for the prompt bands
+    /// their photons), before the radiative branch and quenching, cm⁻³ s⁻¹.
+    excitation: [Vec<f64>; 5],
     /// Effective lifetime of each line's upper state at each altitude, s.
     lifetime: [Vec<f64>; 5],
     /// Cumulative photons cm⁻² s⁻¹ of each line from the bottom up to each altitude
@@ -282,6 +285,7 @@ impl ColumnModel {
         let electron_density: Vec<f64> = red.iter().map(|r| r.electron_density_cm3).collect();
         let o1d_production = std::array::from_fn(|k| red.iter().map(|r| r.o1d_production[k]).collect());
         let mut ver: [Vec<f64>; 5] = Default::default();
+        let mut excitation: [Vec<f64>; 5] = Default::default();
         let mut lifetime: [Vec<f64>; 5] = Default::default();
         for ((s, c), r) in samples.iter().zip(&columns).zip(&red) {
             let ne = r.electron_density_cm3;
@@ -294,8 +298,11 @@ impl ColumnModel {
                 o1d * Line::O630.radiated_fraction_with_electrons(s, ne, s.temperature_k),
                 yields.n2_670_per_n2_ion * c.production.n2,
             ];
+            let o1s = yields.o1s_per_n2_ion * c.production.n2 + yields.o1s_per_o_ion * c.production.o;
+            let made = [rates[0], rates[1], o1s, o1d, rates[4]];
             for (k, line) in Line::ALL.iter().enumerate() {
                 ver[k].push(rates[k]);
+                excitation[k].push(made[k]);
                 let tau = match line.metastable_rates() {
                     Some((_, total)) => {
                         1.0 / (total
@@ -327,7 +334,17 @@ impl ColumnModel {
                 })
                 .collect()
         });
-        Self { altitudes_km, ionisation, electron_density, o1d_production, ver, lifetime, cumulative, guide }
+        Self {
+            altitudes_km,
+            ionisation,
+            electron_density,
+            o1d_production,
+            ver,
+            excitation,
+            lifetime,
+            cumulative,
+            guide,
+        }
     }
 
     /// The altitudes, km (those of the atmosphere table).
@@ -354,6 +371,18 @@ impl ColumnModel {
     /// Volume emission rate of `line` at each altitude, photons cm⁻³ s⁻¹.
     pub fn volume_emission(&self, line: Line) -> &[f64] {
         &self.ver[line.index()]
+    }
+
+    /// Upper states of `line` made per ion pair at each altitude: the state's production
+    /// (O(¹S) for 557.7 nm, O(¹D) from all its sources for 630.0 nm, the photons of the
+    /// prompt bands) over the ionisation rate, before the radiative branch and quenching
+    /// (0 where nothing is ionised). The `paper` mode's production ratios.
+    pub fn excitation_per_ion_pair(&self, line: Line) -> Vec<f64> {
+        self.excitation[line.index()]
+            .iter()
+            .zip(&self.ionisation)
+            .map(|(&p, &q)| if q > 0.0 { p / q } else { 0.0 })
+            .collect()
     }
 
     /// Column emission rate of `line`, photons cm⁻² s⁻¹ (divide by 1e6 for rayleighs).

@@ -2,15 +2,19 @@
 //! collision takes its energy (quenching), in two models:
 //!
 //! - the thesis's (`paper` mode, §2.4.2): an excited particle is de-excited with the
-//!   hard-sphere collision probability P_v = 1 - exp(-√2 n π r² v_a τ) (eq 2.25) with the
-//!   mean thermal speed v_a = √(8 k_B T / (π m_a)) (eq 2.26);
+//!   collision probability P_v = 1 - exp(-√2 n π r² v_a τ) (eq 2.25) with the mean
+//!   thermal speed v_a = √(8 k_B T / (π m_a)) (eq 2.26), here with the fall's hard-sphere
+//!   radius and a fixed τ ([`paper_quenching_probability`]; `quenching = "hard-sphere"`);
+//!   the `paper` default makes eq 2.25 exact for the measured coefficients below
+//!   ([`crate::fall::PaperQuenching::Measured`]);
 //! - the `physical` mode's: the fraction A_line / (1/τ + Σ k_i n_i) with measured rate
 //!   coefficients k_i (NCAR GLOW, `gchem.f90`, as tabulated in shared/aurora-physics.md,
 //!   with the sources GLOW cites; O(¹D) + O temperature-dependent after Sun and Dalgarno
 //!   1992, and O(¹D) + e, see [`Line::electron_quenching_rate_s`]).
 //!
-//! With real densities the first quenches the green line almost completely at 110 km,
-//! where real aurora is brightest; the second leaves most of it (tested below).
+//! With real densities the hard-sphere form quenches the green line almost completely at
+//! 110 km, where real aurora is brightest; the measured coefficients leave most of it
+//! (tested below).
 //!
 //! The colour of each line: Table 2.1's x̄ȳz̄ as printed (`paper`) or the CIE 2015 2°
 //! observer of the core (the same values to Table 2.1's four digits), and XYZ -> RGB by

@@ -7,7 +7,8 @@
 //!
 //! Emission points per particle come from one of two models:
 //! - `paper` (§2.4.1-2.4.2, [`crate::fall`]): the particle falls by eq 2.21-2.22 and each
-//!   collision may emit one line; every emission counts 1 × the attenuation of eq 2.27;
+//!   collision may emit one line; every emission counts the emission weight × the
+//!   attenuation of eq 2.27 (a 630.0 nm one lands where its O(¹D) diffused to);
 //! - `physical` (default, [`crate::deposition`]): each line's emission points are drawn
 //!   from that line's volume emission profile by inverse CDF along the field line, each
 //!   carrying an equal share of the line's column brightness over the particle's
@@ -48,7 +49,9 @@ const EMIT: Purpose = Purpose::named("aurora.sky.emit");
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ColourMode {
-    /// The thesis as printed (§2.4): stepped fall, hard-sphere quenching, Table 2.1.
+    /// The thesis's fall and emission (§2.4, [`crate::fall`]), Table 2.1's colours; its
+    /// unprinted constants from the physics it cites, or as first read
+    /// (`[render.sky.paper]`).
     Paper,
     /// Energy deposition over the NRLMSIS atmosphere, yields and rate-coefficient
     /// quenching, image in rayleighs.
@@ -267,12 +270,21 @@ pub struct SkySettings {
     /// stay in rayleighs). Moderate aurora is a few kR of green, seen edge-on along a
     /// curtain tens of kR.
     pub white_kilorayleigh: f32,
-    /// `paper` mode: image value of one unattenuated 557.7 nm emission (the other lines
-    /// scale by their colour-matching values, eq 2.29; line layers count emissions).
+    /// `paper` mode: image value of one unattenuated 557.7 nm emission landing in a
+    /// pixel of a 1280-pixel-wide image (at other widths scaled with the pixel's area, so
+    /// a preview is exposed like the final frame; the other lines scale by their
+    /// colour-matching values, eq 2.29; line layers count emissions, each weighted by
+    /// [`crate::fall::PaperEmission::weight`] and attenuation).
     pub paper_emission_brightness: f32,
     /// Behind the aurora.
     pub background: SkyBackground,
 }
+
+/// Width the `paper` mode's exposure and every splat size refer to, pixels.
+const REFERENCE_WIDTH_PX: f64 = 1280.0;
+
+/// Default [`SkySettings::paper_emission_brightness`].
+const PAPER_EMISSION_BRIGHTNESS: f32 = 0.01;
 
 impl Default for SkySettings {
     fn default() -> Self {
@@ -292,7 +304,7 @@ impl Default for SkySettings {
             ground: false,
             white_kilorayleigh: 20.0,
             paper: PaperFall::default(),
-            paper_emission_brightness: 0.05,
+            paper_emission_brightness: PAPER_EMISSION_BRIGHTNESS,
             background: SkyBackground::Night,
         }
     }
@@ -418,9 +430,10 @@ impl SkyRenderer {
         let background = image_background(wanted, background, width, height)?;
         let air = Atmosphere::msis21();
         let model = match settings.mode {
-            ColourMode::Paper => {
-                Model::Paper { air: AirTable::new(air), emission: PaperEmission::new(air, &settings.paper) }
-            }
+            ColourMode::Paper => Model::Paper {
+                air: AirTable::new(air),
+                emission: PaperEmission::new(air, &settings.paper, &settings.precipitation, &settings.yields),
+            },
             ColourMode::Physical => {
                 let column = ColumnModel::new(air, &settings.precipitation, &settings.yields);
                 let photons = Line::ALL.map(|l| column.column_photons_cm2_s(l));
@@ -429,7 +442,7 @@ impl SkyRenderer {
                 Model::Physical { column: Box::new(column), sampler, points, photons }
             }
         };
-        let scale = width as f32 / 1280.0;
+        let scale = (width as f64 / REFERENCE_WIDTH_PX) as f32;
         let sigma_px = settings.splat_sigma_px.to_array().map(|s| s * scale);
         let eye = settings.camera.camera().position;
         Ok(Self {
@@ -606,10 +619,14 @@ impl SkyRenderer {
                     |s| jitter_in_ball(s, r),
                     |q, s| {
                         let u = s.next_f64();
-                        if let Some(line) = emission.choose(q.y, u)
+                        let line = emission.choose(q.y, u);
+                        let q =
+                            if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
+                        if let Some(line) = line
                             && let Some(pr) = self.view.project(q.as_vec3())
                         {
-                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth));
+                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth))
+                                * emission.weight();
                             out.push(Splat {
                                 x: pr.x_px,
                                 y: pr.y_px,
@@ -667,7 +684,12 @@ impl SkyRenderer {
     fn white_cd_m2(&self) -> f64 {
         let green = self.line_luminance(Line::O557).y;
         match self.settings.mode {
-            ColourMode::Paper => green / f64::from(self.settings.paper_emission_brightness),
+            ColourMode::Paper => {
+                // The same emissions land on (1280 / width)² times fewer pixels at a
+                // smaller size: scale so the exposure does not depend on the size.
+                let pixel_area = (REFERENCE_WIDTH_PX / self.width as f64).powi(2);
+                green / f64::from(self.settings.paper_emission_brightness) * pixel_area
+            }
             ColourMode::Physical => green * 1e3 * f64::from(self.settings.white_kilorayleigh),
         }
     }

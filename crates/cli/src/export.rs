@@ -105,6 +105,7 @@ pub(crate) fn aurora_profile(
     flux_erg: f64,
     out: &Path,
     red_line: Option<&Path>,
+    paper: Option<&Path>,
 ) -> Result<String> {
     use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
     let precipitation = Precipitation { spectrum, energy_kev, flux_erg_cm2_s: flux_erg };
@@ -136,6 +137,38 @@ pub(crate) fn aurora_profile(
         }
         write_bytes_atomic(path, model.red_line_csv().as_bytes())?;
         also = format!(" and the red line's budget to {}", path.display());
+    }
+    if let Some(path) = paper {
+        use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_profile};
+        let air = phenomena_aurora::atmosphere::Atmosphere::msis21();
+        let params = PaperFall::default();
+        let emission = PaperEmission::new(air, &params, &precipitation, &Yields::default());
+        let top_km = f64::from(phenomena_aurora::SkySettings::default().top_altitude_km);
+        let profile = paper_profile(air, &params, &emission, top_km);
+        let (bottom_km, _) = air.range_km();
+        let mut csv = String::from("altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5\n");
+        for (k, row) in profile.iter().enumerate() {
+            csv.push_str(&format!("{}", bottom_km + k as f64 + 0.5));
+            for v in row {
+                csv.push_str(&format!(",{v:.6e}"));
+            }
+            csv.push('\n');
+        }
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            ensure_dir(parent)?;
+        }
+        write_bytes_atomic(path, csv.as_bytes())?;
+        let peak = |line: Line| {
+            let k = (0..profile.len())
+                .max_by(|&a, &b| profile[a][line.index()].total_cmp(&profile[b][line.index()]));
+            bottom_km + k.unwrap_or(0) as f64 + 0.5
+        };
+        also.push_str(&format!(
+            "; the paper mode's emission by altitude (557.7 nm peak at {} km, 630.0 nm at {} km) to {}",
+            peak(Line::O557),
+            peak(Line::O630),
+            path.display()
+        ));
     }
     Ok(format!(
         "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; 630.0 nm {:.0} R, peak at {} km) to {}{also}",

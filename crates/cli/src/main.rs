@@ -399,6 +399,12 @@ enum ExportWhat {
         /// source, the share that radiates, 630.0 nm) as CSV to this file.
         #[arg(long)]
         red_line: Option<PathBuf>,
+        /// Also write the `paper` mode's expected emission by altitude (default
+        /// `[render.sky.paper]`, production ratios from this column) as CSV to this
+        /// file: `altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5`, emissions per
+        /// falling electron per km, 1 km bins (centres).
+        #[arg(long)]
+        paper: Option<PathBuf>,
     },
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
@@ -545,13 +551,21 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     format: DataFormat::Csv,
                     out,
                     red_line,
+                    paper,
                 },
         } => {
             let spectrum = match spectrum {
                 SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
                 SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
             };
-            export::aurora_profile(energy_kev, spectrum, flux_erg, &out, red_line.as_deref())
+            export::aurora_profile(
+                energy_kev,
+                spectrum,
+                flux_erg,
+                &out,
+                red_line.as_deref(),
+                paper.as_deref(),
+            )
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
             let format = match format {

@@ -106,3 +106,60 @@ pub(crate) fn components(sim: &AuroraSim, min_count: u32, min_cells: usize) -> u
 pub(crate) fn slow_tests() -> bool {
     std::env::var_os("PHENOMENA_SLOW_TESTS").is_some_and(|v| v == "1")
 }
+
+/// Colour of a sky frame's curtain by height (issues 20 and 24). Which pixels are the
+/// curtain: in each image column, the rows whose luminance is at least `floor_share` of
+/// the frame's brightest pixel; the column's curtain runs from its highest to its lowest
+/// such row and is cut into thirds by row. R, G, B (linear sRGB, as rendered) are summed
+/// per third over all columns.
+pub(crate) struct CurtainLook {
+    /// Summed R, G, B of the top, middle and bottom thirds.
+    pub(crate) thirds: [[f64; 3]; 3],
+    /// Pixels in the curtains of all columns.
+    pub(crate) pixels: usize,
+    /// Curtain pixels that are magenta (B and R both above G).
+    pub(crate) magenta: usize,
+    /// Magenta curtain pixels above the lowest tenth of their column's curtain.
+    pub(crate) magenta_above_lowest_tenth: usize,
+}
+
+impl CurtainLook {
+    /// R/G of third `k` (0 top, 1 middle, 2 bottom).
+    pub(crate) fn redness(&self, k: usize) -> f64 {
+        self.thirds[k][0] / self.thirds[k][1]
+    }
+}
+
+/// Measure `frame`'s curtain (see [`CurtainLook`]).
+pub(crate) fn curtain_look(frame: &phenomena_core::image::Frame, floor_share: f32) -> CurtainLook {
+    let (w, h) = (frame.width(), frame.height());
+    let lum = |x: usize, y: usize| {
+        let p = frame.pixel(x, y);
+        0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z
+    };
+    let max = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| lum(x, y)).fold(0.0f32, f32::max);
+    let floor = floor_share * max;
+    let mut look =
+        CurtainLook { thirds: [[0.0; 3]; 3], pixels: 0, magenta: 0, magenta_above_lowest_tenth: 0 };
+    for x in 0..w {
+        let lit: Vec<usize> = (0..h).filter(|&y| lum(x, y) >= floor).collect();
+        let (Some(&first), Some(&last)) = (lit.first(), lit.last()) else { continue };
+        let span = (last - first + 1) as f64;
+        for y in first..=last {
+            let f = (y - first) as f64 / span;
+            let p = frame.pixel(x, y);
+            let acc = &mut look.thirds[((f * 3.0) as usize).min(2)];
+            acc[0] += f64::from(p.x);
+            acc[1] += f64::from(p.y);
+            acc[2] += f64::from(p.z);
+            look.pixels += 1;
+            if p.x > p.y && p.z > p.y {
+                look.magenta += 1;
+                if f < 0.9 {
+                    look.magenta_above_lowest_tenth += 1;
+                }
+            }
+        }
+    }
+    look
+}

@@ -136,3 +136,39 @@ fn shape_exports_after_splits_and_merges_are_consistent() {
         }
     }
 }
+
+#[test]
+fn the_profile_export_writes_the_paper_modes_profile_beside_the_physical_one() {
+    // Issue 24: both modes' emission by altitude, exported; each line's paper peak
+    // within 20 km of the physical one (the library test holds the same for defaults).
+    let dir = tempfile::tempdir().unwrap();
+    ok(
+        dir.path(),
+        &[
+            "export",
+            "aurora-profile",
+            "--energy-kev",
+            "2",
+            "--flux-erg",
+            "5",
+            "--out",
+            "phys.csv",
+            "--paper",
+            "paper.csv",
+        ],
+    );
+    let read = |name: &str| -> Vec<Vec<f64>> {
+        let text = std::fs::read_to_string(dir.path().join(name)).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next().unwrap().split(',').count(), 6, "{name}: six columns");
+        lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect()
+    };
+    let (phys, paper) = (read("phys.csv"), read("paper.csv"));
+    let peak = |rows: &[Vec<f64>], col: usize| {
+        rows.iter().max_by(|a, b| a[col].total_cmp(&b[col])).map(|r| r[0]).unwrap()
+    };
+    for col in 1..=5 {
+        let (a, b) = (peak(&phys, col), peak(&paper, col));
+        assert!((a - b).abs() <= 20.0, "column {col}: physical peak {a} km, paper {b} km");
+    }
+}
