@@ -1064,7 +1064,8 @@ mod tests {
             let l = o1d_diffusion_length_km(&air.at(z));
             assert!(l > want_km / 1.5 && l < want_km * 1.5, "{z} km: {l} km");
         }
-        let on = PaperEmission::new(air, &PaperFall::default(), &Precipitation::default(), &Yields::default());
+        let on =
+            PaperEmission::new(air, &PaperFall::default(), &Precipitation::default(), &Yields::default());
         let off = PaperFall { red_diffusion: false, ..PaperFall::default() };
         let off = PaperEmission::new(air, &off, &Precipitation::default(), &Yields::default());
         let mut rng = Stream::new(5, TEST, 0);
