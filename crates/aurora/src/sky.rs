@@ -620,13 +620,13 @@ impl SkyRenderer {
                     |q, s| {
                         let u = s.next_f64();
                         let line = emission.choose(q.y, u);
+                        let weight = emission.weight();
                         let q =
                             if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
                         if let Some(line) = line
                             && let Some(pr) = self.view.project(q.as_vec3())
                         {
-                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth))
-                                * emission.weight();
+                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth)) * weight;
                             out.push(Splat {
                                 x: pr.x_px,
                                 y: pr.y_px,

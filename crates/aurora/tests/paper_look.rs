@@ -51,12 +51,14 @@ fn scene2_in_paper_mode_is_green_with_a_redder_top() {
     );
 
     // The equations as first read (fixed shares, eq 2.25 with the fall's radius and a
-    // fixed τ, the old jitter) fail the same measure: the magenta lower half.
+    // fixed τ, no diffusion, the old jitter) fail the same measure: the magenta
+    // lower half.
     let printed = SkySettings {
         mode: ColourMode::Paper,
         paper: PaperFall {
             production: PaperProduction::Shares,
             quenching: PaperQuenching::HardSphere,
+            red_diffusion: false,
             jitter: 0.3,
             ..PaperFall::default()
         },
