@@ -8,7 +8,7 @@
 //! collisions) is spent.
 //!
 //! At each collision (§2.4.2) one of the five lines is emitted by production ratio (the
-//! thesis takes them from its [27], a 1983 book, without printing them) and the excited
+//! thesis takes them from its ref. 27, a 1983 book, without printing them) and the excited
 //! particle may be quenched before it radiates (eq 2.25); the light reaching the eye is
 //! attenuated by c = exp(-(d z_a)²) (eq 2.27) with z_a the emission point's depth from
 //! the camera. The thesis prints neither the production ratios, nor r, nor τ; two sets of
@@ -18,7 +18,7 @@
 //!   [`PaperQuenching::Measured`]): the production ratios are the upper states made per
 //!   100 eV collision at each altitude by the physical mode's column model for the
 //!   scene's `[render.sky.precipitation]` (its cited cross sections and chemistry: the
-//!   closest public equivalent of [27]); eq 2.25 is made exact for the measured rate
+//!   closest public equivalent of ref. 27); eq 2.25 is made exact for the measured rate
 //!   coefficients by an effective radius per excited species (√2 n π r_q² v_a = Σ k_Q n_Q)
 //!   and τ is the state's emission time, exponential with the mean 1/A of its Einstein
 //!   coefficients, so the chance to radiate is A/(A + Σ k_Q n_Q). These give the
@@ -56,7 +56,7 @@ pub struct PaperFall {
     /// Collisions a particle can afford: its initial energy is this times
     /// `energy_loss_ev` (Table 3.2: 100).
     pub collisions: u32,
-    /// Energy lost per collision, eV (§2.4.1: about 100 eV, after [19]).
+    /// Energy lost per collision, eV (§2.4.1: about 100 eV, after the thesis's ref. 19).
     pub energy_loss_ev: f64,
     /// Largest |ω| relative to |B| = 1: ω is uniform in the ball of this radius. The
     /// thesis gives neither its size nor its distribution ("a minute wobble"). The default
