@@ -231,7 +231,7 @@ enum Command {
         #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
         max_sessions: u16,
         /// Another host name the page may be reached by (besides 127.0.0.1, localhost,
-        /// [::1] and the --bind address); repeat for more. Requests naming any other
+        /// ::1 and the --bind address); repeat for more. Requests naming any other
         /// host are refused (a defence against DNS rebinding).
         #[arg(long = "allow-host", value_name = "HOST")]
         allow_hosts: Vec<String>,

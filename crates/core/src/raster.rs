@@ -185,7 +185,7 @@ pub fn rasterize(
 /// same size (a depth map per snowfall direction): [`rasterize`] without the
 /// allocations. Same output as [`rasterize`].
 ///
-/// How it runs: runs of [`RUN`] consecutive triangles are dealt round-robin to a few
+/// How it runs: runs of `RUN` consecutive triangles are dealt round-robin to a few
 /// parts (about one per thread), each drawing into a buffer of its own; the parts are
 /// merged pixel by pixel; triangles with large bounding boxes are then drawn into the
 /// merged buffer by bands of rows in parallel. Every step keeps the smallest (depth, id)

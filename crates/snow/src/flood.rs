@@ -71,7 +71,7 @@ pub(crate) struct Scratch {
     pub(crate) counts: Counts,
 }
 
-/// What one [`Scratch::settle`] did (for tests and measurements).
+/// What one `Scratch::settle` did (for tests and measurements).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Counts {
     /// Texels lowered by the floor.

@@ -171,7 +171,7 @@ pub fn ray_cast_probability(sim: &SnowSim) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// The paper's comparison method (§3.3, after its [7]): for every vertex of every
+/// The paper's comparison method (§3.3, after its ref. 7): for every vertex of every
 /// upward-facing triangle, `rays` rays up the jittered snowfall directions, each tested
 /// against every triangle; the vertex's probability is the unblocked share. Returns one
 /// value per (triangle, corner).
