@@ -13,8 +13,8 @@
 use phenomena_aurora::atmosphere::Atmosphere;
 use phenomena_aurora::deposition::ColumnModel;
 use phenomena_aurora::emission::Line;
-use phenomena_aurora::fall::{PaperEmission, paper_profile};
-use phenomena_aurora::{ColourMode, SkyRenderer, SkySettings};
+use phenomena_aurora::fall::{PaperEmission, paper_peak_km, paper_profile};
+use phenomena_aurora::{ColourMode, SkySettings};
 use phenomena_core::color::srgb_encode_u8;
 
 /// The scenario tests' scene loading and the curtain measurement.
@@ -53,8 +53,7 @@ fn main() {
     };
     let (config, _, seed) = common::load(&format!("aurora-scene{scene}.toml"));
     let sim = common::run(config, seed, frame);
-    let mut renderer = SkyRenderer::new(settings.clone(), size.0, size.1, None).expect("sky");
-    let image = renderer.render(&sim).clone();
+    let image = common::sky_frame(&sim, settings.clone(), size.0, size.1);
     let look = common::curtain_look(&image, 0.02);
     let [top, middle, bottom] = look.thirds;
     let norm = |c: [f64; 3]| {
@@ -87,13 +86,11 @@ fn main() {
     let profile = paper_profile(air, &settings.paper, &emission, f64::from(settings.top_altitude_km));
     let physical = ColumnModel::new(air, &settings.precipitation, &settings.yields);
     for line in Line::ALL {
-        let k =
-            (0..profile.len()).max_by(|&a, &b| profile[a][line.index()].total_cmp(&profile[b][line.index()]));
         let per_electron: f64 = profile.iter().map(|b| b[line.index()]).sum();
         println!(
             "{:5.1} nm: paper peak {:5.1} km ({per_electron:.3} emissions per electron), physical peak {:5.1} km",
             line.wavelength_nm(),
-            bottom_km + k.unwrap_or(0) as f64 + 0.5,
+            paper_peak_km(air, &profile, line),
             physical.peak_altitude_km(line)
         );
     }

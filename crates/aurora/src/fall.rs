@@ -640,6 +640,13 @@ pub fn paper_profile(
     bins
 }
 
+/// Centre of the 1 km bin of `profile` (a [`paper_profile`] over `air`) where `line`
+/// emits most, km.
+pub fn paper_peak_km(air: &Atmosphere, profile: &[[f64; 5]], line: Line) -> f64 {
+    let k = (0..profile.len()).max_by(|&a, &b| profile[a][line.index()].total_cmp(&profile[b][line.index()]));
+    air.range_km().0 + k.unwrap_or(0) as f64 + 0.5
+}
+
 /// E[cos θ] of the fall's direction (B + ω)/|B + ω| for ω uniform in the ball of radius
 /// `jitter` (|B| = 1): by midpoint quadrature over the ball (ω's component along B, t,
 /// and across it, radius ρ; cos θ = (1 + t)/√((1 + t)² + ρ²)), to about 1e-6.
@@ -1093,11 +1100,8 @@ mod tests {
         let e = PaperEmission::new(air, &params, &precipitation, &yields);
         let profile = paper_profile(air, &params, &e, 400.0);
         let physical = ColumnModel::new(air, &precipitation, &yields);
-        let (bottom, _) = air.range_km();
         for line in Line::ALL {
-            let k = (0..profile.len())
-                .max_by(|&a, &b| profile[a][line.index()].total_cmp(&profile[b][line.index()]));
-            let paper_km = bottom + k.unwrap() as f64 + 0.5;
+            let paper_km = paper_peak_km(air, &profile, line);
             let physical_km = physical.peak_altitude_km(line);
             assert!(
                 (paper_km - physical_km).abs() <= 20.0,

@@ -17,7 +17,7 @@
 mod common;
 
 use phenomena_aurora::fall::{PaperFall, PaperProduction, PaperQuenching};
-use phenomena_aurora::{ColourMode, SkyRenderer, SkySettings};
+use phenomena_aurora::{ColourMode, SkySettings};
 
 #[test]
 #[allow(clippy::print_stderr, reason = "the measurement, for the record of a run")]
@@ -28,8 +28,7 @@ fn scene2_in_paper_mode_is_green_with_a_redder_top() {
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 200);
     let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };
-    let mut sky = SkyRenderer::new(settings, 640, 360, None).expect("sky");
-    let frame = sky.render(&sim).clone();
+    let frame = common::sky_frame(&sim, settings, 640, 360);
     let look = common::curtain_look(&frame, 0.02);
     let [_, middle, _] = look.thirds;
     let (top_rg, middle_rg) = (look.redness(0), look.redness(1));
@@ -64,8 +63,7 @@ fn scene2_in_paper_mode_is_green_with_a_redder_top() {
         },
         ..SkySettings::default()
     };
-    let mut sky = SkyRenderer::new(printed, 640, 360, None).expect("sky");
-    let old = common::curtain_look(sky.render(&sim), 0.02);
+    let old = common::curtain_look(&common::sky_frame(&sim, printed, 640, 360), 0.02);
     eprintln!(
         "as first read: magenta {} of {} pixels, {} above the lowest tenth",
         old.magenta, old.pixels, old.magenta_above_lowest_tenth

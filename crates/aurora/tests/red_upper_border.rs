@@ -15,7 +15,7 @@
 
 mod common;
 
-use phenomena_aurora::{SkyRenderer, SkySettings};
+use phenomena_aurora::SkySettings;
 
 #[test]
 #[allow(clippy::print_stderr, reason = "the measurement, for the record of a run")]
@@ -25,8 +25,7 @@ fn scene2_has_a_redder_upper_border() {
     }
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 140);
-    let mut sky = SkyRenderer::new(SkySettings::default(), 1280, 720, None).expect("sky");
-    let frame = sky.render(&sim).clone();
+    let frame = common::sky_frame(&sim, SkySettings::default(), 1280, 720);
     let look = common::curtain_look(&frame, 0.02);
     let (top, middle) = (look.redness(0), look.redness(1));
     eprintln!(

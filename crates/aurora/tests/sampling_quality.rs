@@ -13,7 +13,7 @@
 
 mod common;
 
-use phenomena_aurora::{SkyRenderer, SkySettings};
+use phenomena_aurora::SkySettings;
 use phenomena_core::image::Frame;
 
 /// PSNR of `frame` against `reference`, dB, peak = the reference's largest channel value.
@@ -45,8 +45,7 @@ fn the_default_samples_stay_close_to_sixteen_times_as_many() {
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 100);
     let render = |points_per_particle: u32| {
-        let settings = SkySettings { points_per_particle, ..SkySettings::default() };
-        SkyRenderer::new(settings, 1280, 720, None).expect("sky").render(&sim).clone()
+        common::sky_frame(&sim, SkySettings { points_per_particle, ..SkySettings::default() }, 1280, 720)
     };
     let default = SkySettings::default().points_per_particle;
     let (frame, reference) = (render(default), render(16 * default));

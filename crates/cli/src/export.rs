@@ -139,7 +139,7 @@ pub(crate) fn aurora_profile(
         also = format!(" and the red line's budget to {}", path.display());
     }
     if let Some(path) = paper {
-        use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_profile};
+        use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_peak_km, paper_profile};
         let air = phenomena_aurora::atmosphere::Atmosphere::msis21();
         let params = PaperFall::default();
         let emission = PaperEmission::new(air, &params, &precipitation, &Yields::default());
@@ -158,11 +158,7 @@ pub(crate) fn aurora_profile(
             ensure_dir(parent)?;
         }
         write_bytes_atomic(path, csv.as_bytes())?;
-        let peak = |line: Line| {
-            let k = (0..profile.len())
-                .max_by(|&a, &b| profile[a][line.index()].total_cmp(&profile[b][line.index()]));
-            bottom_km + k.unwrap_or(0) as f64 + 0.5
-        };
+        let peak = |line: Line| paper_peak_km(air, &profile, line);
         also.push_str(&format!(
             "; the paper mode's emission by altitude (557.7 nm peak at {} km, 630.0 nm at {} km) to {}",
             peak(Line::O557),

@@ -163,3 +163,14 @@ pub(crate) fn curtain_look(frame: &phenomena_core::image::Frame, floor_share: f3
     }
     look
 }
+
+/// `sim`'s sky frame with `settings` at `width` × `height` (linear sRGB).
+pub(crate) fn sky_frame(
+    sim: &AuroraSim,
+    settings: phenomena_aurora::SkySettings,
+    width: usize,
+    height: usize,
+) -> phenomena_core::image::Frame {
+    let mut sky = phenomena_aurora::SkyRenderer::new(settings, width, height, None).expect("sky settings");
+    sky.render(sim).clone()
+}
