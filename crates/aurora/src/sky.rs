@@ -392,6 +392,20 @@ pub struct SkyRenderer {
     /// weight (stride 1: all).
     stride: usize,
     phase: usize,
+    /// Memory kept between frames: each emission chunk's points and their filing by
+    /// band, the unblurred line images and the blur's intermediate image (a 1280x720
+    /// frame of 120,000 particles holds about 70 MB of points; allocated afresh every
+    /// frame, their page faults and unmapping cost more than the deposit).
+    chunks: Vec<ChunkScratch>,
+    fresh: [Plane; 5],
+    blur_tmp: Vec<f32>,
+}
+
+/// One emission chunk's points, before and after filing by band.
+#[derive(Default)]
+struct ChunkScratch {
+    splats: Vec<Splat>,
+    filed: Filed<Splat>,
 }
 
 /// Where the last render's time went, ms (0 unless the renderer was given a clock by
@@ -461,6 +475,9 @@ impl SkyRenderer {
             clock: SharedClock::default(),
             stride: 1,
             phase: 0,
+            chunks: Vec::new(),
+            fresh: std::array::from_fn(|_| Plane::new(width, height)),
+            blur_tmp: Vec::new(),
         })
     }
 
@@ -523,16 +540,16 @@ impl SkyRenderer {
 
     /// Render the sky over `sim`'s current particles; returns linear sRGB.
     pub fn render(&mut self, sim: &AuroraSim) -> &Frame {
-        let mut fresh = self.emit_and_deposit(sim);
+        self.emit_and_deposit(sim);
         let clock = self.clock.clone();
         let t = clock.stopwatch();
-        for (plane, sigma) in fresh.iter_mut().zip(self.sigma_px) {
-            plane.gaussian_blur(sigma);
+        for (plane, sigma) in self.fresh.iter_mut().zip(self.sigma_px) {
+            plane.gaussian_blur_with(sigma, &mut self.blur_tmp);
         }
         match (&self.model, self.settings.afterglow && self.glow_started) {
             (Model::Physical { column, .. }, true) => {
                 let dt = f64::from(sim.config().motion.time_step_s);
-                for (k, (old, new)) in self.lines.iter_mut().zip(&fresh).enumerate() {
+                for (k, (old, new)) in self.lines.iter_mut().zip(&self.fresh).enumerate() {
                     let tau = column.effective_lifetime_s(Line::ALL[k]);
                     let keep = if tau > 0.0 { (-dt / tau).exp() as f32 } else { 0.0 };
                     for (o, n) in old.data_mut().iter_mut().zip(new.data()) {
@@ -540,7 +557,7 @@ impl SkyRenderer {
                     }
                 }
             }
-            _ => self.lines = fresh,
+            _ => std::mem::swap(&mut self.lines, &mut self.fresh),
         }
         self.glow_started = true;
         self.timings.blur_ms = t.ms();
@@ -563,36 +580,40 @@ impl SkyRenderer {
         &self.frame
     }
 
-    /// Emissions of all particles, deposited into five unblurred line images.
-    fn emit_and_deposit(&mut self, sim: &AuroraSim) -> [Plane; 5] {
+    /// Emissions of all particles, deposited into the five unblurred line images
+    /// `self.fresh`.
+    fn emit_and_deposit(&mut self, sim: &AuroraSim) {
         let clock = self.clock.clone();
         let t = clock.stopwatch();
         let particles = sim.particles();
-        let chunks: Vec<Filed<Splat>> = (0..particles.len().div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
-                let mut splats = Vec::new();
-                let first =
-                    range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
-                for i in (first..range.end).step_by(self.stride) {
-                    let from = splats.len();
-                    self.emit_particle(sim, i, &mut splats);
-                    if self.stride > 1 {
-                        for s in &mut splats[from..] {
-                            s.weight *= self.stride as f32;
-                        }
+        let n = particles.len().div_ceil(CHUNK);
+        let mut chunks = std::mem::take(&mut self.chunks);
+        if chunks.len() < n {
+            chunks.resize_with(n, ChunkScratch::default);
+        }
+        chunks[..n].par_iter_mut().enumerate().for_each(|(c, scratch)| {
+            let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
+            let splats = &mut scratch.splats;
+            splats.clear();
+            let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
+            for i in (first..range.end).step_by(self.stride) {
+                let from = splats.len();
+                self.emit_particle(sim, i, splats);
+                if self.stride > 1 {
+                    for s in &mut splats[from..] {
+                        s.weight *= self.stride as f32;
                     }
                 }
-                bucket_by_band(splats, self.height)
-            })
-            .collect();
+            }
+            bucket_by_band(splats, self.height, &mut scratch.filed);
+        });
         self.timings.emit_ms = t.ms();
-        self.timings.points = chunks.iter().map(Filed::len).sum();
+        self.timings.points = chunks[..n].iter().map(|c| c.filed.len()).sum();
         let t = clock.stopwatch();
-        let planes = deposit_banded(&chunks, self.width, self.height);
+        let filed: Vec<&Filed<Splat>> = chunks[..n].iter().map(|c| &c.filed).collect();
+        deposit_banded(&filed, &mut self.fresh);
+        self.chunks = chunks;
         self.timings.deposit_ms = t.ms();
-        planes
     }
 
     /// Append particle `i`'s emissions.
@@ -825,7 +846,7 @@ fn floor_i32(v: f32) -> i32 {
 /// Splats filed by the band of their first row (their second may spill into the next
 /// band: see [`deposit_banded`]). Splats entirely outside the image (or with a
 /// non-finite weight) are dropped.
-fn bucket_by_band(splats: Vec<Splat>, height: usize) -> Filed<Splat> {
+fn bucket_by_band(splats: &[Splat], height: usize, filed: &mut Filed<Splat>) {
     let bands = height.div_ceil(BAND_ROWS);
     let band_of = |i: usize| -> Option<(u32, u32)> {
         let s = &splats[i];
@@ -836,17 +857,17 @@ fn bucket_by_band(splats: Vec<Splat>, height: usize) -> Filed<Splat> {
         let b = ((floor_i32(fy).max(0) as usize) / BAND_ROWS) as u32;
         Some((b, b))
     };
-    Filed::file(bands, splats.len(), band_of, |i| splats[i])
+    filed.refile(bands, splats.len(), band_of, |i| splats[i]);
 }
 
-/// Deposit every chunk's bucketed splats into five line images. Bands of rows run in
-/// parallel, each taking the chunks in order; a splat's second row may be the next
-/// band's first, which goes to the band's spill row and is added after all bands, in
-/// band order. So every pixel sums the same terms in the same order for any thread
+/// Deposit every chunk's bucketed splats into five line images (cleared first). Bands of
+/// rows run in parallel, each taking the chunks in order; a splat's second row may be the
+/// next band's first, which goes to the band's spill row and is added after all bands,
+/// in band order. So every pixel sums the same terms in the same order for any thread
 /// count.
-fn deposit_banded(chunks: &[Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
-    let mut planes: [Plane; 5] = std::array::from_fn(|_| Plane::new(w, h));
-    let [p0, p1, p2, p3, p4] = &mut planes;
+fn deposit_banded(chunks: &[&Filed<Splat>], planes: &mut [Plane; 5]) {
+    let (w, h) = (planes[0].width(), planes[0].height());
+    let [p0, p1, p2, p3, p4] = planes;
     let n = w * BAND_ROWS;
     let spills: Vec<Vec<f32>> = p0
         .data_mut()
@@ -861,6 +882,9 @@ fn deposit_banded(chunks: &[Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
             let rows = a.len() / w;
             let mut spill = vec![0.0f32; 5 * w];
             let mut dst: [&mut [f32]; 5] = [a, b, c, d, e];
+            for plane in dst.iter_mut() {
+                plane.fill(0.0);
+            }
             for filed in chunks {
                 for s in filed.band(band) {
                     deposit(&mut dst, &mut spill, w, r_lo, rows, s);
@@ -881,7 +905,6 @@ fn deposit_banded(chunks: &[Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
             }
         }
     }
-    planes
 }
 
 /// Bilinear deposit of `s` into a band's rows `r_lo..r_lo + rows` of the five line
@@ -971,7 +994,7 @@ mod tests {
                 line: 2,
             })
             .collect();
-        let [_, _, mut plane, _, _] = deposit_banded(&[bucket_by_band(splats.clone(), h)], w, h);
+        let [_, _, mut plane, _, _] = deposit_fresh(&[&filed_of(&splats, h)], w, h);
         plane.gaussian_blur(sigma);
         let g = gaussian_weights(sigma);
         let r = (g.len() / 2) as i64;
@@ -1000,6 +1023,18 @@ mod tests {
         assert!((plane.sum() - total).abs() < 1e-4 * total);
     }
 
+    fn filed_of(splats: &[Splat], h: usize) -> Filed<Splat> {
+        let mut filed = Filed::default();
+        bucket_by_band(splats, h, &mut filed);
+        filed
+    }
+
+    fn deposit_fresh(chunks: &[&Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
+        let mut planes = std::array::from_fn(|_| Plane::new(w, h));
+        deposit_banded(chunks, &mut planes);
+        planes
+    }
+
     #[test]
     fn banding_keeps_every_splat_that_touches_the_image() {
         // Splats straddling band borders and image edges: banded deposit equals a plain
@@ -1015,8 +1050,15 @@ mod tests {
             })
             .collect();
         // Two chunks, as the renderer makes them.
-        let chunks = [bucket_by_band(splats[..200].to_vec(), h), bucket_by_band(splats[200..].to_vec(), h)];
-        let banded = deposit_banded(&chunks, w, h);
+        let chunks = [filed_of(&splats[..200], h), filed_of(&splats[200..], h)];
+        let banded = deposit_fresh(&[&chunks[0], &chunks[1]], w, h);
+        // Images reused from an earlier frame are cleared first.
+        let mut reused: [Plane; 5] = std::array::from_fn(|_| Plane::new(w, h));
+        for p in &mut reused {
+            p.data_mut().fill(7.0);
+        }
+        deposit_banded(&[&chunks[0], &chunks[1]], &mut reused);
+        assert_eq!(reused, banded);
         let mut whole: [Vec<f32>; 5] = std::array::from_fn(|_| vec![0.0f32; w * h]);
         let mut spill = vec![0.0f32; 5 * w];
         for s in &splats {

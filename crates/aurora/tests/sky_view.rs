@@ -246,3 +246,22 @@ fn the_phases_of_a_particle_subset_average_to_the_full_image() {
         assert!(diff <= 1e-4 * total.max(1e-30), "line {line}: |mean - full| = {diff} of {total}");
     }
 }
+
+#[test]
+fn a_reused_renderer_leaves_no_trace_of_earlier_frames() {
+    // The renderer keeps its point buffers, filing and line images between frames (issue
+    // 23). Without afterglow a frame must not depend on what was rendered before it: a
+    // renderer that drew a denser, different sim first gives the same bits as a fresh one.
+    for mode in [ColourMode::Physical, ColourMode::Paper] {
+        let settings = SkySettings { mode, afterglow: false, ..SkySettings::default() };
+        let (before, now) = (sim(12_000, 4), sim(5_000, 2));
+        let mut reused = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
+        // Two frames: the renderer alternates two sets of line images.
+        reused.render(&before);
+        reused.render(&before);
+        let again = reused.render(&now).clone();
+        let fresh = SkyRenderer::new(settings, 160, 90, None).expect("sky").render(&now).clone();
+        assert!(rows_rgb(&fresh, 0..90).iter().sum::<f64>() > 0.0, "{mode:?}: a lit frame");
+        assert_eq!(again, fresh, "{mode:?}");
+    }
+}

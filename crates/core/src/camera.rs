@@ -276,11 +276,11 @@ impl CameraView {
     /// outside a fisheye's circle.
     #[inline]
     pub fn project(&self, p: Vec3) -> Option<Projected> {
-        let d = p - self.eye;
-        let depth = d.dot(self.forward);
-        let (cx, cy) = (0.5 * self.width, 0.5 * self.height);
         match self.kind {
             Kind::Perspective | Kind::Orthographic => {
+                let d = p - self.eye;
+                let depth = d.dot(self.forward);
+                let (cx, cy) = (0.5 * self.width, 0.5 * self.height);
                 let px_per_m = if self.kind == Kind::Perspective {
                     if !(depth > NEAR_M) {
                         return None;
@@ -296,6 +296,18 @@ impl CameraView {
                     px_per_m,
                 })
             }
+            _ => self.project_curved(p),
+        }
+    }
+
+    /// [`CameraView::project`] for the fisheye and equirectangular kinds, out of line so
+    /// that the planar kinds' few operations inline into the callers' loops.
+    #[inline(never)]
+    fn project_curved(&self, p: Vec3) -> Option<Projected> {
+        let d = p - self.eye;
+        let depth = d.dot(self.forward);
+        let (cx, cy) = (0.5 * self.width, 0.5 * self.height);
+        match self.kind {
             Kind::Fisheye { half_fov_rad } => {
                 let distance = d.length();
                 if !(distance > NEAR_M) {
@@ -331,6 +343,7 @@ impl CameraView {
                     px_per_m: self.scale / distance,
                 })
             }
+            Kind::Perspective | Kind::Orthographic => None,
         }
     }
 

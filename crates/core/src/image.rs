@@ -127,6 +127,12 @@ impl Plane {
     /// order (tap 0 first), whatever the thread count; the loops run over whole rows so
     /// they vectorise (no transposes).
     pub fn gaussian_blur(&mut self, sigma_px: f32) {
+        self.gaussian_blur_with(sigma_px, &mut Vec::new());
+    }
+
+    /// [`Plane::gaussian_blur`] with the intermediate image in `tmp` (any contents;
+    /// kept between calls so that repeated blurs allocate nothing). The same result.
+    pub fn gaussian_blur_with(&mut self, sigma_px: f32, tmp: &mut Vec<f32>) {
         let weights = gaussian_weights(sigma_px);
         if weights.len() <= 1 || self.data.is_empty() {
             return;
@@ -134,7 +140,8 @@ impl Plane {
         let r = weights.len() / 2;
         let (w, h) = (self.width, self.height);
         // Horizontal pass: out[x] += w_k · row[x + k - r] for every tap k in order.
-        let mut tmp = vec![0.0f32; w * h];
+        tmp.clear();
+        tmp.resize(w * h, 0.0);
         tmp.par_chunks_mut(w).zip(self.data.par_chunks(w)).for_each(|(out, row)| {
             for (k, &wk) in weights.iter().enumerate() {
                 // Output x reads x + k - r: valid for x in [r - k, w + r - k) ∩ [0, w).
