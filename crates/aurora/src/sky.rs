@@ -26,8 +26,7 @@
 //! rows, chunk by chunk in order, so the result does not depend on the thread count.
 
 use glam::{DVec3, Vec3};
-use phenomena_core::bands::Filed;
-use phenomena_core::camera::{Camera, CameraView, Projection};
+use phenomena_core::camera::{Camera, CameraView, NEAR_M, Pinhole, Projection};
 use phenomena_core::clock::SharedClock;
 use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
@@ -36,6 +35,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use wide::f32x8;
 
 use crate::atmosphere::Atmosphere;
 use crate::deposition::{AltitudeSampler, ColumnModel, Precipitation, Yields};
@@ -356,7 +356,7 @@ impl SkySettings {
 }
 
 /// One emission projected to the image.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Splat {
     x: f32,
     y: f32,
@@ -392,20 +392,60 @@ pub struct SkyRenderer {
     /// weight (stride 1: all).
     stride: usize,
     phase: usize,
-    /// Memory kept between frames: each emission chunk's points and their filing by
-    /// band, the unblurred line images and the blur's intermediate image (a 1280x720
+    /// Memory kept between frames: each emission chunk's points filed by band, the
+    /// unblurred line images and the blur's intermediate image (a 1280x720
     /// frame of 120,000 particles holds about 70 MB of points; allocated afresh every
     /// frame, their page faults and unmapping cost more than the deposit).
-    chunks: Vec<ChunkScratch>,
+    chunks: Vec<BandedPoints>,
+    /// Project the physical mode's points in lanes (false only to test the scalar path
+    /// against them).
+    lanes: bool,
     fresh: [Plane; 5],
     blur_tmp: Vec<f32>,
 }
 
-/// One emission chunk's points, before and after filing by band.
+/// One emission chunk's points, filed by the band of their first row as they are
+/// emitted (their second row may spill into the next band: see [`deposit_banded`]).
+/// Points entirely outside the image (or with a non-finite weight) are dropped.
 #[derive(Default)]
-struct ChunkScratch {
-    splats: Vec<Splat>,
-    filed: Filed<Splat>,
+struct BandedPoints {
+    bands: Vec<Vec<Splat>>,
+    /// One particle's points before projection (altitude km, photons per point, line).
+    lanes: Vec<(f32, f32, u8)>,
+    height: usize,
+    /// Factor on every weight (the preview's particle stride).
+    scale: f32,
+}
+
+impl BandedPoints {
+    /// Empty bands for an image `height` rows tall (their memory kept).
+    fn reset(&mut self, height: usize, scale: f32) {
+        self.bands.resize_with(height.div_ceil(BAND_ROWS), Vec::new);
+        for b in &mut self.bands {
+            b.clear();
+        }
+        (self.height, self.scale) = (height, scale);
+    }
+
+    #[inline]
+    fn push(&mut self, mut s: Splat) {
+        let fy = s.y - 0.5;
+        s.weight *= self.scale;
+        if !(fy >= -1.0 && fy < self.height as f32 && s.weight.is_finite()) {
+            return;
+        }
+        self.bands[floor_i32(fy).max(0) as usize / BAND_ROWS].push(s);
+    }
+
+    /// The points of band `b`, in emission order.
+    fn band(&self, b: usize) -> &[Splat] {
+        &self.bands[b]
+    }
+
+    /// Points over all bands.
+    fn len(&self) -> usize {
+        self.bands.iter().map(Vec::len).sum()
+    }
 }
 
 /// Where the last render's time went, ms (0 unless the renderer was given a clock by
@@ -476,6 +516,7 @@ impl SkyRenderer {
             stride: 1,
             phase: 0,
             chunks: Vec::new(),
+            lanes: true,
             fresh: std::array::from_fn(|_| Plane::new(width, height)),
             blur_tmp: Vec::new(),
         })
@@ -589,35 +630,26 @@ impl SkyRenderer {
         let n = particles.len().div_ceil(CHUNK);
         let mut chunks = std::mem::take(&mut self.chunks);
         if chunks.len() < n {
-            chunks.resize_with(n, ChunkScratch::default);
+            chunks.resize_with(n, BandedPoints::default);
         }
-        chunks[..n].par_iter_mut().enumerate().for_each(|(c, scratch)| {
+        chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
-            let splats = &mut scratch.splats;
-            splats.clear();
+            points.reset(self.height, self.stride as f32);
             let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
             for i in (first..range.end).step_by(self.stride) {
-                let from = splats.len();
-                self.emit_particle(sim, i, splats);
-                if self.stride > 1 {
-                    for s in &mut splats[from..] {
-                        s.weight *= self.stride as f32;
-                    }
-                }
+                self.emit_particle(sim, i, points);
             }
-            bucket_by_band(splats, self.height, &mut scratch.filed);
         });
         self.timings.emit_ms = t.ms();
-        self.timings.points = chunks[..n].iter().map(|c| c.filed.len()).sum();
+        self.timings.points = chunks[..n].iter().map(BandedPoints::len).sum();
         let t = clock.stopwatch();
-        let filed: Vec<&Filed<Splat>> = chunks[..n].iter().map(|c| &c.filed).collect();
-        deposit_banded(&filed, &mut self.fresh);
+        deposit_banded(&chunks[..n], &mut self.fresh);
         self.chunks = chunks;
         self.timings.deposit_ms = t.ms();
     }
 
     /// Append particle `i`'s emissions.
-    fn emit_particle(&self, sim: &AuroraSim, i: usize, out: &mut Vec<Splat>) {
+    fn emit_particle(&self, sim: &AuroraSim, i: usize, out: &mut BandedPoints) {
         let particles = sim.particles();
         let grid = sim.grid();
         let centre = grid.origin_km + grid.extent_km() * 0.5;
@@ -668,6 +700,23 @@ impl SkyRenderer {
                 let (top, drift) = (top as f32, drift.as_vec3());
                 let foot = foot.as_vec3();
                 let perspective = self.view.is_perspective();
+                if let Some(ph) = self.view.pinhole().filter(|ph| ph.perspective && self.lanes) {
+                    // The altitudes first, with the scalar path's draws in its order; then
+                    // the projection in lanes ([`project_in_lanes`]): the same points.
+                    let lanes = &mut out.lanes;
+                    lanes.clear();
+                    for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
+                        let per_point = (column_rate * area_km2 * 1e-6 / f64::from(m.max(1))) as f32;
+                        let inv_m = 1.0 / m as f32;
+                        for j in 0..m {
+                            let u = (j as f32 + rng.next_f32()) * inv_m;
+                            let altitude = sampler.altitude_km(Line::ALL[k], u).min(top);
+                            lanes.push((altitude, per_point, k as u8));
+                        }
+                    }
+                    project_in_lanes(&ph, foot, top, drift, out);
+                    return;
+                }
                 for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
                     if m == 0 {
                         continue;
@@ -836,6 +885,50 @@ fn allocate_points(total: u32, photons: &[f64; 5]) -> [u32; 5] {
     })
 }
 
+/// The physical mode's points of one particle (`out.lanes`: altitude km, photons per
+/// point, line), projected eight at a time by a perspective camera and pushed to `out`
+/// in their order: the point at altitude a is q = (foot.x, a, foot.z) + drift (top - a),
+/// and its weight is the photons times 1/(d² Ω) = (f/depth)² · |q - eye|/depth. Every
+/// lane takes the scalar path's operations in its order ([`CameraView::project`] as
+/// [`Pinhole`] documents it), so the points have the same bits (test
+/// `lanes_emit_the_scalar_points`).
+fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut BandedPoints) {
+    const LANES: usize = 8;
+    let n = out.lanes.len();
+    let splat = f32x8::splat;
+    let (top8, near) = (splat(top), splat(NEAR_M));
+    let (fx, fz) = (splat(foot.x), splat(foot.z));
+    let (gx, gy, gz) = (splat(drift.x), splat(drift.y), splat(drift.z));
+    let (ex, ey, ez) = (splat(ph.eye.x), splat(ph.eye.y), splat(ph.eye.z));
+    let dot = |v: Vec3, x: f32x8, y: f32x8, z: f32x8| x * splat(v.x) + y * splat(v.y) + z * splat(v.z);
+    let (cx, cy, scale) = (splat(ph.centre_px.0), splat(ph.centre_px.1), splat(ph.scale));
+    for at in (0..n).step_by(LANES) {
+        let group = &out.lanes[at..(at + LANES).min(n)];
+        let mut a = [top; LANES];
+        for (a, p) in a.iter_mut().zip(group) {
+            *a = p.0;
+        }
+        let a = f32x8::from(a);
+        let t = top8 - a;
+        let (qx, qy, qz) = (fx + gx * t, a + gy * t, fz + gz * t);
+        let (dx, dy, dz) = (qx - ex, qy - ey, qz - ez);
+        let depth = dot(ph.forward, dx, dy, dz);
+        let s = scale / depth;
+        let x = (cx + dot(ph.right, dx, dy, dz) * s).to_array();
+        let y = (cy - dot(ph.up, dx, dy, dz) * s).to_array();
+        let inverse = (s * s * (dx * dx + dy * dy + dz * dz).sqrt() / depth).to_array();
+        let ok = depth.simd_gt(near).to_bitmask();
+        let group: [(f32, f32, u8); LANES] =
+            std::array::from_fn(|l| group.get(l).copied().unwrap_or_default());
+        for l in 0..n.min(at + LANES) - at {
+            if ok & (1 << l) != 0 {
+                let (_, per_point, line) = group[l];
+                out.push(Splat { x: x[l], y: y[l], weight: per_point * inverse[l], line });
+            }
+        }
+    }
+}
+
 /// ⌊v⌋ for |v| < 2³¹ (an inlined floor: the library call is not, on baseline x86-64).
 #[inline]
 fn floor_i32(v: f32) -> i32 {
@@ -843,29 +936,12 @@ fn floor_i32(v: f32) -> i32 {
     i - i32::from(i as f32 > v)
 }
 
-/// Splats filed by the band of their first row (their second may spill into the next
-/// band: see [`deposit_banded`]). Splats entirely outside the image (or with a
-/// non-finite weight) are dropped.
-fn bucket_by_band(splats: &[Splat], height: usize, filed: &mut Filed<Splat>) {
-    let bands = height.div_ceil(BAND_ROWS);
-    let band_of = |i: usize| -> Option<(u32, u32)> {
-        let s = &splats[i];
-        let fy = s.y - 0.5;
-        if !(fy >= -1.0 && fy < height as f32 && s.weight.is_finite()) {
-            return None;
-        }
-        let b = ((floor_i32(fy).max(0) as usize) / BAND_ROWS) as u32;
-        Some((b, b))
-    };
-    filed.refile(bands, splats.len(), band_of, |i| splats[i]);
-}
-
-/// Deposit every chunk's bucketed splats into five line images (cleared first). Bands of
+/// Deposit every chunk's banded points into five line images (cleared first). Bands of
 /// rows run in parallel, each taking the chunks in order; a splat's second row may be the
 /// next band's first, which goes to the band's spill row and is added after all bands,
 /// in band order. So every pixel sums the same terms in the same order for any thread
 /// count.
-fn deposit_banded(chunks: &[&Filed<Splat>], planes: &mut [Plane; 5]) {
+fn deposit_banded(chunks: &[BandedPoints], planes: &mut [Plane; 5]) {
     let (w, h) = (planes[0].width(), planes[0].height());
     let [p0, p1, p2, p3, p4] = planes;
     let n = w * BAND_ROWS;
@@ -885,8 +961,8 @@ fn deposit_banded(chunks: &[&Filed<Splat>], planes: &mut [Plane; 5]) {
             for plane in dst.iter_mut() {
                 plane.fill(0.0);
             }
-            for filed in chunks {
-                for s in filed.band(band) {
+            for points in chunks {
+                for s in points.band(band) {
                     deposit(&mut dst, &mut spill, w, r_lo, rows, s);
                 }
             }
@@ -915,6 +991,19 @@ fn deposit(dst: &mut [&mut [f32]; 5], spill: &mut [f32], w: usize, r_lo: usize, 
     let (x0, y0) = (floor_i32(fx), floor_i32(fy));
     let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
     let k = usize::from(s.line);
+    let (ly, x) = (i64::from(y0) - r_lo as i64, i64::from(x0));
+    if ly >= 0 && ly + 1 < rows as i64 && x >= 0 && x + 1 < w as i64 {
+        // Both rows in the band and both columns in the image (nearly every point): the
+        // four terms below without the checks, in the same order and arithmetic.
+        let at = ly as usize * w + x as usize;
+        let plane = &mut dst[k][at..at + w + 2];
+        let (wy0, wx0) = (1.0 - ty, 1.0 - tx);
+        plane[0] += s.weight * wx0 * wy0;
+        plane[1] += s.weight * tx * wy0;
+        plane[w] += s.weight * wx0 * ty;
+        plane[w + 1] += s.weight * tx * ty;
+        return;
+    }
     for (dy, wy) in [(0, 1.0 - ty), (1, ty)] {
         let y = i64::from(y0) + dy - r_lo as i64;
         let row: &mut [f32] = if (0..rows as i64).contains(&y) {
@@ -994,7 +1083,7 @@ mod tests {
                 line: 2,
             })
             .collect();
-        let [_, _, mut plane, _, _] = deposit_fresh(&[&filed_of(&splats, h)], w, h);
+        let [_, _, mut plane, _, _] = deposit_fresh(&[filed_of(&splats, h)], w, h);
         plane.gaussian_blur(sigma);
         let g = gaussian_weights(sigma);
         let r = (g.len() / 2) as i64;
@@ -1023,13 +1112,16 @@ mod tests {
         assert!((plane.sum() - total).abs() < 1e-4 * total);
     }
 
-    fn filed_of(splats: &[Splat], h: usize) -> Filed<Splat> {
-        let mut filed = Filed::default();
-        bucket_by_band(splats, h, &mut filed);
-        filed
+    fn filed_of(splats: &[Splat], h: usize) -> BandedPoints {
+        let mut points = BandedPoints::default();
+        points.reset(h, 1.0);
+        for &s in splats {
+            points.push(s);
+        }
+        points
     }
 
-    fn deposit_fresh(chunks: &[&Filed<Splat>], w: usize, h: usize) -> [Plane; 5] {
+    fn deposit_fresh(chunks: &[BandedPoints], w: usize, h: usize) -> [Plane; 5] {
         let mut planes = std::array::from_fn(|_| Plane::new(w, h));
         deposit_banded(chunks, &mut planes);
         planes
@@ -1051,13 +1143,13 @@ mod tests {
             .collect();
         // Two chunks, as the renderer makes them.
         let chunks = [filed_of(&splats[..200], h), filed_of(&splats[200..], h)];
-        let banded = deposit_fresh(&[&chunks[0], &chunks[1]], w, h);
+        let banded = deposit_fresh(&chunks, w, h);
         // Images reused from an earlier frame are cleared first.
         let mut reused: [Plane; 5] = std::array::from_fn(|_| Plane::new(w, h));
         for p in &mut reused {
             p.data_mut().fill(7.0);
         }
-        deposit_banded(&[&chunks[0], &chunks[1]], &mut reused);
+        deposit_banded(&chunks, &mut reused);
         assert_eq!(reused, banded);
         let mut whole: [Vec<f32>; 5] = std::array::from_fn(|_| vec![0.0f32; w * h]);
         let mut spill = vec![0.0f32; 5 * w];
@@ -1089,6 +1181,39 @@ mod tests {
             let shortcut = pr.px_per_m * pr.px_per_m * d2.sqrt() / pr.depth;
             let general = 1.0 / (d2 * view.pixel_solid_angle(q));
             assert!((shortcut / general - 1.0).abs() < 1e-5, "{q}: {shortcut} vs {general}");
+        }
+    }
+
+    #[test]
+    fn lanes_emit_the_scalar_points() {
+        // Physical mode, perspective cameras looking up and across the curtain: every
+        // particle's points from the lanes equal the scalar path's, bit for bit, in order.
+        let mut config = crate::AuroraConfig::default();
+        config.motion.particles = 3_000;
+        config.redistribution.enabled = false;
+        let mut sim = AuroraSim::new(config, 3).unwrap();
+        sim.step().unwrap();
+        for camera in [
+            SkyCamera::default(),
+            SkyCamera::Orbit {
+                altitude_km: 200.0,
+                distance_km: 900.0,
+                look_at_altitude_km: 150.0,
+                fov_y_deg: 30.0,
+            },
+        ] {
+            let settings = SkySettings { camera, ..SkySettings::default() };
+            let mut sky = SkyRenderer::new(settings, 320, 180, None).unwrap();
+            let mut emitted = [BandedPoints::default(), BandedPoints::default()];
+            for (lanes, points) in [true, false].into_iter().zip(&mut emitted) {
+                sky.lanes = lanes;
+                points.reset(180, 1.0);
+                for i in 0..sim.particles().len() {
+                    sky.emit_particle(&sim, i, points);
+                }
+            }
+            assert!(emitted[0].len() > 10_000, "{} points", emitted[0].len());
+            assert_eq!(emitted[0].bands, emitted[1].bands);
         }
     }
 
