@@ -117,7 +117,8 @@ impl Phenomenon for AuroraScene {
 
     /// Particles (up to twice the start after redistribution: scene 2 grows by 1.6x),
     /// the field's grid and charges, and in the sky view the emission points of a frame
-    /// (filed by band: twice) and the line images.
+    /// (16 bytes each, filed by band as they are emitted and kept between frames) and
+    /// the line images.
     fn estimate(&self, _background: &Option<Frame>) -> Estimate {
         let a = &self.aurora;
         let particles = f64::from(a.motion.particles) * if a.redistribution.enabled { 2.0 } else { 1.0 };
@@ -135,7 +136,7 @@ impl Phenomenon for AuroraScene {
         ];
         let work = match self.render.view {
             AuroraView::Sky => {
-                parts.push(("emission points of a frame", particles * per_particle * 32.0));
+                parts.push(("emission points of a frame", particles * per_particle * 16.0));
                 parts.push(("line images and frame", w * h * (10.0 * 4.0 + 12.0)));
                 format!(
                     "{particles:.0} particles at most × {per_particle:.0} emission points; a {}x{} field every {} frames; {w}x{h} pixels",
