@@ -500,15 +500,14 @@ impl FlameSim {
                         runs[count] = (run.start, run.end);
                         count += 1;
                     });
-                    for &(start, end) in &runs[..count] {
-                        if nb.index.len() - own > MAX_NEIGHBORS {
-                            too_dense.store(true, std::sync::atomic::Ordering::Relaxed);
-                            break;
-                        }
-                        // Room for every candidate of the run, trimmed after it: no
-                        // allocation (a call, which spills the vectors) in the scan.
+                    'runs: for &(start, end) in &runs[..count] {
+                        // Room for the run's candidates in the list, trimmed after it (no
+                        // allocation, which is a call that spills the vectors, inside the
+                        // scan). The neighbour limit is checked after every eight, so a
+                        // pile-up stops early and a run never needs more than the limit
+                        // plus one vector of room.
                         let mut kept = nb.index.len();
-                        nb.index.resize(kept + (end - start), 0);
+                        nb.index.resize(kept + (end - start).min(MAX_NEIGHBORS + LANES), 0);
                         let mut k = start;
                         while k < end {
                             let (dx, dy, dz) =
@@ -523,6 +522,11 @@ impl FlameSim {
                                 nb.index[kept] = (k + inside.trailing_zeros() as usize) as u32;
                                 kept += 1;
                                 inside &= inside - 1;
+                            }
+                            if kept - own > MAX_NEIGHBORS {
+                                too_dense.store(true, std::sync::atomic::Ordering::Relaxed);
+                                nb.index.truncate(kept);
+                                break 'runs;
                             }
                             k += LANES;
                         }
@@ -776,6 +780,23 @@ mod tests {
             sim.grid.for_each_candidate_run(xi, GRID_RINGS, |r| longest_run = longest_run.max(r.len()));
         }
         assert!(longest_run > 4 * LANES, "the clump makes long runs ({longest_run})");
+    }
+
+    #[test]
+    fn a_pile_up_is_refused_quickly() {
+        // 40,000 particles within one support radius: every particle has them all as
+        // neighbours. The pass stops each particle after MAX_NEIGHBORS + 8 of them
+        // instead of keeping all 40,000 (1.6e9 pairs, 6.4 GB of lists), and says why.
+        let config = FlameConfig::default();
+        let mut rng = Stream::new(2, Purpose::named("test"), 0);
+        let x: Vec<Vec3> =
+            (0..40_000).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.01).collect();
+        let v = vec![Vec3::ZERO; x.len()];
+        let mut sim = FlameSim::with_particles(config, 1, x, v).unwrap();
+        let e = sim.evaluate_at(0.0).unwrap_err();
+        assert!(matches!(e, FlameError::TooDense { limit: MAX_NEIGHBORS }), "{e}");
+        let nb: usize = sim.scratch.neighbors.iter().map(|c| c.index.len()).sum();
+        assert!(nb <= 40_000 * (MAX_NEIGHBORS + LANES), "{nb} pairs kept");
     }
 
     #[test]
