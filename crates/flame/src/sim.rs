@@ -468,6 +468,8 @@ impl FlameSim {
         }
         let [xs, ys, zs, ms] = &self.scratch.lanes;
         let (pos, grid) = (&self.particles.position_m, &self.grid);
+        // Each particle's cell (the particles are in cell order, `evaluate_at`).
+        let cells = grid.point_cells();
         let too_dense = std::sync::atomic::AtomicBool::new(false);
         let d2v = f32x8::splat(d2);
         let (one, inv_d2, scale) = (f32x8::splat(1.0), f32x8::splat(1.0 / d2), kernel.value_sq(0.0));
@@ -480,6 +482,7 @@ impl FlameSim {
             .for_each(|(c, ((rho, p), nb))| {
                 nb.start.clear();
                 nb.index.clear();
+                let (mut runs, mut count, mut run_cell) = ([(0usize, 0usize); RUNS], 0, u32::MAX);
                 for o in 0..rho.len() {
                     let own = nb.index.len();
                     nb.start.push(own as u32);
@@ -493,13 +496,16 @@ impl FlameSim {
                     // masked; the candidates inside the support go to the list.
                     // The runs are collected first so that the sums stay in registers
                     // (accumulated inside the callback they lived on the stack: 30 %
-                    // slower).
-                    let mut runs = [(0usize, 0usize); RUNS];
-                    let mut count = 0;
-                    grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
-                        runs[count] = (run.start, run.end);
-                        count += 1;
-                    });
+                    // slower). They depend only on the particle's cell, so consecutive
+                    // particles of one cell share them.
+                    if cells[i] != run_cell {
+                        run_cell = cells[i];
+                        count = 0;
+                        grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
+                            runs[count] = (run.start, run.end);
+                            count += 1;
+                        });
+                    }
                     'runs: for &(start, end) in &runs[..count] {
                         // Room for the run's candidates in the list, trimmed after it (no
                         // allocation, which is a call that spills the vectors, inside the
