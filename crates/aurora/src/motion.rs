@@ -6,6 +6,7 @@
 use glam::Vec2;
 use phenomena_core::grid::GridError;
 use phenomena_core::kernel::{Dim, Kernel, KernelKind};
+use phenomena_core::lanes::{LANES, add, in_run, load};
 use phenomena_core::pairs::{CellRows, for_each_half_pair_run, for_each_half_pair_run2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -24,8 +25,6 @@ const RINGS: usize = 1;
 /// Most particles one neighbour cell (h wide) may hold; more means particles piled on
 /// each other and a step quadratic in their number.
 pub const MAX_PER_CELL: usize = 4096;
-/// Lanes of the partial sums in the pair loops (fixed, so sums are reproducible).
-const LANES: usize = 8;
 
 /// Why a motion step failed.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -140,35 +139,6 @@ impl ForceModel {
     pub fn lorentz(&self, e: Vec2, v: Vec2) -> Vec2 {
         e * self.lorentz_e + Vec2::new(-v.y, v.x) * self.gyro_rad_s
     }
-}
-
-/// Eight values from the start of `s` (at least eight long).
-#[inline]
-fn lanes(s: &[f32]) -> f32x8 {
-    let a: [f32; LANES] = s[..LANES].try_into().expect("eight lanes");
-    f32x8::from(a)
-}
-
-/// `out[l] += v[l]` for the lanes that fall inside `out` (all eight when it is long
-/// enough, as one vector operation).
-#[inline]
-fn add_lanes(out: &mut [f32], v: f32x8) {
-    if out.len() >= LANES {
-        let o = &mut out[..LANES];
-        let sum = lanes(o) + v;
-        o.copy_from_slice(&sum.to_array());
-    } else {
-        for (o, x) in out.iter_mut().zip(v.to_array()) {
-            *o += x;
-        }
-    }
-}
-
-/// Lanes holding one of the `remaining` candidates left in a run (all when ≥ 8).
-#[inline]
-fn in_run(remaining: usize) -> f32x8 {
-    const INDEX: [f32; LANES] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
-    f32x8::from(INDEX).simd_lt(f32x8::splat(remaining.min(LANES) as f32))
 }
 
 /// Replace `v` by `values` followed by one group of zero lanes.
@@ -308,9 +278,9 @@ pub fn coulomb(
             let out = &mut acc[run.start - base..run.end - base];
             for k in (0..run.len()).step_by(LANES) {
                 let j = run.start + k;
-                let (dx, dz) = (lanes(&xs[j..]) - xi, lanes(&zs[j..]) - zi);
+                let (dx, dz) = (load(&xs[j..]) - xi, load(&zs[j..]) - zi);
                 let w = in_run(run.len() - k).select(kd.value_sq_x8(dx * dx + dz * dz), f32x8::ZERO);
-                add_lanes(&mut out[k..], w);
+                add(&mut out[k..], w);
                 sum += w;
             }
         }
@@ -338,16 +308,16 @@ pub fn coulomb(
         for run in runs {
             for k in (0..run.len()).step_by(LANES) {
                 let j = run.start + k;
-                let (dx, dz) = (lanes(&xs[j..]) - xi, lanes(&zs[j..]) - zi);
+                let (dx, dz) = (load(&xs[j..]) - xi, load(&zs[j..]) - zi);
                 let g = kg.gradient_factor_sq_x8(dx * dx + dz * dz);
-                let c = in_run(run.len() - k).select((pi + lanes(&pres[j..])) * g, f32x8::ZERO);
-                let ci = c * lanes(&inv2d[j..]);
+                let c = in_run(run.len() - k).select((pi + load(&pres[j..])) * g, f32x8::ZERO);
+                let ci = c * load(&inv2d[j..]);
                 fx += dx * ci;
                 fz += dz * ci;
                 let cj = c * inv_i;
                 let out = j - base..run.end - base;
-                add_lanes(&mut acc_x[out.clone()], -(dx * cj));
-                add_lanes(&mut acc_z[out], -(dz * cj));
+                add(&mut acc_x[out.clone()], -(dx * cj));
+                add(&mut acc_z[out], -(dz * cj));
             }
         }
         acc_x[i - base] += reduce(fx);

@@ -40,6 +40,7 @@ pub mod color;
 pub mod grid;
 pub mod image;
 pub mod kernel;
+pub mod lanes;
 pub mod noise;
 pub mod pairs;
 pub mod phenomenon;

@@ -15,6 +15,7 @@ use phenomena_core::bands::Filed;
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::color::{Observer, blackbody_srgb_normalized, blackbody_xyz, xyz_to_linear_srgb};
 use phenomena_core::image::{Frame, Plane};
+use phenomena_core::lanes::{LANES, add, load};
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
@@ -757,19 +758,19 @@ impl BandBuffers<'_> {
                     (f32x8::splat(dy2), f32x8::splat(dy), f32x8::splat(inv_r2), f32x8::splat(scale));
                 let (crv, cgv, cbv) = (f32x8::splat(cr), f32x8::splat(cg), f32x8::splat(cb));
                 for k in (0..n).step_by(LANES) {
-                    let d = lanes(&dx[k..]);
+                    let d = load(&dx[k..]);
                     let t = (one - (d * d + dy2v) * inv_r2v).max(zero);
                     let t2 = t * t;
                     if FLAME {
                         let wgt = t2 * t;
-                        add_lanes(&mut r[k..], wgt * crv);
-                        add_lanes(&mut g[k..], wgt * cgv);
-                        add_lanes(&mut b[k..], wgt * cbv);
+                        add(&mut r[k..], wgt * crv);
+                        add(&mut g[k..], wgt * cgv);
+                        add(&mut b[k..], wgt * cbv);
                     }
                     if SHIMMER {
                         let sw = t2 * scalev;
-                        add_lanes(&mut ox[k..], sw * d);
-                        add_lanes(&mut oy[k..], sw * dyv);
+                        add(&mut ox[k..], sw * d);
+                        add(&mut oy[k..], sw * dyv);
                     }
                 }
                 continue;
@@ -792,24 +793,6 @@ impl BandBuffers<'_> {
             }
         }
     }
-}
-
-/// Width of the stamp's vectors.
-const LANES: usize = 8;
-
-/// Eight values from the start of `s` (at least eight long).
-#[inline]
-fn lanes(s: &[f32]) -> f32x8 {
-    let a: [f32; LANES] = s[..LANES].try_into().expect("eight lanes");
-    f32x8::from(a)
-}
-
-/// `out[..8] += v` (`out` at least eight long).
-#[inline]
-fn add_lanes(out: &mut [f32], v: f32x8) {
-    let o = &mut out[..LANES];
-    let sum = lanes(o) + v;
-    o.copy_from_slice(&sum.to_array());
 }
 
 impl phenomena_core::phenomenon::Renderer<FlameSim> for FlameRenderer {

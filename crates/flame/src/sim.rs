@@ -4,6 +4,7 @@
 use glam::Vec3;
 use phenomena_core::grid::{GridError, NeighborGrid};
 use phenomena_core::kernel::{Dim, Kernel, KernelKind};
+use phenomena_core::lanes::{LANES, in_run, load};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::InvalidConfig;
 use rayon::prelude::*;
@@ -20,23 +21,6 @@ const CHUNK: usize = 512;
 /// A flame has a few dozen; thousands mean particles piled on each other, which would
 /// make the step quadratic in their number.
 pub const MAX_NEIGHBORS: usize = 2048;
-/// Width of the density pass's vectors.
-const LANES: usize = 8;
-
-/// Eight values from the start of `s` (at least eight long).
-#[inline]
-fn load(s: &[f32]) -> f32x8 {
-    let a: [f32; LANES] = s[..LANES].try_into().expect("eight lanes");
-    f32x8::from(a)
-}
-
-/// Lanes holding one of the `remaining` candidates left in a run (all when ≥ 8).
-#[inline]
-fn in_run(remaining: usize) -> f32x8 {
-    const INDEX: [f32; LANES] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
-    f32x8::from(INDEX).simd_lt(f32x8::splat(remaining.min(LANES) as f32))
-}
-
 /// Grid cells per support radius. Cells of d/2 searched two rings deep test 42 % fewer
 /// candidates (15.6 d³ of volume instead of 27 d³), but a dispersing flame fills few of
 /// the 8× more cells and the grid's per-cell work then dominates: cells of d measured
