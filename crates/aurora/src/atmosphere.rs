@@ -242,32 +242,8 @@ impl MinorSpecies {
     /// Parse a table with the header `altitude_km,n_n,n_no`: at least two rows at
     /// increasing altitudes, densities finite and not negative.
     pub fn from_csv(text: &str) -> Result<Self, String> {
-        let mut lines = text.lines().enumerate();
-        match lines.next() {
-            Some((_, "altitude_km,n_n,n_no")) => {}
-            other => return Err(format!("line 1: expected the header altitude_km,n_n,n_no, got {other:?}")),
-        }
-        let (mut altitudes_km, mut samples) = (Vec::new(), Vec::new());
-        for (k, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
-            let v: Vec<f64> = line
-                .split(',')
-                .map(|f| f.trim().parse::<f64>().map_err(|e| format!("line {}: {f:?}: {e}", k + 1)))
-                .collect::<Result<_, _>>()?;
-            let [altitude_km, n_n_m3, n_no_m3] = v[..] else {
-                return Err(format!("line {}: expected 3 fields, got {}", k + 1, v.len()));
-            };
-            if ![n_n_m3, n_no_m3].iter().all(|x| x.is_finite() && *x >= 0.0) {
-                return Err(format!("line {}: densities must be finite and not negative", k + 1));
-            }
-            if altitudes_km.last().is_some_and(|&last| altitude_km <= last) {
-                return Err(format!("line {}: altitudes must increase", k + 1));
-            }
-            altitudes_km.push(altitude_km);
-            samples.push(MinorSample { n_n_m3, n_no_m3 });
-        }
-        if samples.len() < 2 {
-            return Err("the table needs at least two altitudes".into());
-        }
+        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_n,n_no")?;
+        let samples = rows.iter().map(|r| MinorSample { n_n_m3: r[0], n_no_m3: r[1] }).collect();
         Ok(Self { altitudes_km, samples })
     }
 
@@ -275,14 +251,103 @@ impl MinorSpecies {
     /// their logarithm between two positive samples (as [`Atmosphere::at`]), linearly
     /// where one of them is 0.
     pub fn at(&self, altitude_km: f64) -> MinorSample {
-        let z = &self.altitudes_km;
-        let a = if altitude_km.is_nan() { z[0] } else { altitude_km.clamp(z[0], z[z.len() - 1]) };
-        let k = z.partition_point(|&x| x <= a).clamp(1, z.len() - 1) - 1;
-        let t = (a - z[k]) / (z[k + 1] - z[k]);
-        let lerp = |p: f64, q: f64| if p > 0.0 && q > 0.0 { p * (q / p).powf(t) } else { p + (q - p) * t };
+        let (k, t) = bracket(&self.altitudes_km, altitude_km);
         let (s0, s1) = (self.samples[k], self.samples[k + 1]);
-        MinorSample { n_n_m3: lerp(s0.n_n_m3, s1.n_n_m3), n_no_m3: lerp(s0.n_no_m3, s1.n_no_m3) }
+        MinorSample { n_n_m3: log_lerp(s0.n_n_m3, s1.n_n_m3, t), n_no_m3: log_lerp(s0.n_no_m3, s1.n_no_m3, t) }
     }
+}
+
+/// The embedded night ionosphere: `altitude_km,n_o_plus`.
+const IRI90_CSV: &str = include_str!("../data/ionosphere_iri90.csv");
+
+/// The night F region that an aurora falls into: the O⁺ density (m⁻³) of IRI-90
+/// (Bilitza 1990, the International Reference Ionosphere; electron density times its
+/// O⁺ share) for the conditions of [`Atmosphere::msis21`] (69.6° N 19.0° E, 2024-01-15
+/// 22:00 UT, 12-month F10.7 150), 80-500 km at 1 km; made by `tools/iri90` (provenance
+/// in `crates/aurora/data/README.md`). Night-time O⁺ above ~200 km is not made where it
+/// is: it survives from the day and is fed by plasma from above, so a local balance
+/// of auroral ionisation and recombination has none of it. Its O⁺ + O₂ → O₂⁺ followed by
+/// O₂⁺ + e → O + O(¹D) is the night sky's own 630.0 nm glow (tens of R, peaking near
+/// 250-300 km), and its electrons take energy from the auroral electrons.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NightIonosphere {
+    altitudes_km: Vec<f64>,
+    n_o_plus_m3: Vec<f64>,
+}
+
+impl NightIonosphere {
+    /// The table shipped with the crate.
+    pub fn iri90() -> &'static NightIonosphere {
+        static TABLE: OnceLock<NightIonosphere> = OnceLock::new();
+        TABLE.get_or_init(|| NightIonosphere::from_csv(IRI90_CSV).expect("the embedded ionosphere table is valid"))
+    }
+
+    /// No background: the aurora alone.
+    pub fn none() -> NightIonosphere {
+        NightIonosphere { altitudes_km: vec![0.0, 1.0], n_o_plus_m3: vec![0.0, 0.0] }
+    }
+
+    /// Parse a table with the header `altitude_km,n_o_plus` (m⁻³): at least two rows at
+    /// increasing altitudes, densities finite and not negative.
+    pub fn from_csv(text: &str) -> Result<Self, String> {
+        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_o_plus")?;
+        Ok(Self { altitudes_km, n_o_plus_m3: rows.iter().map(|r| r[0]).collect() })
+    }
+
+    /// O⁺ at `altitude_km`, m⁻³ (interpolated as [`MinorSpecies::at`]; 0 outside the table).
+    pub fn o_plus_m3(&self, altitude_km: f64) -> f64 {
+        let z = &self.altitudes_km;
+        if !(altitude_km >= z[0] && altitude_km <= z[z.len() - 1]) {
+            return 0.0;
+        }
+        let (k, t) = bracket(z, altitude_km);
+        log_lerp(self.n_o_plus_m3[k], self.n_o_plus_m3[k + 1], t)
+    }
+}
+
+/// The step of `z` holding `altitude_km` (clamped to the table) and the position in it.
+fn bracket(z: &[f64], altitude_km: f64) -> (usize, f64) {
+    let a = if altitude_km.is_nan() { z[0] } else { altitude_km.clamp(z[0], z[z.len() - 1]) };
+    let k = z.partition_point(|&x| x <= a).clamp(1, z.len() - 1) - 1;
+    (k, (a - z[k]) / (z[k + 1] - z[k]))
+}
+
+/// Linear in the logarithm between two positive densities, linear where one is 0.
+fn log_lerp(p: f64, q: f64, t: f64) -> f64 {
+    if p > 0.0 && q > 0.0 { p * (q / p).powf(t) } else { p + (q - p) * t }
+}
+
+/// A CSV of densities under `header`: the altitudes (increasing) and the other fields of
+/// each row (finite, not negative); at least two rows.
+fn parse_density_table(text: &str, header: &str) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h == header => {}
+        other => return Err(format!("line 1: expected the header {header}, got {other:?}")),
+    }
+    let fields = header.split(',').count();
+    let (mut altitudes_km, mut rows) = (Vec::new(), Vec::new());
+    for (k, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|f| f.trim().parse::<f64>().map_err(|e| format!("line {}: {f:?}: {e}", k + 1)))
+            .collect::<Result<_, _>>()?;
+        if v.len() != fields {
+            return Err(format!("line {}: expected {fields} fields, got {}", k + 1, v.len()));
+        }
+        if !v[1..].iter().all(|x| x.is_finite() && *x >= 0.0) {
+            return Err(format!("line {}: densities must be finite and not negative", k + 1));
+        }
+        if altitudes_km.last().is_some_and(|&last| v[0] <= last) {
+            return Err(format!("line {}: altitudes must increase", k + 1));
+        }
+        altitudes_km.push(v[0]);
+        rows.push(v[1..].to_vec());
+    }
+    if rows.len() < 2 {
+        return Err("the table needs at least two altitudes".into());
+    }
+    Ok((altitudes_km, rows))
 }
 
 /// ∫ over `length_m` of a density falling exponentially from `rho_start` to `rho_end`:

@@ -33,7 +33,7 @@
 //! // 150 km: ionisation of 1000 cm⁻³ s⁻¹, mostly N₂.
 //! let air = Air {
 //!     n_o: 1.6e10, n_o2: 2.0e9, n_n2: 2.6e10, n_n: 2.7e6, n_no: 1.5e7,
-//!     temperature_k: 730.0, o_plus_diffusion_s: 0.0,
+//!     temperature_k: 730.0, o_plus_diffusion_s: 0.0, o_plus_background: 0.0,
 //! };
 //! let p = IonProduction { o: 200.0, o2: 100.0, n2: 700.0 };
 //! let (ne, ions) = electron_density(&p, &air, 0.0);
@@ -59,6 +59,10 @@ pub struct Air {
     /// Loss rate of O⁺ by ambipolar diffusion along B, s⁻¹ (0: none; see
     /// [`o_plus_diffusion_rate_s`]).
     pub o_plus_diffusion_s: f64,
+    /// O⁺ of the night F region ([`crate::atmosphere::NightIonosphere`]), cm⁻³: kept up
+    /// by plasma from elsewhere, so it enters as the source that holds this density
+    /// against O⁺'s chemical and diffusive loss (0: the aurora alone).
+    pub o_plus_background: f64,
 }
 
 /// A local stand-in for the ambipolar diffusion of O⁺ along a vertical field line, s⁻¹:
@@ -321,8 +325,9 @@ fn ions_at(p: &IonProduction, a: &Air, r: &Rates, ne: f64, n2d: f64) -> IonDensi
         + (r.op2d_e * ne + r.op2d_o * a.n_o + A_OP2D) * o_plus_2d
         + ((1.0 - OP2D_PER_OP2P_E) * r.op2p_e * ne + r.op2p_o * a.n_o + A_OP2P_4S) * o_plus_2p
         + r.n2p_o_charge * n2_plus * a.n_o;
-    let o_plus_loss =
-        r.op_n2 * a.n_n2 + r.op_o2 * a.n_o2 + r.op_no * a.n_no + r.op_n2d * n2d + a.o_plus_diffusion_s;
+    let o_plus_kept = r.op_n2 * a.n_n2 + r.op_o2 * a.n_o2 + r.op_no * a.n_no + a.o_plus_diffusion_s;
+    let o_plus_other = o_plus_other + a.o_plus_background * o_plus_kept;
+    let o_plus_loss = o_plus_kept + r.op_n2d * n2d;
     let n_plus_made = NP_PER_N2_ION * p.n2;
     let o_plus = (o_plus_other + c * n_plus_made) / (o_plus_loss - c * r.op_n2d * n2d);
     let n_plus = (n_plus_made + r.op_n2d * n2d * o_plus) / n_plus_loss;
@@ -347,7 +352,7 @@ fn ions_at(p: &IonProduction, a: &Air, r: &Rates, ne: f64, n2d: f64) -> IonDensi
 /// O⁺(⁴S) instead of letting them charge-transfer to N₂⁺), so a single root is not
 /// proven, only found. No ionisation: no electrons.
 pub fn electron_density(p: &IonProduction, a: &Air, n2d: f64) -> (f64, IonDensities) {
-    if !(p.o + p.o2 + p.n2 > 0.0) {
+    if !(p.o + p.o2 + p.n2 > 0.0) && !(a.o_plus_background > 0.0) {
         return (0.0, IonDensities::default());
     }
     let r = Rates::new(a.temperature_k);
@@ -434,6 +439,9 @@ pub struct Column {
     pub production: IonProduction,
     /// O(¹S) made that radiates 557.7 nm and so lands in O(¹D), cm⁻³ s⁻¹.
     pub o1s_cascade: f64,
+    /// Electron impact rates from the transport ([`crate::transport`]); `None`: the
+    /// local balance's yields per ion pair at this altitude.
+    pub impact: Option<crate::transport::ImpactRates>,
 }
 
 /// The chemistry's result at one altitude.
@@ -468,25 +476,32 @@ pub fn red_line_at(c: &Column) -> RedLineSources {
     let q = c.production.o + c.production.o2 + c.production.n2;
     let r = Rates::new(a.temperature_k);
     let mut n2d = 0.0;
-    let mut yields = crate::degradation::DegradationYields::default();
     let (mut ne, mut ions) = (0.0, IonDensities::default());
+    // Electron impact: O(¹D), O₂ and N₂ dissociation, cm⁻³ s⁻¹.
+    let mut impact = c.impact.unwrap_or_default();
     for pass in 0..PASSES {
         (ne, ions) = electron_density(&c.production, a, n2d);
-        if pass == 0 || pass == PASSES - 1 {
-            yields = deg.yields([a.n_o, a.n_o2, a.n_n2], ne, a.temperature_k);
+        if c.impact.is_none() && (pass == 0 || pass == PASSES - 1) {
+            let y = deg.yields([a.n_o, a.n_o2, a.n_n2], ne, a.temperature_k);
+            impact = crate::transport::ImpactRates {
+                o1d: q * y.o1d_per_ion_pair,
+                o2_dissociation: q * y.o2_dissociation_per_ion_pair,
+                n2_dissociation: q * y.n2_dissociation_per_ion_pair,
+                ionisation: q,
+            };
         }
-        n2d = nitrogen_2d(c, &r, &ions, ne, q * yields.n2_dissociation_per_ion_pair);
+        n2d = nitrogen_2d(c, &r, &ions, ne, impact.n2_dissociation);
     }
     let (o, o2) = (a.n_o, a.n_o2);
     let mut o1d = [0.0; 8];
-    o1d[O1dSource::ElectronImpact.index()] = q * yields.o1d_per_ion_pair;
+    o1d[O1dSource::ElectronImpact.index()] = impact.o1d;
     o1d[O1dSource::DissociativeRecombination.index()] =
         O1D_PER_O2P_RECOMBINATION * r.o2p_e * ions.o2_plus * ne;
     o1d[O1dSource::NitrogenWithO2.index()] = O1D_PER_N2D_O2 * r.n2d_o2 * n2d * o2;
     o1d[O1dSource::NitrogenWithO.index()] = 0.10 * r.n2d_o * n2d * o;
     o1d[O1dSource::NitrogenIonWithO2.index()] = O1D_PER_NP_O2 * r.np_o2 * ions.n_plus * o2;
     o1d[O1dSource::OxygenIonWithO.index()] = O1D_PER_OP2D_O * r.op2d_o * ions.o_plus_2d * o;
-    o1d[O1dSource::O2Dissociation.index()] = q * yields.o2_dissociation_per_ion_pair;
+    o1d[O1dSource::O2Dissociation.index()] = impact.o2_dissociation;
     o1d[O1dSource::O1sCascade.index()] = c.o1s_cascade;
     RedLineSources { electron_density_cm3: ne, ions, n2d_cm3: n2d, o1d_production: o1d }
 }
@@ -528,6 +543,7 @@ mod tests {
             n_no: m.n_no_m3 * 1e-6,
             temperature_k: s.temperature_k,
             o_plus_diffusion_s: 0.0,
+            o_plus_background: 0.0,
         }
     }
 
@@ -563,6 +579,7 @@ mod tests {
                 air: a,
                 production: IonProduction { o: 0.3 * q, o2: 0.1 * q, n2: 0.6 * q },
                 o1s_cascade: 0.0,
+                impact: None,
             };
             let s = red_line_at(&c);
             assert!(
@@ -587,6 +604,7 @@ mod tests {
                 air: a,
                 production: IonProduction { o: 0.5 * q, o2: 0.05 * q, n2: 0.45 * q },
                 o1s_cascade: 0.0,
+                impact: None,
             };
             let s = red_line_at(&c);
             let (again, _) = electron_density(&c.production, &a, s.n2d_cm3);

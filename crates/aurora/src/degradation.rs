@@ -361,78 +361,145 @@ impl Degradation {
     ) -> DegradationYields {
         let e = &self.energy_ev;
         let top = e.partition_point(|&c| c <= injection_ev).clamp(21, e.len()) - 1;
-        let n = top + 1;
-        let mut inflow = vec![0.0; n];
+        let air = LocalAir::new(densities_cm3, electron_density_cm3, electron_temperature_k);
+        let mut inflow = vec![0.0; top + 1];
         inflow[top] = 1.0;
-        let mut ions = [0.0; 3];
-        let (mut o1d, mut o2_diss, mut n2_diss) = (0.0, 0.0, 0.0);
-        let e_thermal = BOLTZMANN_EV_PER_K * electron_temperature_k;
-        let ne_term = 3.37e-12 * electron_density_cm3.max(0.0).powf(0.97);
-        let stride = e.len();
-        for j in (0..n).rev() {
-            // Rates per unit flux: leaving the bin, s⁻¹ per (cm⁻² s⁻¹).
-            let mut out = 0.0;
-            for (s, &nd) in densities_cm3.iter().enumerate() {
-                let m = states(s).len();
-                for k in 0..m {
-                    let sigma = self.excitation[s][k * stride + j];
-                    if sigma > 0.0 {
-                        out += nd * sigma * (1.0 - self.landing[s][k * stride + j].stay);
-                    }
-                }
-                out += nd * (self.ionisation[s][j] - self.ionisation_stay[s][j]);
-            }
-            let thermal = if j > 0 && e[j] > e_thermal {
-                let ratio = (e[j] - e_thermal) / (e[j] - 0.53 * e_thermal);
-                ne_term / e[j].powf(0.94) * ratio.powf(2.36) / (e[j] - e[j - 1])
-            } else {
-                0.0
-            };
-            out += thermal;
-            if !(out > 0.0) {
-                continue;
-            }
-            let flux = inflow[j] / out;
-            for (s, &nd) in densities_cm3.iter().enumerate() {
-                for k in 0..states(s).len() {
-                    let sigma = self.excitation[s][k * stride + j];
-                    if !(sigma > 0.0) {
-                        continue;
-                    }
-                    let rate = nd * sigma * flux;
-                    let l = self.landing[s][k * stride + j];
-                    inflow[usize::from(l.lo)] += rate * l.w_lo;
-                    inflow[usize::from(l.hi)] += rate * l.w_hi;
-                    match (s, k) {
-                        (0, O1D) => o1d += rate,
-                        (1, O2_SCHUMANN_RUNGE) => o2_diss += rate,
-                        (2, k) if N2_DISSOCIATING.contains(&k) => n2_diss += rate,
-                        _ => {}
-                    }
-                }
-                if self.ionisation[s][j] > 0.0 {
-                    let r = nd * flux;
-                    ions[s] += r * self.ionisation[s][j];
-                    let base = j * j.saturating_sub(1) / 2;
-                    for (dst, sigma) in inflow[..j].iter_mut().zip(&self.transfer[s][base..base + j]) {
-                        *dst += r * sigma;
-                    }
-                }
-            }
-            if thermal > 0.0 {
-                inflow[j - 1] += thermal * flux;
+        let mut tally = Tally::default();
+        for j in (0..=top).rev() {
+            let (out, thermal) = self.removal_cm(j, &air);
+            if out > 0.0 {
+                self.collide(j, &air, inflow[j] / out, thermal, &mut inflow, &mut tally);
             }
         }
-        let total: f64 = ions.iter().sum();
+        tally.per_ion_pair(e[top])
+    }
+
+    /// Index of the first bin at or above `energy_ev`.
+    pub(crate) fn bin_at_or_above(&self, energy_ev: f64) -> usize {
+        self.energy_ev.partition_point(|&c| c < energy_ev)
+    }
+
+    /// How fast bin `j` empties per unit flux in `air`, cm⁻¹: every inelastic
+    /// collision that moves the electron to a lower bin, and the continuous loss to
+    /// thermal electrons (returned also alone, as the rate of moving one bin down).
+    pub(crate) fn removal_cm(&self, j: usize, air: &LocalAir) -> (f64, f64) {
+        let e = &self.energy_ev;
+        let stride = e.len();
+        let mut out = 0.0;
+        for (s, &nd) in air.densities_cm3.iter().enumerate() {
+            for k in 0..states(s).len() {
+                let sigma = self.excitation[s][k * stride + j];
+                if sigma > 0.0 {
+                    out += nd * sigma * (1.0 - self.landing[s][k * stride + j].stay);
+                }
+            }
+            out += nd * (self.ionisation[s][j] - self.ionisation_stay[s][j]);
+        }
+        let thermal = if j > 0 && e[j] > air.e_thermal_ev {
+            let ratio = (e[j] - air.e_thermal_ev) / (e[j] - 0.53 * air.e_thermal_ev);
+            air.ne_term / e[j].powf(0.94) * ratio.powf(2.36) / (e[j] - e[j - 1])
+        } else {
+            0.0
+        };
+        (out + thermal, thermal)
+    }
+
+    /// The collisions of a flux `flux` (cm⁻² s⁻¹) in bin `j`: what they make goes into
+    /// `tally`, the electrons they leave in lower bins into `inflow` (cm⁻³ s⁻¹, or per
+    /// injected electron in the local balance). `thermal` is [`Degradation::removal_cm`]'s.
+    pub(crate) fn collide(
+        &self,
+        j: usize,
+        air: &LocalAir,
+        flux: f64,
+        thermal: f64,
+        inflow: &mut [f64],
+        tally: &mut Tally,
+    ) {
+        let stride = self.energy_ev.len();
+        for (s, &nd) in air.densities_cm3.iter().enumerate() {
+            for k in 0..states(s).len() {
+                let sigma = self.excitation[s][k * stride + j];
+                if !(sigma > 0.0) {
+                    continue;
+                }
+                let rate = nd * sigma * flux;
+                let l = self.landing[s][k * stride + j];
+                inflow[usize::from(l.lo)] += rate * l.w_lo;
+                inflow[usize::from(l.hi)] += rate * l.w_hi;
+                match (s, k) {
+                    (0, O1D) => tally.o1d += rate,
+                    (1, O2_SCHUMANN_RUNGE) => tally.o2_dissociation += rate,
+                    (2, k) if N2_DISSOCIATING.contains(&k) => tally.n2_dissociation += rate,
+                    _ => {}
+                }
+            }
+            if self.ionisation[s][j] > 0.0 {
+                let r = nd * flux;
+                tally.ions[s] += r * self.ionisation[s][j];
+                let base = j * j.saturating_sub(1) / 2;
+                for (dst, sigma) in inflow[..j].iter_mut().zip(&self.transfer[s][base..base + j]) {
+                    *dst += r * sigma;
+                }
+            }
+        }
+        if thermal > 0.0 {
+            inflow[j - 1] += thermal * flux;
+        }
+    }
+}
+
+/// The air as the degradation sees it: O, O₂, N₂ (cm⁻³) and the thermal electrons.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LocalAir {
+    pub(crate) densities_cm3: [f64; 3],
+    /// Swartz et al.'s 3.37e-12 nₑ^0.97.
+    ne_term: f64,
+    /// k Tₑ, eV.
+    e_thermal_ev: f64,
+}
+
+impl LocalAir {
+    pub(crate) fn new(densities_cm3: [f64; 3], electron_density_cm3: f64, electron_temperature_k: f64) -> Self {
+        Self {
+            densities_cm3,
+            ne_term: 3.37e-12 * electron_density_cm3.max(0.0).powf(0.97),
+            e_thermal_ev: BOLTZMANN_EV_PER_K * electron_temperature_k,
+        }
+    }
+}
+
+/// What collisions made: ionisations of O, O₂, N₂, O(¹D) by impact on O, and the
+/// dissociations of O₂ (Schumann-Runge) and N₂ (predissociating states).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Tally {
+    pub(crate) ions: [f64; 3],
+    pub(crate) o1d: f64,
+    pub(crate) o2_dissociation: f64,
+    pub(crate) n2_dissociation: f64,
+}
+
+impl Tally {
+    pub(crate) fn add_scaled(&mut self, other: &Tally, k: f64) {
+        for (a, b) in self.ions.iter_mut().zip(&other.ions) {
+            *a += k * b;
+        }
+        self.o1d += k * other.o1d;
+        self.o2_dissociation += k * other.o2_dissociation;
+        self.n2_dissociation += k * other.n2_dissociation;
+    }
+
+    fn per_ion_pair(&self, injected_ev: f64) -> DegradationYields {
+        let total: f64 = self.ions.iter().sum();
         if !(total > 0.0) {
             return DegradationYields::default();
         }
         DegradationYields {
-            ev_per_ion_pair: e[top] / total,
-            ionisation_share: ions.map(|x| x / total),
-            o1d_per_ion_pair: o1d / total,
-            o2_dissociation_per_ion_pair: o2_diss / total,
-            n2_dissociation_per_ion_pair: n2_diss / total,
+            ev_per_ion_pair: injected_ev / total,
+            ionisation_share: self.ions.map(|x| x / total),
+            o1d_per_ion_pair: self.o1d / total,
+            o2_dissociation_per_ion_pair: self.o2_dissociation / total,
+            n2_dissociation_per_ion_pair: self.n2_dissociation / total,
         }
     }
 }

@@ -35,6 +35,8 @@ use crate::chemistry::{
     Air as ChemistryAir, Column, IonProduction, O1dSource, o_plus_diffusion_rate_s, red_line_sources,
 };
 use crate::emission::{Line, M3_PER_CM3};
+use crate::atmosphere::NightIonosphere;
+use crate::transport::{impact_rates, TransportAir};
 
 /// Energy spectrum of the precipitating electrons.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -228,6 +230,9 @@ pub struct ColumnModel {
     excitation: [Vec<f64>; 5],
     /// Effective lifetime of each line's upper state at each altitude, s.
     lifetime: [Vec<f64>; 5],
+    /// The night ionosphere's own emission without precipitation, per line, photons
+    /// cm⁻³ s⁻¹ (not in `ver`).
+    night_glow: [Vec<f64>; 5],
     /// Cumulative photons cm⁻² s⁻¹ of each line from the bottom up to each altitude
     /// (trapezoid rule on the piecewise-linear profile).
     cumulative: [Vec<f64>; 5],
@@ -237,13 +242,20 @@ pub struct ColumnModel {
     guide: [Vec<u32>; 5],
 }
 
-/// Slices of the guide table.
-const GUIDE_CELLS: usize = 1024;
+/// One solve of the column: everything [`ColumnModel`] keeps, for the precipitation
+/// `bins` (none: the night ionosphere alone).
+struct Solved {
+    altitudes_km: Vec<f64>,
+    ionisation: Vec<f64>,
+    electron_density: Vec<f64>,
+    o1d_production: [Vec<f64>; 8],
+    ver: [Vec<f64>; 5],
+    excitation: [Vec<f64>; 5],
+    lifetime: [Vec<f64>; 5],
+}
 
-impl ColumnModel {
-    /// Compute the column over every altitude of `air`.
-    pub fn new(air: &Atmosphere, precipitation: &Precipitation, yields: &Yields) -> Self {
-        let bins = precipitation.bins();
+impl Solved {
+    fn new(air: &Atmosphere, ionosphere: &NightIonosphere, bins: &[(f64, f64)], yields: &Yields) -> Self {
         let samples = air.samples();
         let altitudes_km: Vec<f64> = samples.iter().map(|s| s.altitude_km).collect();
         let ionisation: Vec<f64> =
@@ -277,11 +289,35 @@ impl ColumnModel {
                         s.temperature_k,
                         gravity_m_s2(s.altitude_km),
                     ),
+                    o_plus_background: ionosphere.o_plus_m3(s.altitude_km) * M3_PER_CM3,
                 };
-                Column { air, production, o1s_cascade }
+                Column { air, production, o1s_cascade, impact: None }
             })
             .collect();
-        let red = red_line_sources(&columns);
+        // The local balance gives a first electron density; the transport of the
+        // low-energy electrons through it gives the impact rates, and the chemistry
+        // with those its final electron density (another round moves the 630.0 nm
+        // column by < 0.1 %: test `one_transport_round_is_enough`).
+        let mut columns = columns;
+        let mut red = red_line_sources(&columns);
+        for _ in 0..TRANSPORT_ROUNDS {
+            let air: Vec<TransportAir> = samples
+                .iter()
+                .zip(&columns)
+                .zip(&red)
+                .map(|((s, c), r)| TransportAir {
+                    altitude_cm: s.altitude_km * 1e5,
+                    densities_cm3: [c.air.n_o, c.air.n_o2, c.air.n_n2],
+                    electron_density_cm3: r.electron_density_cm3,
+                    electron_temperature_k: s.temperature_k,
+                    ionisation_cm3_s: c.production.o + c.production.o2 + c.production.n2,
+                })
+                .collect();
+            for (c, rates) in columns.iter_mut().zip(impact_rates(&air, false)) {
+                c.impact = Some(rates);
+            }
+            red = red_line_sources(&columns);
+        }
         let electron_density: Vec<f64> = red.iter().map(|r| r.electron_density_cm3).collect();
         let o1d_production = std::array::from_fn(|k| red.iter().map(|r| r.o1d_production[k]).collect());
         let mut ver: [Vec<f64>; 5] = Default::default();
@@ -314,6 +350,44 @@ impl ColumnModel {
                 lifetime[k].push(tau);
             }
         }
+        Self { altitudes_km, ionisation, electron_density, o1d_production, ver, excitation, lifetime }
+    }
+}
+
+/// Rounds of electron density -> transport -> chemistry after the local balance.
+const TRANSPORT_ROUNDS: usize = 1;
+
+/// Slices of the guide table.
+const GUIDE_CELLS: usize = 1024;
+
+impl ColumnModel {
+    /// Compute the column over every altitude of `air`, in the night ionosphere of
+    /// [`NightIonosphere::iri90`].
+    pub fn new(air: &Atmosphere, precipitation: &Precipitation, yields: &Yields) -> Self {
+        Self::in_ionosphere(air, NightIonosphere::iri90(), precipitation, yields)
+    }
+
+    /// [`ColumnModel::new`] in `ionosphere` ([`NightIonosphere::none`]: the aurora alone).
+    /// The column is solved twice, with the precipitation and without it: what the
+    /// aurora emits ([`ColumnModel::volume_emission`], what the renderer draws) is the
+    /// difference, and the night sky's own glow ([`ColumnModel::night_glow`]) the
+    /// second.
+    pub fn in_ionosphere(
+        air: &Atmosphere,
+        ionosphere: &NightIonosphere,
+        precipitation: &Precipitation,
+        yields: &Yields,
+    ) -> Self {
+        let total = Solved::new(air, ionosphere, &precipitation.bins(), yields);
+        let night = Solved::new(air, ionosphere, &[], yields);
+        let ver: [Vec<f64>; 5] = std::array::from_fn(|k| {
+            total.ver[k].iter().zip(&night.ver[k]).map(|(t, b)| (t - b).max(0.0)).collect()
+        });
+        let excitation: [Vec<f64>; 5] = std::array::from_fn(|k| {
+            total.excitation[k].iter().zip(&night.excitation[k]).map(|(t, b)| (t - b).max(0.0)).collect()
+        });
+        let Solved { altitudes_km, ionisation, electron_density, o1d_production, lifetime, .. } = total;
+        let night_glow = night.ver;
         let cumulative = std::array::from_fn(|k| {
             let mut acc = 0.0;
             let mut out = vec![0.0];
@@ -342,6 +416,7 @@ impl ColumnModel {
             ver,
             excitation,
             lifetime,
+            night_glow,
             cumulative,
             guide,
         }
@@ -373,6 +448,14 @@ impl ColumnModel {
         &self.ver[line.index()]
     }
 
+    /// The night sky's own emission of `line` in this column's ionosphere, without the
+    /// aurora, photons cm⁻³ s⁻¹ (the 630.0 nm F-region glow; 0 for the prompt bands).
+    /// Not in [`ColumnModel::volume_emission`]: the sky renderer would otherwise paint it
+    /// on every curtain. A photometer sees both: [`ColumnModel::to_csv`] adds them.
+    pub fn night_glow(&self, line: Line) -> &[f64] {
+        &self.night_glow[line.index()]
+    }
+
     /// Upper states of `line` made per ion pair at each altitude: the state's production
     /// (O(¹S) for 557.7 nm, O(¹D) from all its sources for 630.0 nm, the photons of the
     /// prompt bands) over the ionisation rate, before the radiative branch and quenching
@@ -393,6 +476,27 @@ impl ColumnModel {
     /// Altitude of the largest volume emission rate of `line`, km.
     pub fn peak_altitude_km(&self, line: Line) -> f64 {
         let v = &self.ver[line.index()];
+        let k = (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
+        self.altitudes_km[k]
+    }
+
+    /// What a photometer under the aurora sees of `line`: the aurora's emission plus the
+    /// night sky's own ([`ColumnModel::night_glow`]), photons cm⁻³ s⁻¹.
+    pub fn seen_from_the_ground(&self, line: Line) -> Vec<f64> {
+        let k = line.index();
+        self.ver[k].iter().zip(&self.night_glow[k]).map(|(a, b)| a + b).collect()
+    }
+
+    /// Column of [`ColumnModel::seen_from_the_ground`] (trapezoid rule), photons cm⁻² s⁻¹.
+    pub fn seen_column_photons_cm2_s(&self, line: Line) -> f64 {
+        let v = self.seen_from_the_ground(line);
+        let z = &self.altitudes_km;
+        (1..z.len()).map(|i| 0.5 * (v[i - 1] + v[i]) * (z[i] - z[i - 1]) * 1e5).sum()
+    }
+
+    /// Altitude of the largest value of [`ColumnModel::seen_from_the_ground`], km.
+    pub fn seen_peak_altitude_km(&self, line: Line) -> f64 {
+        let v = self.seen_from_the_ground(line);
         let k = (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
         self.altitudes_km[k]
     }
@@ -465,13 +569,14 @@ impl ColumnModel {
     /// production of each source of [`O1dSource::ALL`] (`p_electron_impact`, ...,
     /// cm⁻³ s⁻¹), `radiated_share` (the share of O(¹D) made that emits 630.0 nm) and
     /// `v_630_0`, one row per altitude (`phenomena export aurora-profile --red-line`).
+    /// Everything as seen from the ground: the night ionosphere's share included.
     pub fn red_line_csv(&self) -> String {
         let mut out = String::from("altitude_km,electron_density_cm3");
         for s in O1dSource::ALL {
             out.push_str(&format!(",p_{}", s.name()));
         }
         out.push_str(",radiated_share,v_630_0\n");
-        let red = &self.ver[Line::O630.index()];
+        let red = self.seen_from_the_ground(Line::O630);
         for (i, z) in self.altitudes_km.iter().enumerate() {
             out.push_str(&format!("{z},{:.6e}", self.electron_density[i]));
             let mut total = 0.0;
@@ -486,13 +591,25 @@ impl ColumnModel {
     }
 
     /// The column as CSV: `altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5`
-    /// (photons cm⁻³ s⁻¹), one row per altitude of the table.
+    /// (photons cm⁻³ s⁻¹), one row per altitude of the table: what is seen from the
+    /// ground ([`ColumnModel::seen_from_the_ground`]: the aurora and the night sky's own
+    /// glow, as GLOW and a photometer count it).
     pub fn to_csv(&self) -> String {
+        self.csv(true)
+    }
+
+    /// [`ColumnModel::to_csv`] of the aurora's emission alone (what the renderer draws).
+    pub fn to_csv_aurora_only(&self) -> String {
+        self.csv(false)
+    }
+
+    fn csv(&self, with_night_glow: bool) -> String {
         let mut out = String::from("altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5\n");
         for (i, z) in self.altitudes_km.iter().enumerate() {
             out.push_str(&format!("{z}"));
             for k in 0..5 {
-                out.push_str(&format!(",{:.6e}", self.ver[k][i]));
+                let night = if with_night_glow { self.night_glow[k][i] } else { 0.0 };
+                out.push_str(&format!(",{:.6e}", self.ver[k][i] + night));
             }
             out.push('\n');
         }
@@ -741,7 +858,7 @@ mod tests {
         let share = |a: f64| {
             let k = z.iter().position(|&x| x == a).unwrap();
             let made: f64 = O1dSource::ALL.iter().map(|&s| m.o1d_production(s)[k]).sum();
-            m.volume_emission(Line::O630)[k] / made
+            m.seen_from_the_ground(Line::O630)[k] / made
         };
         assert!(share(110.0) < 5e-4, "{}", share(110.0));
         assert!(share(300.0) > 0.33, "{}", share(300.0));

@@ -29,6 +29,7 @@ mod render;
 pub mod shape;
 mod sim;
 pub mod sky;
+pub mod transport;
 pub mod volume;
 
 pub use config::{

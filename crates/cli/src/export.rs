@@ -106,6 +106,7 @@ pub(crate) fn aurora_profile(
     out: &Path,
     red_line: Option<&Path>,
     paper: Option<&Path>,
+    aurora_only: bool,
 ) -> Result<String> {
     use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
     let precipitation = Precipitation { spectrum, energy_kev, flux_erg_cm2_s: flux_erg };
@@ -128,7 +129,8 @@ pub(crate) fn aurora_profile(
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         ensure_dir(parent)?;
     }
-    write_bytes_atomic(out, model.to_csv().as_bytes())?;
+    let csv = if aurora_only { model.to_csv_aurora_only() } else { model.to_csv() };
+    write_bytes_atomic(out, csv.as_bytes())?;
     use phenomena_aurora::emission::Line;
     let mut also = String::new();
     if let Some(path) = red_line {
@@ -166,13 +168,25 @@ pub(crate) fn aurora_profile(
             path.display()
         ));
     }
+    let red = if aurora_only {
+        format!(
+            "630.0 nm {:.0} R of aurora (the night sky's own glow left out), peak at {} km",
+            model.column_photons_cm2_s(Line::O630) / 1e6,
+            model.peak_altitude_km(Line::O630)
+        )
+    } else {
+        format!(
+            "630.0 nm {:.0} R ({:.0} R of it the night sky's own), peak at {} km",
+            model.seen_column_photons_cm2_s(Line::O630) / 1e6,
+            (model.seen_column_photons_cm2_s(Line::O630) - model.column_photons_cm2_s(Line::O630)) / 1e6,
+            model.seen_peak_altitude_km(Line::O630)
+        )
+    };
     Ok(format!(
-        "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; 630.0 nm {:.0} R, peak at {} km) to {}{also}",
+        "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; {red}) to {}{also}",
         model.altitudes_km().len(),
-        model.column_photons_cm2_s(Line::O557) / 1e6,
-        model.peak_altitude_km(Line::O557),
-        model.column_photons_cm2_s(Line::O630) / 1e6,
-        model.peak_altitude_km(Line::O630),
+        model.seen_column_photons_cm2_s(Line::O557) / 1e6,
+        model.seen_peak_altitude_km(Line::O557),
         out.display()
     ))
 }

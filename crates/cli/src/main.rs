@@ -405,6 +405,12 @@ enum ExportWhat {
         /// falling electron per km, 1 km bins (centres).
         #[arg(long)]
         paper: Option<PathBuf>,
+        /// Write the aurora's emission alone, without the night sky's own glow (the
+        /// 630.0 nm of the night F region, IRI-90, which is there with no aurora at
+        /// all): what the renderer draws on a curtain. By default the profile is what a
+        /// photometer under the aurora sees, both together.
+        #[arg(long)]
+        aurora_only: bool,
     },
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
@@ -552,6 +558,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     out,
                     red_line,
                     paper,
+                    aurora_only,
                 },
         } => {
             let spectrum = match spectrum {
@@ -565,6 +572,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                 &out,
                 red_line.as_deref(),
                 paper.as_deref(),
+                aurora_only,
             )
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
