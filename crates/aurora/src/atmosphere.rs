@@ -253,7 +253,10 @@ impl MinorSpecies {
     pub fn at(&self, altitude_km: f64) -> MinorSample {
         let (k, t) = bracket(&self.altitudes_km, altitude_km);
         let (s0, s1) = (self.samples[k], self.samples[k + 1]);
-        MinorSample { n_n_m3: log_lerp(s0.n_n_m3, s1.n_n_m3, t), n_no_m3: log_lerp(s0.n_no_m3, s1.n_no_m3, t) }
+        MinorSample {
+            n_n_m3: log_lerp(s0.n_n_m3, s1.n_n_m3, t),
+            n_no_m3: log_lerp(s0.n_no_m3, s1.n_no_m3, t),
+        }
     }
 }
 
@@ -279,7 +282,9 @@ impl NightIonosphere {
     /// The table shipped with the crate.
     pub fn iri90() -> &'static NightIonosphere {
         static TABLE: OnceLock<NightIonosphere> = OnceLock::new();
-        TABLE.get_or_init(|| NightIonosphere::from_csv(IRI90_CSV).expect("the embedded ionosphere table is valid"))
+        TABLE.get_or_init(|| {
+            NightIonosphere::from_csv(IRI90_CSV).expect("the embedded ionosphere table is valid")
+        })
     }
 
     /// No background: the aurora alone.

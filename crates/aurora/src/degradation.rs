@@ -460,7 +460,11 @@ pub(crate) struct LocalAir {
 }
 
 impl LocalAir {
-    pub(crate) fn new(densities_cm3: [f64; 3], electron_density_cm3: f64, electron_temperature_k: f64) -> Self {
+    pub(crate) fn new(
+        densities_cm3: [f64; 3],
+        electron_density_cm3: f64,
+        electron_temperature_k: f64,
+    ) -> Self {
         Self {
             densities_cm3,
             ne_term: 3.37e-12 * electron_density_cm3.max(0.0).powf(0.97),

@@ -30,13 +30,13 @@ use phenomena_core::color::BOLTZMANN_J_PER_K;
 use phenomena_core::validate::Issues;
 use serde::{Deserialize, Serialize};
 
+use crate::atmosphere::NightIonosphere;
 use crate::atmosphere::{Atmosphere, MinorSpecies, Sample};
 use crate::chemistry::{
     Air as ChemistryAir, Column, IonProduction, O1dSource, o_plus_diffusion_rate_s, red_line_sources,
 };
 use crate::emission::{Line, M3_PER_CM3};
-use crate::atmosphere::NightIonosphere;
-use crate::transport::{impact_rates, TransportAir};
+use crate::transport::{TransportAir, impact_rates};
 
 /// Energy spectrum of the precipitating electrons.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -255,7 +255,13 @@ struct Solved {
 }
 
 impl Solved {
-    fn new(air: &Atmosphere, ionosphere: &NightIonosphere, bins: &[(f64, f64)], yields: &Yields) -> Self {
+    fn new(
+        air: &Atmosphere,
+        ionosphere: &NightIonosphere,
+        bins: &[(f64, f64)],
+        yields: &Yields,
+        rounds: usize,
+    ) -> Self {
         let samples = air.samples();
         let altitudes_km: Vec<f64> = samples.iter().map(|s| s.altitude_km).collect();
         let ionisation: Vec<f64> =
@@ -300,7 +306,7 @@ impl Solved {
         // column by < 0.1 %: test `one_transport_round_is_enough`).
         let mut columns = columns;
         let mut red = red_line_sources(&columns);
-        for _ in 0..TRANSPORT_ROUNDS {
+        for _ in 0..rounds {
             let air: Vec<TransportAir> = samples
                 .iter()
                 .zip(&columns)
@@ -378,8 +384,8 @@ impl ColumnModel {
         precipitation: &Precipitation,
         yields: &Yields,
     ) -> Self {
-        let total = Solved::new(air, ionosphere, &precipitation.bins(), yields);
-        let night = Solved::new(air, ionosphere, &[], yields);
+        let total = Solved::new(air, ionosphere, &precipitation.bins(), yields, TRANSPORT_ROUNDS);
+        let night = Solved::new(air, ionosphere, &[], yields, TRANSPORT_ROUNDS);
         let ver: [Vec<f64>; 5] = std::array::from_fn(|k| {
             total.ver[k].iter().zip(&night.ver[k]).map(|(t, b)| (t - b).max(0.0)).collect()
         });
@@ -876,6 +882,33 @@ mod tests {
                 at(400.0),
                 at(500.0)
             );
+        }
+    }
+
+    #[test]
+    fn one_transport_round_is_enough() {
+        // The transport uses the electron density of the local balance; a second round
+        // (transport with the density it gave) moves the red line's column by under
+        // 0.1 % and its peak by under 1 km, so one round is the fixed point to well
+        // within the ±50 % the issue asks of the column (a convergence check, not a
+        // tolerance on a reference).
+        let air = Atmosphere::msis21();
+        let iono = NightIonosphere::iri90();
+        for e0 in [1.0, 2.0, 5.0] {
+            let p = Precipitation { spectrum: Spectrum::Maxwellian, energy_kev: e0, flux_erg_cm2_s: 1.0 };
+            let bins = p.bins();
+            let one = Solved::new(air, iono, &bins, &Yields::default(), 1);
+            let two = Solved::new(air, iono, &bins, &Yields::default(), 2);
+            let k = Line::O630.index();
+            let column = |s: &Solved| s.ver[k].iter().sum::<f64>();
+            let peak = |s: &Solved| {
+                let i = (0..s.ver[k].len()).max_by(|&a, &b| s.ver[k][a].total_cmp(&s.ver[k][b])).unwrap();
+                s.altitudes_km[i]
+            };
+            let change = (column(&two) / column(&one) - 1.0).abs();
+            eprintln!("{e0} keV: column change {change:.2e}, peaks {} {}", peak(&one), peak(&two));
+            assert!(change < 1e-3, "{e0} keV: {change}");
+            assert!((peak(&one) - peak(&two)).abs() <= 1.0, "{e0} keV");
         }
     }
 }

@@ -223,7 +223,14 @@ fn impact_rates_from(column: &[TransportAir], local_only: bool, top_ev: f64) -> 
 /// face coefficient takes the geometric mean of the two nodes' extinction (the air
 /// thins exponentially). The matrix is an M-matrix (positive diagonal that dominates
 /// non-positive neighbours), so the Thomas algorithm needs no pivoting and u ≥ 0.
-fn solve_two_stream(column: &[TransportAir], a: &[f64], ext: &[f64], s: &[f64], c_prime: &mut [f64], u: &mut [f64]) {
+fn solve_two_stream(
+    column: &[TransportAir],
+    a: &[f64],
+    ext: &[f64],
+    s: &[f64],
+    c_prime: &mut [f64],
+    u: &mut [f64],
+) {
     let n = column.len();
     let z = |i: usize| column[i].altitude_cm;
     // Conductance of face i+1/2.
@@ -264,7 +271,8 @@ mod tests {
     /// The crate's atmosphere under a 2 keV Maxwellian of 1 erg cm⁻² s⁻¹, with `ne`
     /// thermal electrons everywhere.
     fn column(ne: f64) -> Vec<TransportAir> {
-        let bins = Precipitation { spectrum: Spectrum::Maxwellian, energy_kev: 2.0, flux_erg_cm2_s: 1.0 }.bins();
+        let bins =
+            Precipitation { spectrum: Spectrum::Maxwellian, energy_kev: 2.0, flux_erg_cm2_s: 1.0 }.bins();
         Atmosphere::msis21()
             .samples()
             .iter()
@@ -310,7 +318,12 @@ mod tests {
         let moved = impact_rates(&col, false);
         let local = impact_rates(&col, true);
         for i in 130..=170 {
-            assert!((moved[i].o1d / local[i].o1d - 1.0).abs() < 1e-6, "{i}: {} vs {}", moved[i].o1d, local[i].o1d);
+            assert!(
+                (moved[i].o1d / local[i].o1d - 1.0).abs() < 1e-6,
+                "{i}: {} vs {}",
+                moved[i].o1d,
+                local[i].o1d
+            );
         }
         // At the ends electrons escape: less O(¹D) there, never more.
         assert!(moved[300].o1d < 0.9 * local[300].o1d && moved[0].o1d < local[0].o1d);
