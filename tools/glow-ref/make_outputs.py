@@ -1,9 +1,11 @@
 """Split glowref.exe output into per-case CSVs and write summary.txt.
-Usage: python3 make_outputs.py build/glowref_cases.out OUTDIR"""
+Usage: python3 make_outputs.py build/glowref_cases.out OUTDIR [NOTE]
+NOTE (optional) is written under the case line, e.g. how the build differs from stock."""
 import sys, io, csv, re
 import numpy as np
 
 src, outdir = sys.argv[1], sys.argv[2]
+note = sys.argv[3] if len(sys.argv) > 3 else None
 blocks = [b for b in open(src).read().split('# end\n') if b.strip()]
 
 def parabolic_peak(z, y):
@@ -24,6 +26,7 @@ for b in blocks:
     vcb = [float(x) for x in meta[3].split('=')[1].split()]
     efrac = float(re.search(r'efrac=\s*(\S+)', meta[2]).group(1))
     sza = float(re.search(r'sza_deg=\s*(\S+)', meta[2]).group(1))
+    inputs = meta[1].lstrip('# ').split(' ef_erg')[0]
     fn = f'{outdir}/glow_E{ec/1000:g}keV.csv' if ef > 0.001 else f'{outdir}/glow_noprecip.csv'
     with open(fn, 'w') as f:
         for m in meta:
@@ -35,7 +38,7 @@ for b in blocks:
     rd = list(csv.DictReader(io.StringIO('\n'.join(body))))
     col = lambda k: np.array([float(r[k]) for r in rd])
     z = col('altitude_km')
-    res = {'E0_keV': ec/1000, 'ef': ef, 'efrac': efrac, 'sza': sza}
+    res = {'E0_keV': ec/1000, 'ef': ef, 'efrac': efrac, 'sza': sza, 'inputs': inputs}
     for key, iw in [('4278', 1), ('5577', 3), ('6300', 4), ('3914_derived', None)]:
         y = col('ver_' + key)
         res['col_trapz_' + key] = np.trapezoid(y, z * 1e5)
@@ -55,8 +58,10 @@ for b in blocks:
 
 with open(f'{outdir}/summary.txt', 'w') as f:
     f.write('GLOW v0.981 reference runs (driver glowref.f90, sources from PyPI glowpython-4.0.4 src/GLOW)\n')
-    f.write('Case: idate=17355 (2017, DOY 355 = Dec 21), UT=0 s, glat=65 N, glong=0 E (LST 0 h), F10.7=F10.7a=F10.7p=100, Ap=10,\n')
+    f.write('Case: %s,\n' % ' '.join(summ[0]['inputs'].split()))
     f.write('      Maxwellian (maxt, itail=0), ef=1 erg cm-2 s-1, ec=E0; sza=%.1f deg (>105, EPHOTO not called; QBACK night background ionization IS included)\n' % summ[0]['sza'])
+    if note:
+        f.write('Build: %s\n' % note)
     f.write('Columns: trapezoid integral of the volume emission rate over the 102-level GLOW grid (80-640 km), photons cm-2 s-1 (= R x 1e6);\n')
     f.write('         GLOW_vcb = GLOW\'s own vertical column brightness (centred-difference dz sum, gchem.f90) x 1e6.\n')
     f.write('Peak altitude: grid point of maximum VER (grid spacing 1 km for 80-110 km, 1.5-2 km to 134 km, 3-10 km above), and a 3-point parabolic refinement.\n\n')

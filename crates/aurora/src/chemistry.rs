@@ -350,7 +350,8 @@ fn ions_at(p: &IonProduction, a: &Air, r: &Rates, ne: f64, n2d: f64) -> IonDensi
 /// with nₑ), and bisection on log nₑ in [1e-3, 1e9] cm⁻³ finds a root to 1e-12
 /// relative. Not every ion falls as nₑ rises (more electrons quench O⁺(²D, ²P) into
 /// O⁺(⁴S) instead of letting them charge-transfer to N₂⁺), so a single root is not
-/// proven, only found. No ionisation: no electrons.
+/// proven, only found. No ionisation and no night F region (`Air::o_plus_background`):
+/// no electrons.
 pub fn electron_density(p: &IonProduction, a: &Air, n2d: f64) -> (f64, IonDensities) {
     if !(p.o + p.o2 + p.n2 > 0.0) && !(a.o_plus_background > 0.0) {
         return (0.0, IonDensities::default());

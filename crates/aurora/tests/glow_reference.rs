@@ -19,6 +19,8 @@
 //! its no-precipitation run; both must pass. `tests/data/glow/matched/` holds GLOW run
 //! at our atmosphere's own conditions (69.6° N 19° E, 2024-01-15 22 UT, F10.7 = 150,
 //! Ap = 15): the night glow and the 5 keV red peak are compared there as well.
+//! `tests/data/glow/ne250/` holds GLOW rebuilt to solve its ion balance up to 250 km
+//! instead of 200 (the issue's conditions otherwise): the red peak is compared there.
 
 use phenomena_aurora::atmosphere::Atmosphere;
 use phenomena_aurora::chemistry::O1dSource;
@@ -204,29 +206,54 @@ fn the_red_line_sources_are_those_that_matter_in_glow() {
     }
 }
 
-/// The issue's last tolerance, the 630.0 nm peak within 15 km of GLOW's, is not met,
-/// and this test says so rather than loosening it. Measured 2026-12-03 (with the
-/// transport of the low-energy electrons, `transport.rs`, and the night ionosphere):
-/// as seen from the ground ours peaks at 217 / 215 / 287 km for 1 / 2 / 5 keV against
-/// GLOW's 197 / 197 / 263 km; the aurora's part alone at 216 / 213 / 209 km against
-/// GLOW's 197 km (before the transport: 223 km for all three).
+/// The issue's last tolerance, the 630.0 nm peak within 15 km of the stock GLOW run's, is
+/// not met, and this test says so rather than loosening it. Measured 2026-12-04: as seen
+/// from the ground ours peaks at 217 / 215 / 287 km for 1 / 2 / 5 keV against stock
+/// GLOW's 197 / 197 / 263 km; the aurora's part alone at 216 / 213 / 209 km against 197.
+/// - 1 and 2 keV: stock GLOW's 197 km is where it stops solving the ion balance (kchem =
+///   4: its electron density is computed below 200 km and IRI-90's above, so the
+///   aurora's O₂⁺ recombination, the red line's second source, ends at 205 km: 30.7 ->
+///   1.8 cm⁻³ s⁻¹ from 197 to 221 km at 2 keV, ours 38.7 -> 21.5). GLOW rebuilt with the
+///   switch at 250 or 300 km peaks at 213 km, 2-4 km from ours
+///   (`the_red_line_peaks_where_glow_puts_it_when_glow_solves_the_ion_balance_higher_up`).
 /// - 5 keV is a matter of conditions: there the peak is the night F region's, and ours
 ///   is IRI-90 at our atmosphere's conditions (F10.7 = 150, hmF2 352 km) where GLOW's
-///   run took F10.7 = 100 (hmF2 326 km). GLOW at our conditions peaks at 290 km, ours at
-///   287 (`the_night_glow_agrees_with_glow_at_our_conditions`).
-/// - 1 and 2 keV, 16-20 km apart: GLOW computes the electron density only below 200 km
-///   and takes IRI's above (kchem = 4), so the O₂⁺ recombination of the aurora's own
-///   ions stops at 205 km in GLOW (its O(¹D) from recombination falls from 32.6 to 1.6
-///   cm⁻³ s⁻¹ between 190 and 221 km at 2 keV, where ours, from the ion balance, falls
-///   from 46.6 to 21.5); and our O(¹D) by electron impact is 15-20 % below GLOW's from
-///   150 to 240 km (same ionisation within 7 %), which weighs the profile less low down.
-///   Profiles flat to 2 % over 190-240 km make the argmax fragile.
+///   run took F10.7 = 100. GLOW at our conditions peaks at 290 km, ours at 287
+///   (`the_night_glow_agrees_with_glow_at_our_conditions`).
 #[test]
-#[ignore = "issue 20's 15 km criterion for the 630.0 nm peak is not met (ours 217/215/287 km seen from the ground, GLOW 197/197/263 km)"]
+#[ignore = "issue 20's 15 km criterion against stock GLOW is not met (ours 217/215/287 km seen from the ground, GLOW 197/197/263 km); see the doc comment"]
 fn red_line_peaks() {
     for r in rows() {
         let (ours, glow) = r.peaks[2];
         assert!((ours - glow).abs() <= 15.0, "{} keV: 630.0 nm peak ours {ours} km, GLOW {glow} km", r.e0);
+    }
+}
+
+#[test]
+fn the_red_line_peaks_where_glow_puts_it_when_glow_solves_the_ion_balance_higher_up() {
+    // GLOW's stock run stops computing the electron density at 200 km (kchem = 4) and
+    // takes IRI-90's above, so its aurora's O₂⁺ recombination ends there and its red
+    // peak sits at the switch: 197 km. Rebuilt with that switch at 250 km
+    // (`tools/glow-ref/build.sh` with GLOW_NE_TOP_KM=250; `tests/data/glow/ne250/`),
+    // nothing else changed, GLOW peaks at 213 km for 1 and 2 keV; at 300 km too (not
+    // committed, same build), so 213 km is GLOW's own answer once its ion balance
+    // covers the red layer. The issue asks for that balance ("an electron density from
+    // the balance of ion production and recombination"); compared here with the
+    // issue's tolerances: peak within 15 km, 630.0/427.8 within ±50 %, seen from the
+    // ground and for the aurora's part. (5 keV's peak is the night F region's, IRI
+    // above the switch in both builds: compared at matched conditions below.)
+    for e0 in [1.0, 2.0] {
+        let r = compare("ne250/", e0);
+        print(std::slice::from_ref(&r));
+        let (ours, glow) = r.peaks[2];
+        assert!((ours - glow).abs() <= 15.0, "{e0} keV: 630.0 nm peak ours {ours} km, GLOW {glow} km");
+        let (ours, glow) = r.peak_630_aurora;
+        assert!(
+            (ours - glow).abs() <= 15.0,
+            "{e0} keV: aurora's 630.0 nm peak ours {ours} km, GLOW {glow} km"
+        );
+        let (ours, glow) = r.ratio_630;
+        assert!((ours / glow - 1.0).abs() <= 0.5, "{e0} keV: 630.0/427.8 ours {ours}, GLOW {glow}");
     }
 }
 
