@@ -81,8 +81,8 @@ pub struct PaperFall {
     pub quenching: PaperQuenching,
     /// Let each 630.0 nm emission happen where the O(¹D) atom has diffused to in the
     /// time it took to radiate (an extension; see [`PaperEmission::red_diffusion_km`]):
-    /// red tops become diffuse glows (√(2Dτ) ≈ 2 km at 200 km, 8 km at 250 km, 20 km at
-    /// 300 km), as the long-lived state's random walk makes them in real aurora.
+    /// red tops become diffuse glows (√(2Dτ) ≈ 2.4 km at 200 km, 10 km at 250 km, 28 km
+    /// at 300 km in the shipped air), as the long-lived state's random walk makes them in real aurora.
     pub red_diffusion: bool,
     /// `production = "shares"`: share of oxygen collisions that make 557.7 nm (the rest
     /// make 630.0 nm).
@@ -700,8 +700,9 @@ fn poisson_below(mean: f64, budget: f64) -> f64 {
 /// ([`Line::metastable_rates`], [`Line::quenching_rate_s`]) and D its diffusion
 /// coefficient, by Blanc's law 1/D = Σ x_j / D_j over N₂, O₂ and O with the
 /// rigid-sphere coefficients of [`binary_diffusion_m2_s`], collision diameters those of
-/// O (2.8 Å) and the molecules' kinetic diameters (N₂ 3.64 Å, O₂ 3.46 Å). At 250 km
-/// D ≈ 9e5 m²/s and τ ≈ 32 s: ~7.6 km; ~2 km at 200 km, ~20 km at 300 km.
+/// O (2.8 Å) and the molecules' kinetic diameters (N₂ 3.64 Å, O₂ 3.46 Å). In the
+/// shipped air: ~2.4 km at 200 km, ~10.3 km at 250 km, ~28 km at 300 km (2.0, 7.6 and
+/// 20 km in the earlier, warmer and denser table of `tests/data/air/tromso`).
 fn o1d_diffusion_length_km(s: &Sample) -> f64 {
     let Some((_, a_total)) = Line::O630.metastable_rates() else { return 0.0 };
     let tau_s = 1.0 / (a_total + Line::O630.quenching_rate_s(s));
@@ -797,8 +798,16 @@ mod tests {
     /// across falls) have the same distribution as the stepped fall's, at the default
     /// 50 m step and at a 5 m step (where P_c ≤ 0.07 wherever collisions happen), by
     /// two-sample Kolmogorov-Smirnov at α = 0.001 split over the ten comparisons
-    /// (Bonferroni; critical distance c(α) √(2/n) with c(α) = √(−ln(α/2)/2)). Measured
-    /// while writing it: distances ≤ 0.052 at 1,200 falls for either step.
+    /// (Bonferroni; critical distance c(α) √(2/n) with c(α) = √(−ln(α/2)/2)), plus the
+    /// stepped fall's resolution: it places a collision at the end of its step, at most
+    /// one step h from where the exact path has it, and moving every sample by at most h
+    /// moves the CDF by at most the largest share of samples in a window of width h
+    /// (measured on the exact samples). Deep down (the 100th collision near 107.6 km,
+    /// a narrow distribution in the colder air of the shipped table) that share is 3.9 %
+    /// at 50 m steps (0.7 % at 5 m): the distances there, 0.055-0.071 in four seeds
+    /// against 0.020-0.045 for the other collisions, are the 50 m lattice, not a bias
+    /// (the means agree to 0.04 km). Measured 2026-12-04 and, while writing it:
+    /// distances ≤ 0.052 at 1,200 falls for either step (the earlier, warmer table).
     #[test]
     fn exact_free_paths_give_the_stepped_collision_altitudes() {
         let n = 2000;
@@ -820,13 +829,27 @@ mod tests {
         let fine = PaperFall { sub_step_s: 0.005 / 15.0, ..stepped };
         let alpha: f64 = 0.001 / (2 * picks.len()) as f64;
         let critical = (-(alpha / 2.0).ln() / 2.0).sqrt() * (2.0 / n as f64).sqrt();
-        for (name, params, seed0) in [("50 m", stepped, 1_000_000), ("5 m", fine, 2_000_000)] {
+        // The largest share of `sorted` samples within any window of width h.
+        let window_share = |sorted: &[f64], h: f64| {
+            let mut j = 0;
+            let mut most = 0;
+            for i in 0..sorted.len() {
+                while sorted[i] - sorted[j] > h {
+                    j += 1;
+                }
+                most = most.max(i + 1 - j);
+            }
+            most as f64 / sorted.len() as f64
+        };
+        for (name, params, seed0, h_km) in [("50 m", stepped, 1_000_000, 0.05), ("5 m", fine, 2_000_000, 0.005)] {
             let mut other = run(&params, seed0);
             for (k, &p) in picks.iter().enumerate() {
-                let d = ks(&mut exact[k].clone(), &mut other[k]);
+                let mut exact_k = exact[k].clone();
+                let d = ks(&mut exact_k, &mut other[k]);
+                let lattice = window_share(&exact_k, h_km);
                 assert!(
-                    d < critical,
-                    "{name} steps, collision {}: KS distance {d:.4} ≥ {critical:.4}",
+                    d < critical + lattice,
+                    "{name} steps, collision {}: KS distance {d:.4} ≥ {critical:.4} + {lattice:.4}",
                     p + 1
                 );
             }
@@ -1120,7 +1143,7 @@ mod tests {
         let d = binary_diffusion_m2_s(n, 273.15, MASS_N2_DA, 2.0 * MASS_O_DA, 3.64e-10, 3.46e-10);
         assert!((d / 1.81e-5 - 1.0).abs() < 0.1, "{d}");
         // √(2 D τ) in the thermosphere: the numbers of the doc comment, to 10 %.
-        for (z, want_km) in [(200.0, 2.0), (250.0, 7.6), (300.0, 20.0)] {
+        for (z, want_km) in [(200.0, 2.4), (250.0, 10.3), (300.0, 28.0)] {
             let l = o1d_diffusion_length_km(&air.at(z));
             assert!((l / want_km - 1.0).abs() < 0.1, "{z} km: {l} km");
         }
@@ -1164,4 +1187,5 @@ mod tests {
             assert!(fields.iter().any(|e| e.contains(f)), "{f} missing from {fields:?}");
         }
     }
+
 }

@@ -4,25 +4,26 @@
 //! winter local midnight, F10.7 = 100, Ap = 10. Its profiles are committed in
 //! `tests/data/glow/` (provenance in its README).
 //!
-//! This is model against model: ours runs over its own NRLMSIS 2.1 table (69.6° N,
-//! F10.7 = 150, Ap = 15; `crates/aurora/data/`), GLOW over its bundled NRLMSISE-00 and
-//! IRI-90. The tolerances are the issue's own ("Done when"): 427.8 and 557.7 nm peaks
-//! within 5 km, 557.7/427.8 within ±30 %, the 427.8 column per erg within ±30 %, the
-//! 630.0/427.8 column ratio within ±50 %, the 630.0 nm peak within 15 km. Nothing in our
-//! model is fitted to these numbers; they are only compared.
+//! This is model against model at the same conditions: ours runs over its own NRLMSIS
+//! 2.1 and IRI-90 tables, made for exactly these conditions (`crates/aurora/data/`),
+//! GLOW over its bundled NRLMSISE-00 and IRI-90. The tolerances are the issue's own
+//! ("Done when"): 427.8 and 557.7 nm peaks within 5 km, 557.7/427.8 within ±30 %, the
+//! 427.8 column per erg within ±30 %, the 630.0/427.8 column ratio within ±50 %, the
+//! 630.0 nm peak within 15 km. Nothing in our model is fitted to these numbers; they are
+//! only compared.
 //!
 //! GLOW's columns include its night background (IRI's F region gives 17.7 R of 630.0 nm
-//! without precipitation, peaking at 272 km). Ours has one too (IRI-90 at our table's
-//! conditions, `NightIonosphere`), so what a photometer sees
-//! (`ColumnModel::seen_from_the_ground`) is compared with GLOW's full output, and the
-//! aurora's part (`volume_emission`, what the renderer draws) with GLOW's output less
-//! its no-precipitation run; both must pass. `tests/data/glow/matched/` holds GLOW run
-//! at our atmosphere's own conditions (69.6° N 19° E, 2024-01-15 22 UT, F10.7 = 150,
-//! Ap = 15): the night glow and the 5 keV red peak are compared there as well.
+//! without precipitation, peaking at 272 km). Ours has one too (`NightIonosphere`), so
+//! what a photometer sees (`ColumnModel::seen_from_the_ground`) is compared with GLOW's
+//! full output, and the aurora's part (`volume_emission`, what the renderer draws) with
+//! GLOW's output less its no-precipitation run. `tests/data/glow/matched/` holds GLOW
+//! run at other conditions (69.6° N 19° E, 2024-01-15 22 UT, F10.7 = 150, Ap = 15), ours
+//! there reads the tables of `tests/data/air/tromso/`: the night glow and the 5 keV red
+//! peak, which depend most on the conditions, are compared there as well.
 //! `tests/data/glow/ne250/` holds GLOW rebuilt to solve its ion balance up to 250 km
 //! instead of 200 (the issue's conditions otherwise): the red peak is compared there.
 
-use phenomena_aurora::atmosphere::Atmosphere;
+use phenomena_aurora::atmosphere::{Atmosphere, MinorSpecies, NightIonosphere};
 use phenomena_aurora::chemistry::O1dSource;
 use phenomena_aurora::deposition::{ColumnModel, Precipitation, Spectrum, Yields};
 use phenomena_aurora::emission::Line;
@@ -71,9 +72,9 @@ fn peak(z: &[f64], v: &[f64]) -> f64 {
     z[k]
 }
 
-fn ours(e0: f64) -> ColumnModel {
+fn ours(air: &Atmosphere, e0: f64) -> ColumnModel {
     ColumnModel::new(
-        Atmosphere::msis21(),
+        air,
         &Precipitation { spectrum: Spectrum::Maxwellian, energy_kev: e0, flux_erg_cm2_s: 1.0 },
         &Yields::default(),
     )
@@ -91,8 +92,8 @@ struct Row {
     peak_630_aurora: (f64, f64),
 }
 
-fn compare(dir: &str, e0: f64) -> Row {
-    let m = ours(e0);
+fn compare(dir: &str, air: &Atmosphere, e0: f64) -> Row {
+    let m = ours(air, e0);
     let g = Glow::load(&format!("{dir}glow_E{e0}keV.csv"));
     let bg = Glow::load(&format!("{dir}glow_noprecip.csv"));
     let c = |l: Line| m.seen_column_photons_cm2_s(l);
@@ -117,7 +118,7 @@ fn compare(dir: &str, e0: f64) -> Row {
 }
 
 fn rows() -> Vec<Row> {
-    [1.0, 2.0, 5.0].into_iter().map(|e0| compare("", e0)).collect()
+    [1.0, 2.0, 5.0].into_iter().map(|e0| compare("", Atmosphere::msis21(), e0)).collect()
 }
 
 #[allow(clippy::print_stderr, reason = "the comparison table, for the record of a run")]
@@ -177,13 +178,44 @@ fn the_red_line_column_agrees_with_glow() {
     }
 }
 
+/// GLOW's own neutral air (its NRLMSISE-00 O, N₂, O₂, temperature and NOEM's NO and
+/// N(⁴S), from `glow_noprecip.csv`), log-interpolated to our 1 km grid, in our night
+/// ionosphere (IRI-90 at the same conditions, as GLOW's): our model in GLOW's air.
+fn glow_air() -> Atmosphere {
+    let g = Glow::load("glow_noprecip.csv");
+    let at = |name: &str, z: f64| -> f64 {
+        let v = g.col(name);
+        let k = g.z_km.partition_point(|&x| x <= z).clamp(1, g.z_km.len() - 1) - 1;
+        let t = (z - g.z_km[k]) / (g.z_km[k + 1] - g.z_km[k]);
+        if v[k] > 0.0 && v[k + 1] > 0.0 { v[k] * (v[k + 1] / v[k]).powf(t) } else { v[k] + (v[k + 1] - v[k]) * t }
+    };
+    let (mut main, mut minor) =
+        (String::from("altitude_km,n_o,n_n2,n_o2,temperature_k\n"), String::from("altitude_km,n_n,n_no\n"));
+    for z in 80..=500 {
+        let z = f64::from(z);
+        // cm⁻³ -> m⁻³: 1e6.
+        let m3 = |name: &str| at(name, z) * 1e6;
+        main.push_str(&format!("{z},{:e},{:e},{:e},{}\n", m3("O_cm3"), m3("N2_cm3"), m3("O2_cm3"), at("Tn_K", z)));
+        minor.push_str(&format!("{z},{:e},{:e}\n", m3("N4S_cm3"), m3("NO_cm3")));
+    }
+    Atmosphere::from_csv(&main)
+        .expect("GLOW's air makes a valid table")
+        .with_minor_species(MinorSpecies::from_csv(&minor).expect("GLOW's NO and N make a valid table"))
+        .with_night_ionosphere(NightIonosphere::iri90().clone())
+}
+
 #[test]
 fn the_red_line_sources_are_those_that_matter_in_glow() {
     // Not a tolerance of the issue: a check that the budget has the right shape. GLOW's
     // column fractions of O(¹D) production (summary.txt; 1/2/5 keV): electron impact on
     // O 0.55/0.47/0.31, O₂⁺ recombination 0.14/0.13/0.20, N(²D) + O₂ 0.10/0.15/0.19,
-    // the O(¹S) cascade 0.08/0.10/0.10. Ours must rank electron impact first at 1 and 2
-    // keV and have each of the other three within a factor of two of GLOW's.
+    // the O(¹S) cascade 0.08/0.10/0.10. In GLOW's own air ours must have each within a
+    // factor of two of GLOW's (measured 2026-12-04: 0.90-1.17 of GLOW's, every source
+    // and energy), and in both airs rank electron impact first at 1 and 2 keV.
+    // In our own air the recombination share is 1.7-2.3x GLOW's: NRLMSIS 2.1's NO is
+    // 3x below NOEM's (GLOW's) at 110 km and 5-7x at 120-170 km, and NO takes O₂⁺ away
+    // from recombination (O₂⁺ + NO -> NO⁺ + O₂); with NOEM's NO in our air the share
+    // falls to 1.2-1.3x. Air, not chemistry: so the shape is checked in GLOW's air.
     let glow = [[0.545, 0.139, 0.104, 0.082], [0.467, 0.131, 0.150, 0.095], [0.313, 0.199, 0.192, 0.097]];
     let sources = [
         O1dSource::ElectronImpact,
@@ -191,41 +223,39 @@ fn the_red_line_sources_are_those_that_matter_in_glow() {
         O1dSource::NitrogenWithO2,
         O1dSource::O1sCascade,
     ];
-    for (e0, g) in [1.0, 2.0, 5.0].into_iter().zip(glow) {
-        let m = ours(e0);
+    let shares = |air: &Atmosphere, e0: f64| -> Vec<f64> {
+        let m = ours(air, e0);
         let z = m.altitudes_km();
         let column = |s: O1dSource| trapezoid(z, m.o1d_production(s));
         let total: f64 = O1dSource::ALL.iter().map(|&s| column(s)).sum();
-        let share: Vec<f64> = sources.iter().map(|&s| column(s) / total).collect();
+        sources.iter().map(|&s| column(s) / total).collect()
+    };
+    let in_glow_air = glow_air();
+    for (e0, g) in [1.0, 2.0, 5.0].into_iter().zip(glow) {
+        let share = shares(&in_glow_air, e0);
         for (k, (&ours, &glow)) in share.iter().zip(&g).enumerate() {
             assert!(ours > 0.5 * glow && ours < 2.0 * glow, "{e0} keV source {k}: {ours} vs GLOW {glow}");
         }
         if e0 < 3.0 {
-            assert!(share[0] > share[1] && share[0] > share[2], "{e0} keV: {share:?}");
+            for share in [share, shares(Atmosphere::msis21(), e0)] {
+                assert!(share[0] > share[1] && share[0] > share[2], "{e0} keV: {share:?}");
+            }
         }
     }
 }
 
-/// The issue's last tolerance, the 630.0 nm peak within 15 km of the stock GLOW run's, is
-/// not met, and this test says so rather than loosening it. Measured 2026-12-04: as seen
-/// from the ground ours peaks at 217 / 215 / 287 km for 1 / 2 / 5 keV against stock
-/// GLOW's 197 / 197 / 263 km; the aurora's part alone at 216 / 213 / 209 km against 197.
-/// - 1 and 2 keV: stock GLOW's 197 km is where it stops solving the ion balance (kchem =
-///   4: its electron density is computed below 200 km and IRI-90's above, so the
-///   aurora's O₂⁺ recombination, the red line's second source, ends at 205 km: 30.7 ->
-///   1.8 cm⁻³ s⁻¹ from 197 to 221 km at 2 keV, ours 38.7 -> 21.5). GLOW rebuilt with the
-///   switch at 250 or 300 km peaks at 213 km, 2-4 km from ours
-///   (`the_red_line_peaks_where_glow_puts_it_when_glow_solves_the_ion_balance_higher_up`).
-/// - 5 keV is a matter of conditions: there the peak is the night F region's, and ours
-///   is IRI-90 at our atmosphere's conditions (F10.7 = 150, hmF2 352 km) where GLOW's
-///   run took F10.7 = 100. GLOW at our conditions peaks at 290 km, ours at 287
-///   (`the_night_glow_agrees_with_glow_at_our_conditions`).
+/// The issue's last tolerance: the 630.0 nm peak within 15 km of GLOW's, as seen from the
+/// ground and for the aurora's part. Measured 2026-12-04: ours 208 / 206 / 261 km for 1 /
+/// 2 / 5 keV against GLOW's 197 / 197 / 263 km; the aurora's part 207 / 204 / 201 km
+/// against 197. (Stock GLOW's 1-2 keV peak sits where it stops solving the ion balance,
+/// 200 km; see the test after this one.)
 #[test]
-#[ignore = "issue 20's 15 km criterion against stock GLOW is not met (ours 217/215/287 km seen from the ground, GLOW 197/197/263 km); see the doc comment"]
 fn red_line_peaks() {
     for r in rows() {
         let (ours, glow) = r.peaks[2];
         assert!((ours - glow).abs() <= 15.0, "{} keV: 630.0 nm peak ours {ours} km, GLOW {glow} km", r.e0);
+        let (ours, glow) = r.peak_630_aurora;
+        assert!((ours - glow).abs() <= 15.0, "{} keV: aurora's 630.0 nm peak ours {ours} km, GLOW {glow} km", r.e0);
     }
 }
 
@@ -240,10 +270,10 @@ fn the_red_line_peaks_where_glow_puts_it_when_glow_solves_the_ion_balance_higher
     // covers the red layer. The issue asks for that balance ("an electron density from
     // the balance of ion production and recombination"); compared here with the
     // issue's tolerances: peak within 15 km, 630.0/427.8 within ±50 %, seen from the
-    // ground and for the aurora's part. (5 keV's peak is the night F region's, IRI
-    // above the switch in both builds: compared at matched conditions below.)
+    // ground and for the aurora's part. (5 keV's peak is the night F region's, IRI's
+    // above the switch in both builds: `red_line_peaks` compares it.)
     for e0 in [1.0, 2.0] {
-        let r = compare("ne250/", e0);
+        let r = compare("ne250/", Atmosphere::msis21(), e0);
         print(std::slice::from_ref(&r));
         let (ours, glow) = r.peaks[2];
         assert!((ours - glow).abs() <= 15.0, "{e0} keV: 630.0 nm peak ours {ours} km, GLOW {glow} km");
@@ -257,26 +287,74 @@ fn the_red_line_peaks_where_glow_puts_it_when_glow_solves_the_ion_balance_higher
     }
 }
 
-#[test]
-fn the_night_glow_agrees_with_glow_at_our_conditions() {
-    // GLOW run at our atmosphere's conditions (`tests/data/glow/matched/`): its night
-    // 630.0 nm glow without precipitation is 27.75 R peaking at 290 km. Ours: 26 R at
-    // 295 km. The issue's tolerances for the red line (column within ±50 %, peak within
-    // 15 km) for the night glow and the 5 keV aurora it dominates.
-    let bg = Glow::load("matched/glow_noprecip.csv");
-    let none = ColumnModel::new(
-        Atmosphere::msis21(),
+/// The column without precipitation: the night sky's own glow.
+fn night(air: &Atmosphere) -> ColumnModel {
+    ColumnModel::new(
+        air,
         &Precipitation { spectrum: Spectrum::Maxwellian, energy_kev: 1.0, flux_erg_cm2_s: 0.0 },
         &Yields::default(),
-    );
+    )
+}
+
+#[test]
+fn the_night_glow_agrees_with_glow() {
+    // GLOW's night 630.0 nm glow without precipitation (`glow_noprecip.csv`): 17.7 R
+    // peaking at 272 km. The issue's tolerances for the red line (column within ±50 %,
+    // peak within 15 km); and with no aurora the renderer draws nothing.
+    let bg = Glow::load("glow_noprecip.csv");
+    let none = night(Atmosphere::msis21());
+    let ours = none.seen_column_photons_cm2_s(Line::O630);
+    let glow = bg.column("ver_6300");
+    assert!((ours / glow - 1.0).abs() <= 0.5, "night glow: ours {ours}, GLOW {glow}");
+    let (peak, glow_peak) = (none.seen_peak_altitude_km(Line::O630), bg.peak("ver_6300"));
+    assert!((peak - glow_peak).abs() <= 15.0, "night glow peak: ours {peak} km, GLOW {glow_peak} km");
+    assert_eq!(none.column_photons_cm2_s(Line::O630), 0.0, "no aurora, nothing for the renderer");
+}
+
+/// The tables of `tests/data/air/tromso/`, read as `export aurora-profile --air` reads them.
+fn tromso() -> Atmosphere {
+    let dir = format!("{}/../../tests/data/air/tromso", env!("CARGO_MANIFEST_DIR"));
+    let read = |name: &str| {
+        std::fs::read_to_string(format!("{dir}/{name}")).unwrap_or_else(|e| panic!("{dir}/{name}: {e}"))
+    };
+    Atmosphere::from_tables(
+        &read("atmosphere_msis21.csv"),
+        &read("atmosphere_msis21_minor.csv"),
+        &read("ionosphere_iri90.csv"),
+    )
+    .expect("the Tromso tables are valid")
+}
+
+#[test]
+fn at_other_conditions_the_night_glow_and_the_hard_aurora_agree_with_glow_there() {
+    // GLOW run at 69.6° N 19° E, 2024-01-15 22 UT, F10.7 = 150, Ap = 15
+    // (`tests/data/glow/matched/`), ours over the tables of the same conditions: the
+    // night glow (GLOW 27.75 R at 290 km; ours measured 26 R at 295 km) and the 5 keV
+    // aurora whose red peak is the night F region's (GLOW 290 km, ours 287), with the
+    // issue's tolerances; the green and blue lines' for every energy. Not the 1-2 keV
+    // red peak: GLOW's stays at 197 km, pinned where it stops solving the ion balance,
+    // while ours rises with the warmer thermosphere to 217 / 215 km (208 / 206 at the
+    // issue's conditions).
+    let air = tromso();
+    let bg = Glow::load("matched/glow_noprecip.csv");
+    let none = night(&air);
     let ours = none.seen_column_photons_cm2_s(Line::O630);
     let glow = bg.column("ver_6300");
     assert!((ours / glow - 1.0).abs() <= 0.5, "night glow: ours {ours}, GLOW {glow}");
     assert!((none.seen_peak_altitude_km(Line::O630) - bg.peak("ver_6300")).abs() <= 15.0);
-    assert_eq!(none.column_photons_cm2_s(Line::O630), 0.0, "no aurora, nothing for the renderer");
-    let r = compare("matched/", 5.0);
-    let (ours, glow) = r.peaks[2];
-    assert!((ours - glow).abs() <= 15.0, "5 keV at our conditions: ours {ours} km, GLOW {glow} km");
-    let (ours, glow) = r.ratio_630;
-    assert!((ours / glow - 1.0).abs() <= 0.5, "5 keV at our conditions: 630.0/427.8 {ours} vs {glow}");
+    for e0 in [1.0, 2.0, 5.0] {
+        let r = compare("matched/", &air, e0);
+        print(std::slice::from_ref(&r));
+        let within = |(a, b): (f64, f64), tol: f64| (a / b - 1.0).abs() <= tol;
+        assert!(within(r.col_428, 0.30), "{e0} keV: 427.8 nm column per erg {:?}", r.col_428);
+        assert!(within(r.ratio_558, 0.30), "{e0} keV: 557.7/427.8 {:?}", r.ratio_558);
+        assert!(within(r.ratio_630, 0.50), "{e0} keV: 630.0/427.8 {:?}", r.ratio_630);
+        for (k, (a, b)) in r.peaks[..2].iter().enumerate() {
+            assert!((a - b).abs() <= 5.0, "{e0} keV: peak {k}: ours {a} km, GLOW {b} km");
+        }
+        if e0 == 5.0 {
+            let (ours, glow) = r.peaks[2];
+            assert!((ours - glow).abs() <= 15.0, "5 keV: 630.0 nm peak ours {ours} km, GLOW {glow} km");
+        }
+    }
 }

@@ -98,17 +98,59 @@ pub(crate) fn atmosphere(out: &Path) -> Result<String> {
     ))
 }
 
-/// Write the aurora's 1-D column model for one precipitation.
+/// The files `export aurora-profile --air DIR` reads from DIR: the neutral table, its
+/// minor species and its night ionosphere (what `tools/gen_atmosphere.py --out DIR` and
+/// `tools/iri90/make_table.sh` write).
+pub(crate) const AIR_FILES: [&str; 3] =
+    ["atmosphere_msis21.csv", "atmosphere_msis21_minor.csv", "ionosphere_iri90.csv"];
+
+/// The atmosphere of `--air DIR` ([`AIR_FILES`]), or the shipped one.
+fn air_tables(dir: Option<&Path>) -> Result<std::borrow::Cow<'static, phenomena_aurora::atmosphere::Atmosphere>> {
+    use phenomena_aurora::atmosphere::Atmosphere;
+    let Some(dir) = dir else { return Ok(std::borrow::Cow::Borrowed(Atmosphere::msis21())) };
+    let read = |name: &str| {
+        let path = dir.join(name);
+        std::fs::read_to_string(&path).map_err(|e| anyhow::anyhow!("--air: cannot read {}: {e}", path.display()))
+    };
+    let [neutral, minor, ionosphere] = AIR_FILES;
+    let (neutral_text, minor_text, ionosphere_text) = (read(neutral)?, read(minor)?, read(ionosphere)?);
+    let air = Atmosphere::from_tables(&neutral_text, &minor_text, &ionosphere_text).map_err(|e| {
+        // "atmosphere table: line 3: ..." -> the file it came from.
+        let file = if e.starts_with("minor") {
+            minor
+        } else if e.starts_with("night") {
+            ionosphere
+        } else {
+            neutral
+        };
+        anyhow::anyhow!("--air: {}: {e}", dir.join(file).display())
+    })?;
+    Ok(std::borrow::Cow::Owned(air))
+}
+
+/// What `export aurora-profile` writes besides its profile, and where.
+pub(crate) struct ProfileOutputs<'a> {
+    /// The profile.
+    pub out: &'a Path,
+    /// The red line's budget.
+    pub red_line: Option<&'a Path>,
+    /// The paper mode's expected profile.
+    pub paper: Option<&'a Path>,
+    /// The aurora's part only (no night glow) in `out`.
+    pub aurora_only: bool,
+}
+
+/// Write the aurora's 1-D column model for one precipitation, in the shipped atmosphere
+/// or the one of `air_dir`.
 pub(crate) fn aurora_profile(
     energy_kev: f64,
     spectrum: phenomena_aurora::deposition::Spectrum,
     flux_erg: f64,
-    out: &Path,
-    red_line: Option<&Path>,
-    paper: Option<&Path>,
-    aurora_only: bool,
+    air_dir: Option<&Path>,
+    outputs: &ProfileOutputs<'_>,
 ) -> Result<String> {
     use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
+    let ProfileOutputs { out, red_line, paper, aurora_only } = *outputs;
     let precipitation = Precipitation { spectrum, energy_kev, flux_erg_cm2_s: flux_erg };
     let mut issues = phenomena_core::validate::Issues::default();
     precipitation.validate(&mut issues, "");
@@ -121,11 +163,9 @@ pub(crate) fn aurora_profile(
             .collect();
         bail!("{}", text.join("; "));
     }
-    let model = ColumnModel::new(
-        phenomena_aurora::atmosphere::Atmosphere::msis21(),
-        &precipitation,
-        &Yields::default(),
-    );
+    let air = air_tables(air_dir)?;
+    let air: &phenomena_aurora::atmosphere::Atmosphere = &air;
+    let model = ColumnModel::new(air, &precipitation, &Yields::default());
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         ensure_dir(parent)?;
     }
@@ -142,7 +182,6 @@ pub(crate) fn aurora_profile(
     }
     if let Some(path) = paper {
         use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_peak_km, paper_profile};
-        let air = phenomena_aurora::atmosphere::Atmosphere::msis21();
         let params = PaperFall::default();
         let emission = PaperEmission::new(air, &params, &precipitation, &Yields::default());
         let top_km = f64::from(phenomena_aurora::SkySettings::default().top_altitude_km);

@@ -411,6 +411,14 @@ enum ExportWhat {
         /// photometer under the aurora sees, both together.
         #[arg(long)]
         aurora_only: bool,
+        /// Use the air of other conditions: a directory with the three tables
+        /// `atmosphere_msis21.csv` (O, N₂, O₂, T), `atmosphere_msis21_minor.csv` (N, NO)
+        /// and `ionosphere_iri90.csv` (night O⁺), as `tools/gen_atmosphere.py --out DIR`
+        /// and `tools/iri90/make_table.sh` write them. Default: the shipped tables
+        /// (65° N 0° E, a winter midnight, F10.7 = 100, Ap = 10; `tests/data/air/tromso` has
+        /// 69.6° N 19.0° E, F10.7 = 150, Ap = 15).
+        #[arg(long, value_name = "DIR")]
+        air: Option<PathBuf>,
     },
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
@@ -559,21 +567,16 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     red_line,
                     paper,
                     aurora_only,
+                    air,
                 },
         } => {
             let spectrum = match spectrum {
                 SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
                 SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
             };
-            export::aurora_profile(
-                energy_kev,
-                spectrum,
-                flux_erg,
-                &out,
-                red_line.as_deref(),
-                paper.as_deref(),
-                aurora_only,
-            )
+            let outputs =
+                export::ProfileOutputs { out: &out, red_line: red_line.as_deref(), paper: paper.as_deref(), aurora_only };
+            export::aurora_profile(energy_kev, spectrum, flux_erg, air.as_deref(), &outputs)
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
             let format = match format {

@@ -146,3 +146,41 @@ fn the_aurora_profile_has_the_issues_header_and_its_green_peak() {
     assert!(err.contains("--energy-kev") && err.contains("0.01") && err.contains("1000"), "{err}");
     assert!(!dir.path().join("x.csv").exists());
 }
+
+#[test]
+fn the_aurora_profile_reads_the_air_of_other_conditions() {
+    // `--air DIR`: the three tables of tests/data/air/tromso (F10.7 = 150) give another
+    // profile than the shipped air (F10.7 = 100): the warmer thermosphere lifts the red
+    // line (measured 2026-12-04: 217 against 208 km at 1 keV).
+    let dir = tempfile::tempdir().unwrap();
+    let air = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/air/tromso");
+    let base = ["export", "aurora-profile", "--energy-kev", "1", "--out"];
+    let shipped = ok(dir.path(), &[&base[..], &["shipped.csv"]].concat());
+    let other = ok(dir.path(), &[&base[..], &["tromso.csv", "--air", air]].concat());
+    let peak = |summary: &str| -> f64 {
+        let at = summary.find("630.0 nm").unwrap();
+        let rest = &summary[at..];
+        let p = rest.find("peak at ").unwrap() + "peak at ".len();
+        rest[p..].split(' ').next().unwrap().parse().unwrap()
+    };
+    assert!(peak(&other) > peak(&shipped), "{shipped}\n{other}");
+    let (a, b) = (
+        std::fs::read_to_string(dir.path().join("shipped.csv")).unwrap(),
+        std::fs::read_to_string(dir.path().join("tromso.csv")).unwrap(),
+    );
+    assert_ne!(a, b);
+    // A missing table names the file; a bad one its file and line; nothing is written.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let err = fails(dir.path(), &[&base[..], &["x.csv", "--air", empty.to_str().unwrap()]].concat());
+    assert!(err.contains("--air") && err.contains("atmosphere_msis21.csv"), "{err}");
+    let bad = dir.path().join("bad");
+    std::fs::create_dir(&bad).unwrap();
+    for name in ["atmosphere_msis21.csv", "ionosphere_iri90.csv"] {
+        std::fs::copy(format!("{air}/{name}"), bad.join(name)).unwrap();
+    }
+    std::fs::write(bad.join("atmosphere_msis21_minor.csv"), "altitude_km,n_n,n_no\n80,1,1\n81,x,1\n").unwrap();
+    let err = fails(dir.path(), &[&base[..], &["x.csv", "--air", bad.to_str().unwrap()]].concat());
+    assert!(err.contains("atmosphere_msis21_minor.csv") && err.contains("line 3"), "{err}");
+    assert!(!dir.path().join("x.csv").exists());
+}
