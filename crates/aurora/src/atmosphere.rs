@@ -177,7 +177,13 @@ impl Atmosphere {
                     step_km * 1e3,
                 );
         }
-        Ok(Self { samples, step_km, column_kg_m2, minor: MinorSpecies::none(), ionosphere: NightIonosphere::none() })
+        Ok(Self {
+            samples,
+            step_km,
+            column_kg_m2,
+            minor: MinorSpecies::none(),
+            ionosphere: NightIonosphere::none(),
+        })
     }
 
     /// Column mass above `altitude_km` up to the top of the table, kg/m² (what an
@@ -489,8 +495,9 @@ mod tests {
         // tests/data/air/tromso). The shipped table's colder thermosphere (830 K above
         // 250 km against 1010 K) stops 1 keV lower, at 146 km, the rest within 2 km of
         // those (measured 2026-12-04).
-        let tromso = Atmosphere::from_csv(include_str!("../../../tests/data/air/tromso/atmosphere_msis21.csv"))
-            .expect("the Tromso table is valid");
+        let tromso =
+            Atmosphere::from_csv(include_str!("../../../tests/data/air/tromso/atmosphere_msis21.csv"))
+                .expect("the Tromso table is valid");
         for (kev, km) in [(1.0, 150.0), (2.0, 127.0), (5.0, 110.0), (10.0, 103.0), (20.0, 96.0)] {
             let z = tromso.stopping_altitude_km(kev).expect("stops inside the table");
             assert!((z - km).abs() <= 3.0, "{kev} keV stops at {z:.1} km, reference {km} km");
@@ -574,9 +581,19 @@ mod tests {
         assert_eq!(bare.minor_species().at(110.0), MinorSample::default());
         assert_eq!(bare.night_ionosphere().o_plus_m3(300.0), 0.0);
         let cases = [
-            (air.to_csv(), "altitude_km,n_n,n_no\n80,1,x\n500,1,1\n".to_string(), iono, "minor-species table: line 2"),
+            (
+                air.to_csv(),
+                "altitude_km,n_n,n_no\n80,1,x\n500,1,1\n".to_string(),
+                iono,
+                "minor-species table: line 2",
+            ),
             (air.to_csv(), "altitude_km,n_n,n_no\n90,1,1\n500,1,1\n".to_string(), iono, "covers 90-500 km"),
-            (air.to_csv(), minor.to_string(), "altitude_km,n_o_plus\n80,-1\n500,1\n", "night ionosphere table: line 2"),
+            (
+                air.to_csv(),
+                minor.to_string(),
+                "altitude_km,n_o_plus\n80,-1\n500,1\n",
+                "night ionosphere table: line 2",
+            ),
             ("altitude_km\n".to_string(), minor.to_string(), iono, "atmosphere table: line 1"),
         ];
         for (neutral, minor, iono, needle) in cases {

@@ -841,7 +841,9 @@ mod tests {
             }
             most as f64 / sorted.len() as f64
         };
-        for (name, params, seed0, h_km) in [("50 m", stepped, 1_000_000, 0.05), ("5 m", fine, 2_000_000, 0.005)] {
+        for (name, params, seed0, h_km) in
+            [("50 m", stepped, 1_000_000, 0.05), ("5 m", fine, 2_000_000, 0.005)]
+        {
             let mut other = run(&params, seed0);
             for (k, &p) in picks.iter().enumerate() {
                 let mut exact_k = exact[k].clone();
@@ -1187,5 +1189,4 @@ mod tests {
             assert!(fields.iter().any(|e| e.contains(f)), "{f} missing from {fields:?}");
         }
     }
-
 }

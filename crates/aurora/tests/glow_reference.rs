@@ -187,7 +187,11 @@ fn glow_air() -> Atmosphere {
         let v = g.col(name);
         let k = g.z_km.partition_point(|&x| x <= z).clamp(1, g.z_km.len() - 1) - 1;
         let t = (z - g.z_km[k]) / (g.z_km[k + 1] - g.z_km[k]);
-        if v[k] > 0.0 && v[k + 1] > 0.0 { v[k] * (v[k + 1] / v[k]).powf(t) } else { v[k] + (v[k + 1] - v[k]) * t }
+        if v[k] > 0.0 && v[k + 1] > 0.0 {
+            v[k] * (v[k + 1] / v[k]).powf(t)
+        } else {
+            v[k] + (v[k + 1] - v[k]) * t
+        }
     };
     let (mut main, mut minor) =
         (String::from("altitude_km,n_o,n_n2,n_o2,temperature_k\n"), String::from("altitude_km,n_n,n_no\n"));
@@ -195,7 +199,13 @@ fn glow_air() -> Atmosphere {
         let z = f64::from(z);
         // cm⁻³ -> m⁻³: 1e6.
         let m3 = |name: &str| at(name, z) * 1e6;
-        main.push_str(&format!("{z},{:e},{:e},{:e},{}\n", m3("O_cm3"), m3("N2_cm3"), m3("O2_cm3"), at("Tn_K", z)));
+        main.push_str(&format!(
+            "{z},{:e},{:e},{:e},{}\n",
+            m3("O_cm3"),
+            m3("N2_cm3"),
+            m3("O2_cm3"),
+            at("Tn_K", z)
+        ));
         minor.push_str(&format!("{z},{:e},{:e}\n", m3("N4S_cm3"), m3("NO_cm3")));
     }
     Atmosphere::from_csv(&main)
@@ -255,7 +265,11 @@ fn red_line_peaks() {
         let (ours, glow) = r.peaks[2];
         assert!((ours - glow).abs() <= 15.0, "{} keV: 630.0 nm peak ours {ours} km, GLOW {glow} km", r.e0);
         let (ours, glow) = r.peak_630_aurora;
-        assert!((ours - glow).abs() <= 15.0, "{} keV: aurora's 630.0 nm peak ours {ours} km, GLOW {glow} km", r.e0);
+        assert!(
+            (ours - glow).abs() <= 15.0,
+            "{} keV: aurora's 630.0 nm peak ours {ours} km, GLOW {glow} km",
+            r.e0
+        );
     }
 }
 

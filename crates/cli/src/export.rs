@@ -105,12 +105,15 @@ pub(crate) const AIR_FILES: [&str; 3] =
     ["atmosphere_msis21.csv", "atmosphere_msis21_minor.csv", "ionosphere_iri90.csv"];
 
 /// The atmosphere of `--air DIR` ([`AIR_FILES`]), or the shipped one.
-fn air_tables(dir: Option<&Path>) -> Result<std::borrow::Cow<'static, phenomena_aurora::atmosphere::Atmosphere>> {
+fn air_tables(
+    dir: Option<&Path>,
+) -> Result<std::borrow::Cow<'static, phenomena_aurora::atmosphere::Atmosphere>> {
     use phenomena_aurora::atmosphere::Atmosphere;
     let Some(dir) = dir else { return Ok(std::borrow::Cow::Borrowed(Atmosphere::msis21())) };
     let read = |name: &str| {
         let path = dir.join(name);
-        std::fs::read_to_string(&path).map_err(|e| anyhow::anyhow!("--air: cannot read {}: {e}", path.display()))
+        std::fs::read_to_string(&path)
+            .map_err(|e| anyhow::anyhow!("--air: cannot read {}: {e}", path.display()))
     };
     let [neutral, minor, ionosphere] = AIR_FILES;
     let (neutral_text, minor_text, ionosphere_text) = (read(neutral)?, read(minor)?, read(ionosphere)?);

@@ -574,8 +574,12 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                 SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
                 SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
             };
-            let outputs =
-                export::ProfileOutputs { out: &out, red_line: red_line.as_deref(), paper: paper.as_deref(), aurora_only };
+            let outputs = export::ProfileOutputs {
+                out: &out,
+                red_line: red_line.as_deref(),
+                paper: paper.as_deref(),
+                aurora_only,
+            };
             export::aurora_profile(energy_kev, spectrum, flux_erg, air.as_deref(), &outputs)
         }
         Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {

@@ -179,7 +179,8 @@ fn the_aurora_profile_reads_the_air_of_other_conditions() {
     for name in ["atmosphere_msis21.csv", "ionosphere_iri90.csv"] {
         std::fs::copy(format!("{air}/{name}"), bad.join(name)).unwrap();
     }
-    std::fs::write(bad.join("atmosphere_msis21_minor.csv"), "altitude_km,n_n,n_no\n80,1,1\n81,x,1\n").unwrap();
+    std::fs::write(bad.join("atmosphere_msis21_minor.csv"), "altitude_km,n_n,n_no\n80,1,1\n81,x,1\n")
+        .unwrap();
     let err = fails(dir.path(), &[&base[..], &["x.csv", "--air", bad.to_str().unwrap()]].concat());
     assert!(err.contains("atmosphere_msis21_minor.csv") && err.contains("line 3"), "{err}");
     assert!(!dir.path().join("x.csv").exists());
