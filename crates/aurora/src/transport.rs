@@ -41,7 +41,7 @@
 //! - **Backscatter** from the momentum-transfer cross section σₘ: σ_b = σₘ / 2 (the
 //!   transport approximation, which gives the two-stream the diffusion coefficient of
 //!   the true angular distribution; for isotropic scattering σₘ = σ_el and half the
-//!   collisions reverse the hemisphere). Values in [`MOMENTUM_TRANSFER`].
+//!   collisions reverse the hemisphere). Values in `MOMENTUM_TRANSFER`.
 //! - **Isotropic sources**: every electron arriving in a bin, secondary or degraded, is
 //!   split evenly between the hemispheres (degraded primaries keep some of their
 //!   direction in reality).
