@@ -93,16 +93,26 @@ impl Atmosphere {
     pub fn from_tables(neutral: &str, minor: &str, ionosphere: &str) -> Result<Self, String> {
         let air = Atmosphere::from_csv(neutral).map_err(|e| format!("atmosphere table: {e}"))?;
         let minor = MinorSpecies::from_csv(minor).map_err(|e| format!("minor-species table: {e}"))?;
-        let (lo, hi) = air.range_km();
+        let ionosphere =
+            NightIonosphere::from_csv(ionosphere).map_err(|e| format!("night ionosphere table: {e}"))?;
+        air.with_air_of_its_conditions(minor, ionosphere)
+    }
+
+    /// This atmosphere with `minor` and `ionosphere`, refused (the minor-species table
+    /// named in the error) when `minor` does not span this table's altitudes.
+    pub fn with_air_of_its_conditions(
+        self,
+        minor: MinorSpecies,
+        ionosphere: NightIonosphere,
+    ) -> Result<Self, String> {
+        let (lo, hi) = self.range_km();
         let (mlo, mhi) = (minor.altitudes_km[0], minor.altitudes_km[minor.altitudes_km.len() - 1]);
         if mlo > lo || mhi < hi {
             return Err(format!(
                 "minor-species table: covers {mlo}-{mhi} km, the atmosphere table {lo}-{hi} km; it must span them"
             ));
         }
-        let ionosphere =
-            NightIonosphere::from_csv(ionosphere).map_err(|e| format!("night ionosphere table: {e}"))?;
-        Ok(air.with_minor_species(minor).with_night_ionosphere(ionosphere))
+        Ok(self.with_minor_species(minor).with_night_ionosphere(ionosphere))
     }
 
     /// This atmosphere with `minor` as its minor species.

@@ -108,7 +108,7 @@ pub(crate) const AIR_FILES: [&str; 3] =
 fn air_tables(
     dir: Option<&Path>,
 ) -> Result<std::borrow::Cow<'static, phenomena_aurora::atmosphere::Atmosphere>> {
-    use phenomena_aurora::atmosphere::Atmosphere;
+    use phenomena_aurora::atmosphere::{Atmosphere, MinorSpecies, NightIonosphere};
     let Some(dir) = dir else { return Ok(std::borrow::Cow::Borrowed(Atmosphere::msis21())) };
     let read = |name: &str| {
         let path = dir.join(name);
@@ -116,18 +116,12 @@ fn air_tables(
             .map_err(|e| anyhow::anyhow!("--air: cannot read {}: {e}", path.display()))
     };
     let [neutral, minor, ionosphere] = AIR_FILES;
-    let (neutral_text, minor_text, ionosphere_text) = (read(neutral)?, read(minor)?, read(ionosphere)?);
-    let air = Atmosphere::from_tables(&neutral_text, &minor_text, &ionosphere_text).map_err(|e| {
-        // "atmosphere table: line 3: ..." -> the file it came from.
-        let file = if e.starts_with("minor") {
-            minor
-        } else if e.starts_with("night") {
-            ionosphere
-        } else {
-            neutral
-        };
-        anyhow::anyhow!("--air: {}: {e}", dir.join(file).display())
-    })?;
+    let located =
+        |name: &'static str| move |e: String| anyhow::anyhow!("--air: {}: {e}", dir.join(name).display());
+    let air = Atmosphere::from_csv(&read(neutral)?).map_err(located(neutral))?;
+    let minor_species = MinorSpecies::from_csv(&read(minor)?).map_err(located(minor))?;
+    let night = NightIonosphere::from_csv(&read(ionosphere)?).map_err(located(ionosphere))?;
+    let air = air.with_air_of_its_conditions(minor_species, night).map_err(located(minor))?;
     Ok(std::borrow::Cow::Owned(air))
 }
 
