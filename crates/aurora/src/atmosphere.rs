@@ -139,7 +139,9 @@ impl Atmosphere {
     }
 
     /// Parse a table with the header `altitude_km,n_o,n_n2,n_o2,temperature_k`, at least
-    /// two rows at even, increasing altitude steps, densities and temperatures positive.
+    /// two rows at even, increasing altitude steps in [0, 1000] km, densities in [1,
+    /// 1e26] m⁻³ and temperatures in [100, 5000] K (an error names the line, the value
+    /// and the range).
     /// It has no minor species (N and NO are 0) and no night ionosphere until
     /// [`Atmosphere::with_minor_species`] and [`Atmosphere::with_night_ionosphere`] give
     /// them ([`Atmosphere::from_tables`] reads all three).
@@ -162,9 +164,12 @@ impl Atmosphere {
             let [altitude_km, n_o_m3, n_n2_m3, n_o2_m3, temperature_k] = v[..] else {
                 return Err(format!("line {}: expected 5 fields, got {}", k + 1, v.len()));
             };
-            if ![n_o_m3, n_n2_m3, n_o2_m3, temperature_k].iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(format!("line {}: densities and temperature must be positive", k + 1));
+            let line = k + 1;
+            in_range(line, "altitude_km", altitude_km, ALTITUDE_KM, "km")?;
+            for (name, n) in [("n_o", n_o_m3), ("n_n2", n_n2_m3), ("n_o2", n_o2_m3)] {
+                in_range(line, name, n, MAJOR_DENSITY_M3, "m⁻³")?;
             }
+            in_range(line, "temperature_k", temperature_k, TEMPERATURE_K, "K")?;
             samples.push(Sample { altitude_km, n_o_m3, n_n2_m3, n_o2_m3, temperature_k });
         }
         if samples.len() < 2 {
@@ -319,9 +324,9 @@ impl MinorSpecies {
     }
 
     /// Parse a table with the header `altitude_km,n_n,n_no`: at least two rows at
-    /// increasing altitudes, densities finite and not negative.
+    /// increasing altitudes in [0, 1000] km, each density 0 or in [1, 1e22] m⁻³.
     pub fn from_csv(text: &str) -> Result<Self, String> {
-        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_n,n_no")?;
+        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_n,n_no", MINOR_DENSITY_M3)?;
         let samples = rows.iter().map(|r| MinorSample { n_n_m3: r[0], n_no_m3: r[1] }).collect();
         Ok(Self { altitudes_km, samples })
     }
@@ -372,9 +377,9 @@ impl NightIonosphere {
     }
 
     /// Parse a table with the header `altitude_km,n_o_plus` (m⁻³): at least two rows at
-    /// increasing altitudes, densities finite and not negative.
+    /// increasing altitudes in [0, 1000] km, each density 0 or in [1, 1e14] m⁻³.
     pub fn from_csv(text: &str) -> Result<Self, String> {
-        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_o_plus")?;
+        let (altitudes_km, rows) = parse_density_table(text, "altitude_km,n_o_plus", ION_DENSITY_M3)?;
         Ok(Self { altitudes_km, n_o_plus_m3: rows.iter().map(|r| r[0]).collect() })
     }
 
@@ -401,9 +406,51 @@ fn log_lerp(p: f64, q: f64, t: f64) -> f64 {
     if p > 0.0 && q > 0.0 { p * (q / p).powf(t) } else { p + (q - p) * t }
 }
 
-/// A CSV of densities under `header`: the altitudes (increasing) and the other fields of
-/// each row (finite, not negative); at least two rows.
-fn parse_density_table(text: &str, header: &str) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
+/// Altitudes a table may give, km: the ground to the exosphere (the column model
+/// spans 80-500 km).
+const ALTITUDE_KM: (f64, f64) = (0.0, 1000.0);
+/// O, N₂ and O₂, m⁻³: positive (they are interpolated in their logarithm) and at most
+/// ten times sea level's N₂ (2e25 m⁻³); the shipped tables hold 8e8 to 2e20.
+const MAJOR_DENSITY_M3: (f64, f64) = (1.0, 1e26);
+/// Neutral temperature, K: the mesopause's coldest (~100 K) to well above the hottest
+/// exosphere (~2500 K at solar maximum).
+const TEMPERATURE_K: (f64, f64) = (100.0, 5000.0);
+/// N(⁴S) and NO, m⁻³: 0 (none) or positive up to far above the thermosphere's (~1e14).
+const MINOR_DENSITY_M3: (f64, f64) = (1.0, 1e22);
+/// Night O⁺, m⁻³: 0 or positive up to ten times the densest F2 peak (~1e13).
+const ION_DENSITY_M3: (f64, f64) = (1.0, 1e14);
+
+/// `value` of field `name` on table line `line` if it lies in `range` (finite), else
+/// an error naming the line, the value and the range.
+fn in_range(line: usize, name: &str, value: f64, range: (f64, f64), unit: &str) -> Result<(), String> {
+    if value >= range.0 && value <= range.1 {
+        return Ok(());
+    }
+    Err(format!(
+        "line {line}: {name} = {} is out of range: expected [{}, {}] {unit}",
+        num(value),
+        num(range.0),
+        num(range.1)
+    ))
+}
+
+/// A number as a person writes it: plain when moderate, in exponent form when very large
+/// or small (1e300, not 301 digits).
+fn num(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-3..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A CSV of densities under `header`: the altitudes (increasing, in [`ALTITUDE_KM`]) and
+/// the other fields of each row (0, or in `range`); at least two rows.
+fn parse_density_table(
+    text: &str,
+    header: &str,
+    range: (f64, f64),
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
     let mut lines = text.lines().enumerate();
     match lines.next() {
         Some((_, h)) if h == header => {}
@@ -419,8 +466,11 @@ fn parse_density_table(text: &str, header: &str) -> Result<(Vec<f64>, Vec<Vec<f6
         if v.len() != fields {
             return Err(format!("line {}: expected {fields} fields, got {}", k + 1, v.len()));
         }
-        if !v[1..].iter().all(|x| x.is_finite() && *x >= 0.0) {
-            return Err(format!("line {}: densities must be finite and not negative", k + 1));
+        in_range(k + 1, "altitude_km", v[0], ALTITUDE_KM, "km")?;
+        for (name, &x) in header.split(',').zip(&v).skip(1) {
+            if x != 0.0 {
+                in_range(k + 1, name, x, range, "m⁻³ (or 0)")?;
+            }
         }
         if altitudes_km.last().is_some_and(|&last| v[0] <= last) {
             return Err(format!("line {}: altitudes must increase", k + 1));
@@ -563,7 +613,27 @@ mod tests {
             ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n", "at least two"),
             ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,x,1,200\n", "line 3"),
             ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,1,1\n", "5 fields"),
-            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,-1,1,200\n", "positive"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,-1,1,200\n", "line 3: n_n2 = -1"),
+            // Values that parse but are not air: NaN anywhere, 1e300 and 1e-300 (which
+            // made NaN profiles), altitudes below the ground.
+            (
+                "altitude_km,n_o,n_n2,n_o2,temperature_k\nNaN,1,1,1,200\n81,1,1,1,200\n",
+                "line 2: altitude_km = NaN",
+            ),
+            (
+                "altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,1,1,NaN\n",
+                "line 3: temperature_k = NaN",
+            ),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1e300,1,1,200\n81,1,1,1,200\n", "n_o = 1e300"),
+            ("altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1e-300,200\n81,1,1,1,200\n", "n_o2 = 1e-300"),
+            (
+                "altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,1e300\n81,1,1,1,200\n",
+                "temperature_k = 1e300",
+            ),
+            (
+                "altitude_km,n_o,n_n2,n_o2,temperature_k\n-900,1,1,1,200\n-899,1,1,1,200\n",
+                "line 2: altitude_km = -900",
+            ),
             (
                 "altitude_km,n_o,n_n2,n_o2,temperature_k\n80,1,1,1,200\n81,1,1,1,200\n83,1,1,1,200\n",
                 "even steps",
@@ -605,6 +675,27 @@ mod tests {
                 "night ionosphere table: line 2",
             ),
             ("altitude_km\n".to_string(), minor.to_string(), iono, "atmosphere table: line 1"),
+            // A NaN altitude in the first row (it panicked), or mid-table (it passed the
+            // ordering check), and densities that are not air.
+            (
+                air.to_csv(),
+                "altitude_km,n_n,n_no\nNaN,1,1\n500,1,1\n".into(),
+                iono,
+                "minor-species table: line 2",
+            ),
+            (
+                air.to_csv(),
+                "altitude_km,n_n,n_no\n80,1,1\nNaN,1,1\n500,1,1\n".into(),
+                iono,
+                "line 3: altitude_km = NaN",
+            ),
+            (air.to_csv(), "altitude_km,n_n,n_no\n80,1e300,1\n500,1,1\n".into(), iono, "n_n = 1e300"),
+            (
+                air.to_csv(),
+                minor.to_string(),
+                "altitude_km,n_o_plus\n80,1e-300\n500,1\n",
+                "n_o_plus = 1e-300",
+            ),
         ];
         for (neutral, minor, iono, needle) in cases {
             let e = Atmosphere::from_tables(&neutral, &minor, iono).unwrap_err();

@@ -368,6 +368,26 @@ impl AuroraConfig {
                 format!("at most {MAX_CONTROL_POINTS} control points per keyframe in all"),
             );
         }
+        // Particles are born on the source keyframe's sheets: with none of its points in
+        // the plane nothing would ever be drawn.
+        let size = self.plane.size_km;
+        let inside = |p: &[f32; 2]| {
+            let p = Vec2::from(*p);
+            p.cmpge(Vec2::ZERO).all() && p.cmple(size).all()
+        };
+        if let Some(kf) = self.keyframes.first()
+            && !kf.sheets.is_empty()
+            && !kf.sheets.iter().flatten().any(inside)
+        {
+            i.push(
+                "keyframes[0].sheets",
+                "no point inside the plane",
+                format!(
+                    "a source shape with points in the plane, x and z in [0, {}] × [0, {}] km (nothing would be drawn)",
+                    size.x, size.y
+                ),
+            );
+        }
         i.count("splits", self.splits.len() as u64, 0..=MAX_OPERATIONS);
         i.count("merges", self.merges.len() as u64, 0..=MAX_OPERATIONS);
         for (k, kf) in self.keyframes.iter().enumerate() {

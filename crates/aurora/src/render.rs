@@ -149,6 +149,17 @@ impl AuroraRenderer {
         let column = sky.column_model().ok_or(crate::volume::VolumeError::PaperMode)?;
         crate::volume::line_volumes(sim, sky.settings(), column, voxel_km)
     }
+
+    /// Bytes [`AuroraRenderer::line_volumes`] of `sim` now takes at `voxel_km` (an upper
+    /// bound, [`crate::volume::volume_bytes`]).
+    pub fn volume_bytes(&self, sim: &AuroraSim, voxel_km: f64) -> Result<u64, crate::volume::VolumeError> {
+        let sky = match &self.target {
+            Target::Sky(sky) => sky,
+            Target::Plane(_) => return Err(crate::volume::VolumeError::PlaneView),
+        };
+        let column = sky.column_model().ok_or(crate::volume::VolumeError::PaperMode)?;
+        crate::volume::volume_bytes(sim, sky.settings(), column, voxel_km)
+    }
 }
 
 impl phenomena_core::phenomenon::Renderer<AuroraSim> for AuroraRenderer {

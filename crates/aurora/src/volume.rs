@@ -44,9 +44,82 @@ pub enum VolumeError {
     /// The voxel size is not usable.
     #[error("voxel size {0} km: expected a finite size in [0.05, 50] km")]
     VoxelSize(f64),
+    /// The volumes would need too many voxels at this size.
+    #[error(
+        "the aurora's volumes at {voxel_km} km voxels would span up to {voxels} voxels (at most {MAX_VOXELS}): use larger voxels"
+    )]
+    TooLarge {
+        /// Voxels the five grids may need.
+        voxels: u64,
+        /// The voxel size, km.
+        voxel_km: f64,
+    },
     /// The grid refused a value.
     #[error(transparent)]
     Grid(#[from] VdbError),
+}
+
+/// Most voxels the five grids of one frame may span together (4 bytes each in the
+/// grids and about as much encoded: 2^28 voxels is 2 GiB).
+pub const MAX_VOXELS: u64 = 1 << 28;
+
+/// Bytes the five line grids of `sim`'s particles now take at `voxel_km` (grids and
+/// their encoding), an upper bound from the leaf columns the particles' feet fall in,
+/// the leaf layers of the profiles and the field's drift; refused like
+/// [`line_volumes`] (a bad size, more than [`MAX_VOXELS`]) without making anything.
+pub fn volume_bytes(
+    sim: &AuroraSim,
+    settings: &SkySettings,
+    column: &ColumnModel,
+    voxel_km: f64,
+) -> Result<u64, VolumeError> {
+    Ok(leaf_bound(sim, settings, column, voxel_km)? * 512 * 5 * 4 * 2)
+}
+
+/// The most leaves one of the five grids can hold (see [`volume_bytes`]), refused over
+/// [`MAX_VOXELS`].
+fn leaf_bound(
+    sim: &AuroraSim,
+    settings: &SkySettings,
+    column: &ColumnModel,
+    voxel_km: f64,
+) -> Result<u64, VolumeError> {
+    if !(voxel_km.is_finite() && (0.05..=50.0).contains(&voxel_km)) {
+        return Err(VolumeError::VoxelSize(voxel_km));
+    }
+    let h = voxel_km;
+    let grid = sim.grid();
+    let centre = grid.origin_km + grid.extent_km() * 0.5;
+    let mut leaf_columns: Vec<(i64, i64)> = sim
+        .particles()
+        .position_km
+        .iter()
+        .filter(|p| p.is_finite())
+        .map(|&p| {
+            let q = p - centre;
+            ((f64::from(q.x) / h).round() as i64 >> 3, (f64::from(q.y) / h).round() as i64 >> 3)
+        })
+        .collect();
+    leaf_columns.sort_unstable();
+    leaf_columns.dedup();
+    let top = f64::from(settings.top_altitude_km);
+    let layers = layers(column, h, top);
+    let leaf_layers = match (layers.first(), layers.last()) {
+        (Some(a), Some(b)) => ((b.0 >> 3) - (a.0 >> 3) + 1) as u64,
+        _ => 0,
+    };
+    // Down one leaf layer (8 voxels) a field line drifts by `drift` leaves sideways.
+    let (_, drift) = settings.field();
+    let spread = |d: f64| d.abs().ceil() as u64 + 1;
+    let leaves = (leaf_columns.len() as u64)
+        .saturating_mul(leaf_layers)
+        .saturating_mul(spread(drift.x))
+        .saturating_mul(spread(drift.z));
+    let voxels = leaves.saturating_mul(512 * 5);
+    if voxels > MAX_VOXELS {
+        return Err(VolumeError::TooLarge { voxels, voxel_km });
+    }
+    Ok(leaves)
 }
 
 /// Altitudes where a line's emission is below this share of its peak are left empty.
@@ -66,9 +139,7 @@ pub fn line_volumes(
     column: &ColumnModel,
     voxel_km: f64,
 ) -> Result<[Grid<f32>; 5], VolumeError> {
-    if !(voxel_km.is_finite() && (0.05..=50.0).contains(&voxel_km)) {
-        return Err(VolumeError::VoxelSize(voxel_km));
-    }
+    leaf_bound(sim, settings, column, voxel_km)?;
     let transform = Transform::new(voxel_km * 1e3, [0.0; 3])?;
     let h = voxel_km;
     // The particles' feet, counted per voxel column (sorted: a fixed order).

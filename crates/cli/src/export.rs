@@ -110,10 +110,13 @@ fn air_tables(
 ) -> Result<std::borrow::Cow<'static, phenomena_aurora::atmosphere::Atmosphere>> {
     use phenomena_aurora::atmosphere::{Atmosphere, MinorSpecies, NightIonosphere};
     let Some(dir) = dir else { return Ok(std::borrow::Cow::Borrowed(Atmosphere::msis21())) };
+    // Regular files only, capped (a FIFO or a device is refused, not waited on).
     let read = |name: &str| {
         let path = dir.join(name);
-        std::fs::read_to_string(&path)
-            .map_err(|e| anyhow::anyhow!("--air: cannot read {}: {e}", path.display()))
+        let bytes = phenomena_scene::Assets::beside(&path)
+            .read("--air", Path::new(name))
+            .map_err(|e| anyhow::anyhow!("--air: cannot read {}: {}", path.display(), e.problem))?;
+        String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("--air: {} is not UTF-8 text", path.display()))
     };
     let [neutral, minor, ionosphere] = AIR_FILES;
     let located =

@@ -29,12 +29,73 @@ pub(crate) struct FarmJob {
     pub(crate) binary: Option<PathBuf>,
 }
 
-/// Quote `s` for a POSIX shell.
+/// Quote `s` for bash: as is when it holds only safe characters, in single quotes
+/// otherwise, and as `$'...'` with escapes when it holds a control character (so no
+/// line of a script is broken by a newline inside a name).
 fn sh(s: &str) -> String {
     if !s.is_empty() && s.bytes().all(|b| b.is_ascii_alphanumeric() || b"-_./=:,+@%".contains(&b)) {
         return s.to_string();
     }
-    format!("'{}'", s.replace('\'', r"'\''"))
+    if !s.chars().any(char::is_control) {
+        return format!("'{}'", s.replace('\'', r"'\''"));
+    }
+    let mut q = String::from("$'");
+    for c in s.chars() {
+        match c {
+            '\\' | '\'' => {
+                q.push('\\');
+                q.push(c);
+            }
+            '\n' => q.push_str("\\n"),
+            '\t' => q.push_str("\\t"),
+            '\r' => q.push_str("\\r"),
+            c if c.is_control() && (c as u32) < 0x80 => q.push_str(&format!("\\x{:02x}", c as u32)),
+            c if c.is_control() => q.push_str(&format!("\\u{:04x}", c as u32)),
+            c => q.push(c),
+        }
+    }
+    q.push('\'');
+    q
+}
+
+/// `s` for a comment line of a script: control characters (a newline would end the
+/// comment and start a command) written as escapes, so the comment stays one line.
+fn comment(s: &str) -> String {
+    s.chars().map(|c| if c.is_control() { c.escape_default().collect() } else { c.to_string() }).collect()
+}
+
+/// A Slurm job name from a scene's file name: letters, digits, `.`, `_` and `-` kept,
+/// anything else `_` (a job name is shown by `squeue` and passed through `#SBATCH`).
+fn job_name(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || "._-".contains(c) { c } else { '_' }).collect()
+}
+
+/// A partition (or comma-separated list of partitions) as Slurm names them: refused,
+/// naming the value and what is allowed, when it holds anything else (a newline would
+/// end sbatch's reading of the `#SBATCH` lines and run the rest as a command).
+fn check_partition(p: &str) -> Result<()> {
+    if p.is_empty() || !p.chars().all(|c| c.is_ascii_alphanumeric() || "._-,".contains(c)) {
+        bail!(
+            "--partition {:?}: a partition name holds only ASCII letters, digits, `.`, `_` and `-` (several separated by `,`)",
+            p
+        );
+    }
+    Ok(())
+}
+
+/// The output folder as it reaches `#SBATCH --output`: no control character (a newline
+/// ends the `#SBATCH` line), no `%` (Slurm expands it as a file name pattern) and no
+/// `\` (which turns Slurm's patterns off, so every task would write one log).
+fn check_out(out: &Path) -> Result<()> {
+    let text = out.to_string_lossy();
+    if let Some(c) = text.chars().find(|&c| c.is_control() || c == '%' || c == '\\') {
+        bail!(
+            "--out {:?}: the farm's log files are named through Slurm's file name patterns, where {:?} cannot be written; choose a folder whose path has no `%`, `\\` or control character",
+            text,
+            c
+        );
+    }
+    Ok(())
 }
 
 fn abs(p: &Path) -> Result<PathBuf> {
@@ -45,11 +106,11 @@ fn abs(p: &Path) -> Result<PathBuf> {
 /// The `#SBATCH` lines every job shares.
 fn header(job: &FarmJob, name: &str, mem_mib: u64) -> String {
     let mut h = String::from("#!/bin/bash\n");
-    let _ = writeln!(h, "#SBATCH --job-name={}", sh(name));
+    let _ = writeln!(h, "#SBATCH --job-name={}", job_name(name));
     let _ = writeln!(h, "#SBATCH --cpus-per-task={}", job.cpus_per_task);
     let _ = writeln!(h, "#SBATCH --mem={mem_mib}M");
     if let Some(p) = &job.partition {
-        let _ = writeln!(h, "#SBATCH --partition={}", sh(p));
+        let _ = writeln!(h, "#SBATCH --partition={p}");
     }
     h
 }
@@ -60,6 +121,11 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
     if job.chunk == 0 {
         bail!("--chunk 0: give the number of frames each task renders (1 or more)");
     }
+    if let Some(p) = &job.partition {
+        check_partition(p)?;
+    }
+    let out = abs(&job.out)?;
+    check_out(&out)?;
     let scene_path = abs(&job.scene)?;
     let scene = phenomena_scene::load(&scene_path)?;
     // Refused now rather than on the farm: an invalid scene, a missing file, a scene
@@ -67,9 +133,14 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
     let report = scene
         .check(&phenomena_scene::Assets::beside(&scene_path), &crate::render::limits())
         .map_err(|e| crate::render::located(&scene, e))?;
+    if let Some(why) = scene.render_memory() {
+        bail!(
+            "{}: {why}, so a chunk cannot start from a checkpoint as the farm's tasks do: render it on one machine with `phenomena render`, or turn that off",
+            job.scene.display()
+        );
+    }
     let total = scene.settings().frames;
     let tasks = total.div_ceil(job.chunk);
-    let out = abs(&job.out)?;
     let farm = out.join("farm");
     let logs = farm.join("logs");
     ensure_dir(&logs)?;
@@ -81,11 +152,14 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
     };
     // The estimate with room for the allocator and the frame writer; at least 256 MiB.
     let mem_mib = (report.estimate.memory_bytes / (1 << 20)) * 3 / 2 + 256;
-    let name = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    // What comment lines and job names say of the scene; the paths the commands use are
+    // quoted for the shell instead.
+    let name = comment(&stem);
     let bin = sh(&binary.to_string_lossy());
     let scene_arg = sh(&scene_path.to_string_lossy());
 
-    let mut simulate = header(job, &format!("phenomena-sim-{name}"), mem_mib);
+    let mut simulate = header(job, &format!("phenomena-sim-{stem}"), mem_mib);
     let _ = writeln!(simulate, "#SBATCH --output={}", sh(&logs.join("simulate-%j.out").to_string_lossy()));
     let _ = writeln!(simulate, "# Simulate {name} once, a checkpoint every {} frames.", job.chunk);
     let _ = writeln!(simulate, "set -euo pipefail");
@@ -98,13 +172,13 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
     );
 
     extra = job.render_args.iter().map(|a| format!(" {}", sh(a))).collect();
-    let mut render = header(job, &format!("phenomena-render-{name}"), mem_mib);
+    let mut render = header(job, &format!("phenomena-render-{stem}"), mem_mib);
     let _ = writeln!(render, "#SBATCH --array=0-{}", tasks - 1);
     let _ = writeln!(render, "#SBATCH --output={}", sh(&logs.join("render-%A_%a.out").to_string_lossy()));
     let _ = writeln!(
         render,
         "# Task i renders frames i*{k}..(i+1)*{k} of {name} from checkpoint i*{k}; rerun task i alone\n# with: sbatch --array=i {}",
-        farm.join("render.sbatch").display(),
+        comment(&farm.join("render.sbatch").to_string_lossy()),
         k = job.chunk
     );
     let _ = writeln!(render, "set -euo pipefail");
@@ -194,5 +268,6 @@ mod tests {
         assert_eq!(sh("it's"), r"'it'\''s'");
         assert_eq!(sh("$(rm -rf /)"), "'$(rm -rf /)'");
         assert_eq!(sh(""), "''");
+        assert_eq!(sh("a\nb'c\\"), r"$'a\nb\'c\\'");
     }
 }

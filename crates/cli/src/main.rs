@@ -520,6 +520,11 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     view,
                 },
         } => {
+            if format == FormatArg::Flipbook {
+                anyhow::bail!(
+                    "farm slurm --format flipbook: a flipbook is one atlas made of every frame, and the farm's tasks render their chunks apart; render png or exr frames on the farm, or the flipbook on one machine with `phenomena render --format flipbook`"
+                );
+            }
             let mut render_args = Vec::new();
             let mut simulate_args = Vec::new();
             for (flag, value) in

@@ -139,12 +139,12 @@ impl Frames {
         })
     }
 
-    /// The file of frame `index`, for formats with a file per frame.
-    fn path(&self, index: u32) -> Option<PathBuf> {
+    /// Whether frame `index` is finished, for formats with files per frame.
+    fn finished(&self, index: u32) -> bool {
         match self {
-            Frames::Image(s) => Some(s.path(index)),
-            Frames::Data(s) => Some(s.path(index)),
-            Frames::Flipbook(_) => None,
+            Frames::Image(s) => s.finished(index),
+            Frames::Data(s) => s.finished(index),
+            Frames::Flipbook(_) => false,
         }
     }
 
@@ -183,6 +183,36 @@ impl Frames {
             dir.display()
         )
     }
+}
+
+/// Check that writing `frames` fits the memory budget beside `runner`'s simulation,
+/// before the first frame: a flipbook's atlas and a volume frame's grids are added to
+/// the runner's estimate (a volume's voxel size is checked here too), and volumes are
+/// limited to what the budget leaves.
+pub(crate) fn admit_outputs(
+    runner: &mut Runner,
+    frames: &mut Frames,
+    format: Format,
+    scene: &Scene,
+    budget: &Limits,
+) -> Result<()> {
+    let room = budget.memory_bytes.saturating_sub(runner.estimate().memory_bytes);
+    let parts = match frames {
+        Frames::Flipbook(s) => vec![("the flipbook's atlas".to_string(), s.memory_bytes())],
+        Frames::Data(s) => match s.data() {
+            Data::Volume(options) => {
+                let bytes =
+                    runner.volume_bytes(&options).map_err(|e| anyhow::anyhow!("--format vdb: {e}"))?;
+                s.limit_volumes(room);
+                vec![("a volume frame".to_string(), bytes)]
+            }
+            Data::Points => Vec::new(),
+        },
+        Frames::Image(_) => Vec::new(),
+    };
+    runner
+        .admit(parts, budget)
+        .map_err(|e| anyhow::anyhow!("--format {}: {:#}", format.name(), located(scene, e)))
 }
 
 /// Parse `A..B` (B exclusive), `A..=B` (inclusive) or `N` (the single frame N).
@@ -345,6 +375,9 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
     let mut images =
         if job.images { Some(Frames::new(job, range.len() as u32, width, height, fps)?) } else { None };
     let checkpoint_dir = job.checkpoints();
+    if checkpoint_dir.exists() && !checkpoint_dir.is_dir() {
+        bail!("--checkpoint-dir {} is a file, not a folder", checkpoint_dir.display());
+    }
     let mut checkpoints =
         job.checkpoint_every.map(|n| CheckpointSink::new(&checkpoint_dir, n)).transpose()?;
     if let Some(stats) = &job.stats {
@@ -363,12 +396,15 @@ pub(crate) fn run_scene(mut scene: Scene, assets: &Assets, job: &RenderJob) -> R
     let mut started_at = 0;
     pool.install(|| -> Result<()> {
         let mut runner = runner(&scene, assets)?;
+        if let Some(frames) = images.as_mut() {
+            admit_outputs(&mut runner, frames, job.format, &scene, &limits())?;
+        }
         log_estimate(runner.estimate());
         warn(&runner);
         // The first frame to make: with --resume, the first whose file is missing.
         let first = match &images {
             Some(sink) if job.resume => {
-                range.clone().find(|&i| !sink.path(i).is_some_and(|p| p.is_file())).unwrap_or(range.end)
+                range.clone().find(|&i| !sink.finished(i)).unwrap_or(range.end)
             }
             _ => range.start,
         };
@@ -432,8 +468,20 @@ pub(crate) fn frame_rate(scene: &Scene) -> f64 {
 #[allow(clippy::print_stderr)]
 fn restore_newest(runner: &mut Runner, dir: &Path, first: u32, quiet: bool) -> u32 {
     let candidates = list_checkpoints(dir);
+    if let Some(why) = runner.render_memory()
+        && first > 0
+    {
+        if !quiet && !candidates.is_empty() {
+            eprintln!(
+                "note: {why}, which checkpoints do not hold: rendering every frame from 0 (frames before {first} are not written)"
+            );
+        }
+        return 0;
+    }
+    // The state read and the simulation built must fit the budget together.
+    let room = limits().memory_bytes.saturating_sub(runner.estimate().memory_bytes);
     for (_, path) in candidates.iter().rev().filter(|(f, _)| *f <= first && *f > 0) {
-        let refused = match read_checkpoint(path) {
+        let refused = match read_checkpoint(path, room) {
             Ok(bytes) => match phenomena_scene::checkpoint::open(&bytes) {
                 // Named for an earlier frame than it holds (renamed by hand): not usable
                 // for `first`.

@@ -70,6 +70,38 @@ pub enum VolumeError {
     Grid(#[from] VdbError),
 }
 
+/// Bytes a frame's volume of `particles` particles (at most) takes at `voxel_m`: the
+/// (leaf, particle) list and the three grids with their encoded copy, the leaves
+/// bounded by what the particles can reach and by the domain; refused like
+/// [`voxelize`] (a bad size, more than [`MAX_VOXELS`]) without making anything. An
+/// upper bound: particles that share leaves need fewer.
+pub fn volume_bytes(particles: usize, config: &FlameConfig, voxel_m: f64) -> Result<u64, VolumeError> {
+    if !(voxel_m.is_finite() && voxel_m > 0.0 && voxel_m <= 10.0) {
+        return Err(VolumeError::VoxelSize(voxel_m));
+    }
+    let per_particle = leaves_per_particle(config, voxel_m)?;
+    let n = particles as u64;
+    let size = (config.domain.max_m - config.domain.min_m).as_dvec3() / (8.0 * voxel_m);
+    let domain = (size.x.ceil() + 2.0) * (size.y.ceil() + 2.0) * (size.z.ceil() + 2.0);
+    let leaves = (n.saturating_mul(per_particle) as f64).min(domain).min((MAX_VOXELS / 512) as f64) as u64;
+    // A (leaf, particle) entry is 16 bytes; a leaf holds 512 voxels of 1 + 1 + 3 floats
+    // in the grids and about as much again encoded.
+    Ok(n.saturating_mul(per_particle).saturating_mul(16).saturating_add(leaves * 512 * 20 * 2))
+}
+
+/// Most leaves one particle's support reaches at `voxel_m` (a cube of leaves), refused
+/// when one particle alone would span more than [`MAX_VOXELS`].
+fn leaves_per_particle(config: &FlameConfig, voxel_m: f64) -> Result<u64, VolumeError> {
+    let reach = (f64::from(config.sph.support_radius_m) / voxel_m).ceil();
+    // Voxels c - reach ..= c + reach fall in at most this many leaves of 8 per axis.
+    let side = (2.0 * reach / 8.0).floor() + 2.0;
+    let leaves = side * side * side;
+    if leaves * 512.0 > MAX_VOXELS as f64 {
+        return Err(VolumeError::TooLarge { voxels: (leaves * 512.0).min(u64::MAX as f64) as u64, voxel_m });
+    }
+    Ok(leaves as u64)
+}
+
 /// Leaf coordinates fit in 21 bits each (voxel indices within ±2^23).
 const MAX_INDEX: i64 = 1 << 23;
 
@@ -169,6 +201,13 @@ fn fill(
     let full_alpha = config.sph.rest_density_kg_m3 * settings.full_alpha_density_ratio;
     let h = voxel_m as f32;
     let reach = i64::from((support / h).ceil() as i32);
+    // Refused before the list is made when it would be too long: one particle's leaves
+    // over the cap, or the list longer than the cap (16 bytes an entry).
+    let per_particle = leaves_per_particle(config, voxel_m)?;
+    let entries = (particles.position_m.len() as u64).saturating_mul(per_particle);
+    if entries > MAX_VOXELS {
+        return Err(VolumeError::TooLarge { voxels: entries.saturating_mul(512), voxel_m });
+    }
     // Every (leaf, particle) pair where the particle reaches into the leaf, sorted by
     // leaf and then particle: each leaf sums its particles in particle order.
     pairs.clear();
@@ -355,6 +394,41 @@ mod tests {
             voxelize(sim.particles(), &c, &settings, &lut, 0.001),
             Err(VolumeError::Extent { .. })
         ));
+    }
+
+    /// At 0.1 mm one particle's support spans ~10⁶ leaves: refused at once, before the
+    /// (leaf, particle) list (8 GB for the paper's flame) is made, by `voxelize` and by
+    /// the estimate alike.
+    #[test]
+    fn tiny_voxels_are_refused_before_any_list_is_made() {
+        let sim = sim_with(vec![Vec3::ZERO; 3]);
+        let settings = RenderSettings::default();
+        let lut = BlackbodyLut::new(settings.brightness, settings.reference_temperature_k);
+        let c = FlameConfig::default();
+        assert!(matches!(
+            voxelize(sim.particles(), &c, &settings, &lut, 1e-4),
+            Err(VolumeError::TooLarge { .. })
+        ));
+        assert!(matches!(volume_bytes(30_000, &c, 1e-4), Err(VolumeError::TooLarge { .. })));
+        assert!(matches!(volume_bytes(30_000, &c, f64::NAN), Err(VolumeError::VoxelSize(_))));
+    }
+
+    /// The estimate bounds what a frame's volume holds: its leaves' voxels (20 bytes
+    /// each in the grids) and the (leaf, particle) entries.
+    #[test]
+    fn the_estimate_bounds_the_volume() {
+        let mut sim = FlameSim::new(FlameConfig::default(), 3).unwrap();
+        for _ in 0..30 {
+            sim.step().unwrap();
+        }
+        let settings = RenderSettings::default();
+        let lut = BlackbodyLut::new(settings.brightness, settings.reference_temperature_k);
+        for voxel_m in [0.01, 0.005] {
+            let v = voxelize(sim.particles(), sim.config(), &settings, &lut, voxel_m).unwrap();
+            let leaves = v.density.leaves().count() as u64;
+            let bound = volume_bytes(sim.particles().len(), sim.config(), voxel_m).unwrap();
+            assert!(leaves * 512 * 20 * 2 <= bound, "{voxel_m}: {leaves} leaves, bound {bound} bytes");
+        }
     }
 
     /// The slabs are independent: the grids of 1 and 3 threads are bit-identical.

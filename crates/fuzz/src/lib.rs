@@ -8,6 +8,8 @@
 //!   scene reads back the same.
 //! - [`obj`], [`gltf`], [`dxf`]: the snow's mesh loaders, and for glTF the buffer URIs
 //!   as the scene layer resolves them (relative references, `data:` URIs).
+//! - [`checkpoint`]: checkpoint files, and any bytes as each phenomenon's state.
+//! - [`air`]: the three tables `export aurora-profile --air` reads.
 //! - [`studio`]: sequences of the studio's edits (the messages a page sends that change
 //!   a scene: shipped scenes, parameter sets, aurora editor operations), each followed by
 //!   the checks the studio makes before it builds a preview.
@@ -68,6 +70,83 @@ pub fn gltf(data: &[u8]) {
         |uri| assets.read_referenced("geometry.mesh", from, uri).map_err(|e| e.to_string()),
         1.0,
     );
+}
+
+/// Checkpoint bytes, as a render reads them: the header on its own (what a reader checks
+/// before reading the rest), then the whole file; and, wrapped in a valid checkpoint of a
+/// small scene of the phenomenon the first byte picks, the rest as a simulation's state,
+/// which must be refused or restored, never panic.
+pub fn checkpoint(data: &[u8]) {
+    use phenomena_scene::checkpoint;
+    let _ = checkpoint::read_header(data);
+    let _ = checkpoint::open(data);
+    let Some((&pick, state)) = data.split_first() else { return };
+    RUNNERS.with(|runners| {
+        let mut runners = runners.borrow_mut();
+        let k = usize::from(pick) % runners.len();
+        let Some(runner) = runners[k].as_mut() else { return };
+        let Ok(bytes) = checkpoint::encode(&runner.checkpoint_header(), &RawState(state)) else { return };
+        let _ = runner.restore(&bytes);
+    });
+}
+
+/// Bytes that serialise as themselves: postcard writes a byte slice as its length and
+/// the bytes, so the state is what follows the length.
+struct RawState<'a>(&'a [u8]);
+
+impl serde::Serialize for RawState<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
+}
+
+/// Small scenes of each phenomenon whose runners take the fuzzed states (the corpus's
+/// `seed-state-K` are states of scene K after one frame).
+const SMALL_SCENES: [&str; 4] = [
+    "[scene]\nframes = 2\nwidth = 16\nheight = 16\n[flame]\n[flame.emitter]\nrate_per_s = 600.0\n",
+    "[scene]\nframes = 2\nwidth = 16\nheight = 16\n[aurora]\n[aurora.plane]\ncells = [16, 16]\n[aurora.motion]\nparticles = 200\n",
+    "[scene]\nframes = 2\nwidth = 16\nheight = 16\n[snow]\nmap_resolution = 16\nshadow_resolution = 16\ndirections = 2\n[geometry]\nbuiltin = \"table\"\n",
+    "[scene]\nframes = 2\nwidth = 16\nheight = 16\n[sparkle]\n[sparkle.population]\nkind = \"diamond-dust\"\nbox_min_m = [-2.0, 0.0, -4.0]\nbox_max_m = [2.0, 2.0, 0.0]\ndensity_per_m3 = 5000.0\n",
+];
+
+thread_local! {
+    static RUNNERS: std::cell::RefCell<Vec<Option<phenomena_scene::Runner>>> = std::cell::RefCell::new(
+        SMALL_SCENES
+            .iter()
+            .map(|text| {
+                let scene = phenomena_scene::parse(text, "small.toml").ok()?;
+                phenomena_scene::Runner::with_limits(&scene, &Assets::none(), &LIMITS).ok()
+            })
+            .collect(),
+    );
+}
+
+/// `export aurora-profile --air` tables: the bytes split at `0xFF` into the neutral
+/// table, the minor species and the night ionosphere. Tables that are accepted must
+/// give a column whose emission is finite and not negative at every altitude.
+pub fn air(data: &[u8]) {
+    use phenomena_aurora::atmosphere::Atmosphere;
+    use phenomena_aurora::deposition::{ColumnModel, Precipitation, Yields};
+    let mut parts = data.split(|&b| b == 0xFF).map(|p| std::str::from_utf8(p).unwrap_or(""));
+    let (Some(neutral), Some(minor), Some(ionosphere)) = (parts.next(), parts.next(), parts.next()) else {
+        return;
+    };
+    // Bounded work: the column is solved at every row of the table.
+    if neutral.lines().count() > 2000 {
+        return;
+    }
+    let Ok(air) = Atmosphere::from_tables(neutral, minor, ionosphere) else { return };
+    let column = ColumnModel::new(&air, &Precipitation::default(), &Yields::default());
+    for line in phenomena_aurora::emission::Line::ALL {
+        for (z, v) in column.altitudes_km().iter().zip(column.volume_emission(line)) {
+            assert!(v.is_finite() && *v >= 0.0, "{line:?} at {z} km: {v}");
+        }
+    }
 }
 
 /// One edit a studio page can send.

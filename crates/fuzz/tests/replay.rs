@@ -44,3 +44,13 @@ fn dxf_corpus() {
 fn studio_corpus() {
     replay("studio", phenomena_fuzz::studio);
 }
+
+#[test]
+fn checkpoint_corpus() {
+    replay("checkpoint", phenomena_fuzz::checkpoint);
+}
+
+#[test]
+fn air_corpus() {
+    replay("air", phenomena_fuzz::air);
+}

@@ -278,6 +278,29 @@ fn decode_data_uri(body: &str, cap: u64) -> Result<Vec<u8>, String> {
 /// symlink; its type and size are checked on the opened handle, so what is read is
 /// what was checked.
 pub(crate) fn read_file(path: &Path, cap: u64, no_symlinks: bool) -> Result<Vec<u8>, String> {
+    let (file, len) = open_regular(path, no_symlinks)?;
+    if len > cap {
+        return Err(format!("the file holds {len} bytes, more than the limit of {cap}"));
+    }
+    read_capped(file, len, cap)
+}
+
+/// Read the rest of `file` (`len` bytes by its metadata), refusing more than `cap`.
+pub(crate) fn read_capped(file: impl Read, len: u64, cap: u64) -> Result<Vec<u8>, String> {
+    let mut bytes = Vec::with_capacity(len.min(cap) as usize);
+    // `take` holds the cap even if the file grows while it is read.
+    file.take(cap + 1).read_to_end(&mut bytes).map_err(|e| io_problem(&e))?;
+    if bytes.len() as u64 > cap {
+        return Err(format!("the file grew past the limit of {cap} bytes while it was read"));
+    }
+    Ok(bytes)
+}
+
+/// Open a regular file for reading without blocking (a FIFO would wait for a writer
+/// for ever) and, with `no_symlinks`, without following a symlink; its type is checked
+/// before opening and again on the opened handle, so what is read is what was
+/// checked. Returns the file and its length.
+pub(crate) fn open_regular(path: &Path, no_symlinks: bool) -> Result<(std::fs::File, u64), String> {
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
@@ -321,16 +344,7 @@ pub(crate) fn read_file(path: &Path, cap: u64, no_symlinks: bool) -> Result<Vec<
             "not a regular file (a device, FIFO or socket)".into()
         });
     }
-    if meta.len() > cap {
-        return Err(format!("the file holds {} bytes, more than the limit of {cap}", meta.len()));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    // `take` holds the cap even if the file grows while it is read.
-    file.take(cap + 1).read_to_end(&mut bytes).map_err(|e| io_problem(&e))?;
-    if bytes.len() as u64 > cap {
-        return Err(format!("the file grew past the limit of {cap} bytes while it was read"));
-    }
-    Ok(bytes)
+    Ok((file, meta.len()))
 }
 
 /// An IO error in words that name no path.

@@ -88,6 +88,12 @@ impl Phenomenon for AuroraScene {
         }
     }
 
+    fn render_memory(&self) -> Option<&'static str> {
+        let sky = &self.render.sky;
+        (self.render.view == AuroraView::Sky && sky.afterglow && sky.mode == ColourMode::Physical)
+            .then_some("[render.sky] afterglow = true carries each line's light from frame to frame")
+    }
+
     fn view(&self) -> &'static str {
         match self.render.view {
             AuroraView::Sky => "sky",
@@ -158,6 +164,14 @@ impl Phenomenon for AuroraScene {
         f64::from(self.aurora.motion.time_step_s)
     }
 
+    /// Twice the volume of the particles now: the particles grow to about twice the
+    /// start after redistribution (scene 2: 1.6x), spreading over more voxel columns.
+    fn volume_bytes(built: &Built<Self>, options: &VolumeOptions) -> Result<u64, String> {
+        let voxel_km = options.voxel_m.map_or(1.0, |m| m / 1e3);
+        let now = built.renderer.volume_bytes(&built.sim, voxel_km).map_err(|e| e.to_string())?;
+        Ok(now.saturating_mul(2))
+    }
+
     /// One emission grid per line (`aurora_557_7`, ...: rayleighs per metre of path) in
     /// metres ([`phenomena_aurora::volume`]), 1 km voxels by default.
     fn volume(
@@ -168,6 +182,8 @@ impl Phenomenon for AuroraScene {
     ) -> Result<Value, String> {
         use phenomena_core::vdb::AnyGrid;
         let voxel_km = options.voxel_m.map_or(1.0, |m| m / 1e3);
+        let need = built.renderer.volume_bytes(&built.sim, voxel_km).map_err(|e| e.to_string())?;
+        options.admit(need, &format!("{voxel_km} km"))?;
         let grids = built.renderer.line_volumes(&built.sim, voxel_km).map_err(|e| e.to_string())?;
         let any: Vec<AnyGrid<'_>> = grids.iter().map(AnyGrid::from).collect();
         Ok(crate::phenomenon::encode_volume(&any, out))

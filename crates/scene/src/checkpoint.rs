@@ -138,10 +138,16 @@ pub fn encode<S: Serialize>(header: &Header, state: &S) -> Result<Vec<u8>, Check
     Ok(out)
 }
 
-/// Read a checkpoint's header, checking its magic, version, length and checksum;
-/// returns the header and the state's bytes.
-pub fn open(bytes: &[u8]) -> Result<(Header, &[u8]), CheckpointError> {
-    let mut r = Reader { bytes, at: 0 };
+/// Most bytes a header takes: magic, version, a name of up to 255 bytes, four u64.
+pub const MAX_HEADER_BYTES: usize = 8 + 4 + 1 + 255 + 4 * 8;
+
+/// The header at the start of a checkpoint, from its first bytes (`prefix`: the whole
+/// file or at least its first [`MAX_HEADER_BYTES`]), checking its magic, version and
+/// state length; returns the header, the header's length and the length the whole
+/// file must have. Lets a reader refuse a file that is not a checkpoint, or is too
+/// large, before reading the rest of it.
+pub fn read_header(prefix: &[u8]) -> Result<(Header, usize, u64), CheckpointError> {
+    let mut r = Reader { bytes: prefix, at: 0 };
     if r.take(8).ok() != Some(MAGIC.as_slice()) {
         return Err(CheckpointError::NotACheckpoint);
     }
@@ -154,10 +160,21 @@ pub fn open(bytes: &[u8]) -> Result<(Header, &[u8]), CheckpointError> {
         std::str::from_utf8(r.take(name_len)?).map_err(|_| CheckpointError::Checksum)?.to_string();
     let (identity, seed, frames_done, len) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
     let needed = (r.at as u64).saturating_add(len).saturating_add(8);
-    if len > MAX_STATE_BYTES || needed > bytes.len() as u64 {
+    if len > MAX_STATE_BYTES {
+        return Err(CheckpointError::Truncated { len: prefix.len(), needed });
+    }
+    Ok((Header { phenomenon, identity, seed, frames_done }, r.at, needed))
+}
+
+/// Read a checkpoint's header, checking its magic, version, length and checksum;
+/// returns the header and the state's bytes.
+pub fn open(bytes: &[u8]) -> Result<(Header, &[u8]), CheckpointError> {
+    let (header, at, needed) = read_header(bytes)?;
+    if needed > bytes.len() as u64 {
         return Err(CheckpointError::Truncated { len: bytes.len(), needed });
     }
-    let payload = r.take(len as usize)?;
+    let mut r = Reader { bytes, at };
+    let payload = r.take((needed - at as u64 - 8) as usize)?;
     let body = r.at;
     let sum = r.u64()?;
     if xxh3_64(&bytes[..body]) != sum {
@@ -166,7 +183,7 @@ pub fn open(bytes: &[u8]) -> Result<(Header, &[u8]), CheckpointError> {
     if r.at != bytes.len() {
         return Err(CheckpointError::Checksum);
     }
-    Ok((Header { phenomenon, identity, seed, frames_done }, payload))
+    Ok((header, payload))
 }
 
 /// Decode a checkpoint's state.

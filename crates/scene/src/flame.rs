@@ -94,9 +94,7 @@ impl Phenomenon for FlameScene {
     /// the domain box; the frame, its background and the splat planes.
     fn estimate(&self, _background: &Option<Frame>) -> Estimate {
         let f = &self.flame;
-        let e = &f.emitter;
-        let born = f64::from(e.rate_per_s) * f64::from(e.lifetime_s) * (1.0 + f64::from(e.lifetime_jitter));
-        let particles = born.min(f64::from(f.max_particles)).ceil();
+        let particles = peak_particles(f);
         let d = f64::from(f.sph.support_radius_m);
         let size = (f.domain.max_m - f.domain.min_m).as_dvec3() / d.max(1e-9) + glam::DVec3::ONE;
         let cells = size.x.ceil() * size.y.ceil() * size.z.ceil();
@@ -141,6 +139,14 @@ impl Phenomenon for FlameScene {
         self.render.background = Background::Black;
     }
 
+    /// At the peak particle count of [`Phenomenon::estimate`].
+    fn volume_bytes(built: &Built<Self>, options: &VolumeOptions) -> Result<u64, String> {
+        let voxel_m = options.voxel_m.unwrap_or(0.01);
+        let config = built.sim.config();
+        let particles = (peak_particles(config) as usize).max(built.sim.particles().len());
+        phenomena_flame::volume::volume_bytes(particles, config, voxel_m).map_err(|e| e.to_string())
+    }
+
     /// `density` (kg/m³), `temperature` (K) and `emission` (linear sRGB) grids in metres
     /// ([`phenomena_flame::volume`]), 1 cm voxels by default.
     fn volume(
@@ -151,6 +157,10 @@ impl Phenomenon for FlameScene {
     ) -> Result<Value, String> {
         use phenomena_core::vdb::AnyGrid;
         let voxel_m = options.voxel_m.unwrap_or(0.01);
+        let need =
+            phenomena_flame::volume::volume_bytes(built.sim.particles().len(), built.sim.config(), voxel_m)
+                .map_err(|e| e.to_string())?;
+        options.admit(need, &format!("{voxel_m} m"))?;
         let r = &built.renderer;
         let voxelizer = scratch.get::<phenomena_flame::volume::Voxelizer>();
         let v = voxelizer
@@ -187,4 +197,12 @@ impl Phenomenon for FlameScene {
             Err(e) => Steer::Refused(format!("{path} = {value}: {e}")),
         }
     }
+}
+
+/// Particles at the peak: the emission rate times the longest lifetime, capped by
+/// `max_particles`.
+fn peak_particles(f: &FlameConfig) -> f64 {
+    let e = &f.emitter;
+    let born = f64::from(e.rate_per_s) * f64::from(e.lifetime_s) * (1.0 + f64::from(e.lifetime_jitter));
+    born.min(f64::from(f.max_particles)).ceil()
 }

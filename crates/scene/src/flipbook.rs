@@ -114,31 +114,99 @@ fn nearest_power_of_two(v: u32) -> u32 {
 /// Frames of display-linear RGB (interleaved, each `layout.frame_width ×
 /// frame_height`) cross-faded for the loop and tiled into RGBA8 (sRGB colour) with
 /// `options.alpha`; `frames.len()` must be `layout.frames + options.loop_frames`.
+/// (All frames at once; [`Atlas`] builds the same bytes a frame at a time.)
 pub fn atlas(frames: &[Vec<f32>], layout: &Layout, options: &FlipbookOptions) -> Result<Vec<u8>, String> {
     let k = options.loop_frames as usize;
     let n = layout.frames as usize;
     if frames.len() != n + k {
         return Err(format!("{} frames for a flipbook of {} (+{k} cross-faded)", frames.len(), n));
     }
-    let (fw, fh) = (layout.frame_width as usize, layout.frame_height as usize);
-    if let Some(f) = frames.iter().find(|f| f.len() != fw * fh * 3) {
-        return Err(format!("a frame of {} values for cells of {fw}x{fh}", f.len()));
+    let mut atlas = Atlas::new(*layout, *options);
+    for f in frames {
+        atlas.push(f.clone())?;
     }
-    let aw = layout.atlas_width as usize;
-    let mut out = vec![0u8; aw * layout.atlas_height as usize * 4];
-    for j in 0..n {
-        let cell = looped(frames, j, n, k);
-        let (cx, cy) = (j % layout.columns as usize, j / layout.columns as usize);
+    atlas.finish()
+}
+
+/// An atlas built a frame at a time: each cell is encoded into the RGBA8 atlas as its
+/// frame arrives, and only the first `loop_frames` frames are kept (as display-linear
+/// floats) until the frames cross-faded into them arrive. Memory: the atlas and those
+/// frames ([`Atlas::memory_bytes`]), not every frame.
+pub struct Atlas {
+    layout: Layout,
+    options: FlipbookOptions,
+    rgba: Vec<u8>,
+    /// The loop's head frames, until their tails arrive.
+    heads: Vec<Vec<f32>>,
+    pushed: usize,
+}
+
+impl Atlas {
+    /// An empty atlas of `layout`.
+    pub fn new(layout: Layout, options: FlipbookOptions) -> Self {
+        Self { layout, options, rgba: Vec::new(), heads: Vec::new(), pushed: 0 }
+    }
+
+    /// Bytes an atlas of `layout` holds at its peak: the RGBA8 image and the loop's
+    /// head frames.
+    pub fn memory_bytes(layout: &Layout, options: &FlipbookOptions) -> u64 {
+        let cell = u64::from(layout.frame_width) * u64::from(layout.frame_height);
+        u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4
+            + u64::from(options.loop_frames) * cell * 12
+    }
+
+    /// The next frame (display-linear RGB, interleaved, the cell's size).
+    pub fn push(&mut self, frame: Vec<f32>) -> Result<(), String> {
+        let (k, n) = (self.options.loop_frames as usize, self.layout.frames as usize);
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        if frame.len() != fw * fh * 3 {
+            return Err(format!("a frame of {} values for cells of {fw}x{fh}", frame.len()));
+        }
+        if self.pushed >= n + k {
+            return Err(format!("more than the {} frames of a flipbook of {n} (+{k} cross-faded)", n + k));
+        }
+        if self.rgba.is_empty() {
+            self.rgba = vec![0u8; self.layout.atlas_width as usize * self.layout.atlas_height as usize * 4];
+        }
+        let j = self.pushed;
+        self.pushed += 1;
+        if j < k {
+            self.heads.push(frame);
+        } else if j < n {
+            self.cell(j, &frame);
+        } else {
+            // Tail frame n + i fades into head i (`looped`'s weights).
+            let i = j - n;
+            let head = std::mem::take(&mut self.heads[i]);
+            let w = (i + 1) as f32 / (k + 1) as f32;
+            let faded: Vec<f32> = head.iter().zip(&frame).map(|(&a, &b)| w * a + (1.0 - w) * b).collect();
+            self.cell(i, &faded);
+        }
+        Ok(())
+    }
+
+    /// Encode `values` into cell `j`.
+    fn cell(&mut self, j: usize, values: &[f32]) {
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        let aw = self.layout.atlas_width as usize;
+        let (cx, cy) = (j % self.layout.columns as usize, j / self.layout.columns as usize);
         for y in 0..fh {
             let row = ((cy * fh + y) * aw + cx * fw) * 4;
             for x in 0..fw {
-                let v = &cell[(y * fw + x) * 3..(y * fw + x) * 3 + 3];
-                let px = &mut out[row + x * 4..row + x * 4 + 4];
-                px.copy_from_slice(&rgba(v, options.alpha));
+                let v = &values[(y * fw + x) * 3..(y * fw + x) * 3 + 3];
+                self.rgba[row + x * 4..row + x * 4 + 4].copy_from_slice(&rgba(v, self.options.alpha));
             }
         }
     }
-    Ok(out)
+
+    /// The atlas's RGBA8 pixels, once every frame was pushed.
+    pub fn finish(self) -> Result<Vec<u8>, String> {
+        let (k, n) = (self.options.loop_frames as usize, self.layout.frames as usize);
+        if self.pushed != n + k {
+            return Err(format!("{} frames for a flipbook of {} (+{k} cross-faded)", self.pushed, n));
+        }
+        Ok(self.rgba)
+    }
 }
 
 /// Frame `j` of the looped sequence (display-linear RGB).
@@ -224,6 +292,42 @@ mod tests {
         assert_eq!(s[0], 255);
         assert_eq!(p[..3], [188, 137, 89]);
         assert_eq!(rgba(&[0.0; 3], Alpha::Straight), [0, 0, 0, 0]);
+    }
+
+    /// The whole atlas made directly from every frame (each cell from [`looped`]), as
+    /// it was before [`Atlas`] built it a frame at a time.
+    fn atlas_of_all_frames(frames: &[Vec<f32>], layout: &Layout, options: &FlipbookOptions) -> Vec<u8> {
+        let (k, n) = (options.loop_frames as usize, layout.frames as usize);
+        let (fw, fh, aw) =
+            (layout.frame_width as usize, layout.frame_height as usize, layout.atlas_width as usize);
+        let mut out = vec![0u8; aw * layout.atlas_height as usize * 4];
+        for j in 0..n {
+            let cell = looped(frames, j, n, k);
+            let (cx, cy) = (j % layout.columns as usize, j / layout.columns as usize);
+            for y in 0..fh {
+                for x in 0..fw {
+                    let at = ((cy * fh + y) * aw + cx * fw + x) * 4;
+                    out[at..at + 4].copy_from_slice(&rgba(&cell[(y * fw + x) * 3..][..3], options.alpha));
+                }
+            }
+        }
+        out
+    }
+
+    /// Building the atlas a frame at a time gives the bytes of building it from every
+    /// frame at once, with and without a loop, in both alpha modes.
+    #[test]
+    fn the_atlas_built_frame_by_frame_equals_the_whole() {
+        for (rendered, k, alpha) in
+            [(7, 0, Alpha::Straight), (12, 3, Alpha::Premultiplied), (10, 5, Alpha::Straight)]
+        {
+            let options = FlipbookOptions { power_of_two: false, alpha, loop_frames: k, fps: 30.0 };
+            let l = layout(rendered, 5, 3, &options).unwrap();
+            let frames: Vec<Vec<f32>> = (0..rendered)
+                .map(|f| (0..45).map(|v| ((f * 45 + v) as f32 * 0.618).fract() * 1.2).collect())
+                .collect();
+            assert_eq!(atlas(&frames, &l, &options).unwrap(), atlas_of_all_frames(&frames, &l, &options));
+        }
     }
 
     #[test]

@@ -13,7 +13,7 @@ use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::Layer;
 use phenomena_core::tonemap::Exposure;
 
-use crate::flipbook::{Descriptor, FlipbookOptions, Layout};
+use crate::flipbook::{Atlas, Descriptor, FlipbookOptions, Layout};
 use crate::phenomenon::{Scratch, VolumeOptions};
 use crate::runner::{FrameSink, Output, SinkError};
 
@@ -89,16 +89,20 @@ fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}-{n}.tmp", std::process::id()))
 }
 
-/// Write `path` atomically with a closure that writes the temporary file it is given.
+/// Write `path` atomically with a closure that writes the temporary file it is given;
+/// its error (the cause alone) is reported as `cannot write PATH: cause`, naming the
+/// file that was to be written, not the temporary one.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), SinkError>,
 ) -> Result<(), SinkError> {
     let tmp = temp_path(path);
-    let result = write(&tmp).and_then(|()| {
-        std::fs::rename(&tmp, path)
-            .map_err(|e| SinkError(format!("cannot rename {} to {}: {e}", tmp.display(), path.display())))
-    });
+    let result = write(&tmp)
+        .map_err(|e| SinkError(format!("cannot write {}: {}", path.display(), e.0)))
+        .and_then(|()| {
+            std::fs::rename(&tmp, path)
+                .map_err(|e| SinkError(format!("cannot rename {} to {}: {e}", tmp.display(), path.display())))
+        });
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
@@ -108,9 +112,8 @@ pub fn write_atomic(
 /// Write bytes atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), SinkError> {
     write_atomic(path, |tmp| {
-        let mut f =
-            std::fs::File::create(tmp).map_err(|e| error(format!("cannot create {}: {e}", tmp.display())))?;
-        f.write_all(bytes).map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))?;
+        let mut f = std::fs::File::create(tmp).map_err(|e| error(format!("cannot create the file: {e}")))?;
+        f.write_all(bytes).map_err(error)?;
         f.sync_all().ok();
         Ok(())
     })
@@ -191,7 +194,7 @@ pub fn write_frame(
                 .write()
                 .non_parallel()
                 .to_file(tmp)
-                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+                .map_err(error)
         }),
         ImageFormat::Exr => write_atomic(path, |tmp| {
             use exr::prelude::*;
@@ -207,7 +210,7 @@ pub fn write_frame(
                 .write()
                 .non_parallel()
                 .to_file(tmp)
-                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+                .map_err(error)
         }),
     }
 }
@@ -223,7 +226,7 @@ pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Resul
             image::ColorType::Rgb8,
             image::ImageFormat::Png,
         )
-        .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+        .map_err(error)
     })
 }
 
@@ -279,9 +282,16 @@ impl ImageSink {
     }
 }
 
+impl ImageSink {
+    /// Whether frame `index` is finished (its file exists).
+    pub fn finished(&self, index: u32) -> bool {
+        self.path(index).is_file()
+    }
+}
+
 impl FrameSink for ImageSink {
     fn wants(&mut self, index: u32) -> bool {
-        if self.resume && self.path(index).is_file() {
+        if self.resume && self.finished(index) {
             self.kept += 1;
             return false;
         }
@@ -354,9 +364,30 @@ impl DataSink {
     }
 }
 
+impl DataSink {
+    /// What it writes.
+    pub fn data(&self) -> Data {
+        self.data
+    }
+
+    /// Refuse volumes that would take more than `max_bytes` ([`VolumeOptions::max_bytes`]).
+    pub fn limit_volumes(&mut self, max_bytes: u64) {
+        if let Data::Volume(options) = &mut self.data {
+            options.max_bytes = Some(max_bytes);
+        }
+    }
+
+    /// Whether frame `index` is finished: its file exists and, for a volume, its
+    /// manifest too (written first, so a volume beside its manifest is whole).
+    pub fn finished(&self, index: u32) -> bool {
+        let path = self.path(index);
+        path.is_file() && (!matches!(self.data, Data::Volume(_)) || manifest_path(&path).is_file())
+    }
+}
+
 impl FrameSink for DataSink {
     fn wants(&mut self, index: u32) -> bool {
-        if self.resume && self.path(index).is_file() {
+        if self.resume && self.finished(index) {
             self.kept += 1;
             return false;
         }
@@ -374,8 +405,12 @@ impl FrameSink for DataSink {
                 let mut manifest = out.data.volume(options, &mut self.scratch, &mut self.bytes)?;
                 manifest["frame"] = out.index.into();
                 let text = serde_json::to_string_pretty(&manifest).map_err(error)?;
+                // The manifest first: a volume is never left without one (a failure
+                // between the two leaves a manifest alone, which `--resume` redoes).
+                let manifest = manifest_path(&path);
+                let _ = std::fs::remove_file(&path);
+                write_bytes_atomic(&manifest, text.as_bytes())?;
                 write_bytes_atomic(&path, &self.bytes)?;
-                write_bytes_atomic(&manifest_path(&path), text.as_bytes())?;
             }
             Data::Points => {
                 self.bytes = out.data.points()?;
@@ -401,7 +436,7 @@ pub struct FlipbookSink {
     dir: PathBuf,
     options: FlipbookOptions,
     layout: Layout,
-    frames: Vec<Vec<f32>>,
+    atlas: Option<Atlas>,
     first: Option<u32>,
     last: u32,
 }
@@ -418,7 +453,21 @@ impl FlipbookSink {
     ) -> Result<Self, SinkError> {
         let layout = crate::flipbook::layout(rendered, width, height, &options).map_err(SinkError)?;
         ensure_dir(dir)?;
-        Ok(Self { dir: dir.to_path_buf(), options, layout, frames: Vec::new(), first: None, last: 0 })
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            options,
+            layout,
+            atlas: Some(Atlas::new(layout, options)),
+            first: None,
+            last: 0,
+        })
+    }
+
+    /// Memory the flipbook holds at its peak, bytes: the atlas, the loop's head frames
+    /// and one frame resized to its cell.
+    pub fn memory_bytes(&self) -> u64 {
+        let cell = u64::from(self.layout.frame_width) * u64::from(self.layout.frame_height);
+        Atlas::memory_bytes(&self.layout, &self.options) + cell * 24
     }
 
     /// The atlas's layout.
@@ -443,19 +492,24 @@ impl FrameSink for FlipbookSink {
         let linear = frame.to_interleaved();
         let mut display = Vec::with_capacity(linear.len());
         out.exposure.apply_all(&linear, |v| display.push(v));
-        self.frames.push(display);
+        self.atlas
+            .as_mut()
+            .ok_or_else(|| error("the flipbook is already written"))?
+            .push(display)
+            .map_err(SinkError)?;
         self.first.get_or_insert(out.index);
         self.last = out.index;
         Ok(())
     }
 
     fn finish(&mut self) -> Result<(), SinkError> {
-        let rgba = crate::flipbook::atlas(&self.frames, &self.layout, &self.options).map_err(SinkError)?;
+        let atlas = self.atlas.take().ok_or_else(|| error("the flipbook is already written"))?;
+        let rgba = atlas.finish().map_err(SinkError)?;
         let (w, h) = (self.layout.atlas_width, self.layout.atlas_height);
         let image = self.image_path();
         write_atomic(&image, |tmp| {
             image::save_buffer_with_format(tmp, &rgba, w, h, image::ColorType::Rgba8, image::ImageFormat::Png)
-                .map_err(|e| error(format!("cannot write {}: {e}", tmp.display())))
+                .map_err(error)
         })?;
         let descriptor = Descriptor {
             image: "flipbook.png".into(),
@@ -540,15 +594,36 @@ pub fn list_checkpoints(dir: &Path) -> Vec<(u32, PathBuf)> {
     found
 }
 
-/// Read a checkpoint file (at most [`crate::checkpoint::MAX_STATE_BYTES`] plus its
-/// header; a larger file is refused without reading it).
-pub fn read_checkpoint(path: &Path) -> Result<Vec<u8>, SinkError> {
-    let len =
-        std::fs::metadata(path).map_err(|e| error(format!("cannot read {}: {e}", path.display())))?.len();
-    if len > crate::checkpoint::MAX_STATE_BYTES + 4096 {
-        return Err(error(format!("{} is {len} bytes: too large for a checkpoint", path.display())));
+/// Read a checkpoint file of at most `max_bytes` (what the memory budget leaves). Only
+/// a regular file is opened (a FIFO or a device, also behind a symlink, is refused
+/// without blocking or reading), and its header is read and checked first: a file that
+/// is not a checkpoint, whose length is not the one its header gives, or that is larger
+/// than `max_bytes` is refused before the rest of it is read.
+pub fn read_checkpoint(path: &Path, max_bytes: u64) -> Result<Vec<u8>, SinkError> {
+    use std::io::Read as _;
+    let problem = |e: String| error(format!("cannot read it: {e}"));
+    let (mut file, len) = crate::assets::open_regular(path, false).map_err(problem)?;
+    let mut bytes = Vec::new();
+    (&mut file)
+        .take(crate::checkpoint::MAX_HEADER_BYTES as u64)
+        .read_to_end(&mut bytes)
+        .map_err(|e| problem(e.to_string()))?;
+    let (_, _, needed) = crate::checkpoint::read_header(&bytes).map_err(|e| error(e.to_string()))?;
+    if needed != len {
+        let what = if needed > len { "truncated" } else { "followed by other data" };
+        return Err(error(format!(
+            "the checkpoint is {what}: its header gives {needed} bytes, the file holds {len}"
+        )));
     }
-    std::fs::read(path).map_err(|e| error(format!("cannot read {}: {e}", path.display())))
+    if len > max_bytes {
+        return Err(error(format!(
+            "the checkpoint holds {len} bytes, more than the memory budget leaves for reading it ({max_bytes} bytes): raise --max-memory-gib"
+        )));
+    }
+    let rest = crate::assets::read_capped(file, len - bytes.len() as u64, needed - bytes.len() as u64)
+        .map_err(problem)?;
+    bytes.extend_from_slice(&rest);
+    Ok(bytes)
 }
 
 #[cfg(test)]
@@ -568,6 +643,40 @@ mod tests {
         write_bytes_atomic(&path, b"ok").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"ok");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// A checkpoint is read header first: a file that is not one, is longer or shorter
+    /// than its header says, or is larger than the budget leaves is refused having read
+    /// at most the header's bytes; a FIFO is refused without blocking.
+    #[test]
+    fn checkpoints_are_refused_by_their_header_before_being_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let header =
+            crate::checkpoint::Header { phenomenon: "flame".into(), identity: 1, seed: 2, frames_done: 3 };
+        let bytes = crate::checkpoint::encode(&header, &vec![7u32; 1000]).unwrap();
+        let path = dir.path().join("checkpoint_00003.ckpt");
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(read_checkpoint(&path, bytes.len() as u64).unwrap(), bytes);
+        let e = read_checkpoint(&path, bytes.len() as u64 - 1).unwrap_err().0;
+        assert!(e.contains("more than the memory budget leaves"), "{e}");
+        let mut longer = bytes.clone();
+        longer.extend_from_slice(b"tail");
+        std::fs::write(&path, &longer).unwrap();
+        assert!(read_checkpoint(&path, u64::MAX).unwrap_err().0.contains("followed by other data"));
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+        assert!(read_checkpoint(&path, u64::MAX).unwrap_err().0.contains("truncated"));
+        // A sparse file far larger than the budget whose header is not a checkpoint's.
+        let sparse = std::fs::File::create(&path).unwrap();
+        sparse.set_len(1 << 40).unwrap();
+        assert!(read_checkpoint(&path, 1 << 20).unwrap_err().0.contains("not a phenomena checkpoint"));
+        #[cfg(unix)]
+        {
+            std::fs::remove_file(&path).unwrap();
+            let made = std::process::Command::new("mkfifo").arg(&path).status();
+            if made.is_ok_and(|s| s.success()) {
+                assert!(read_checkpoint(&path, u64::MAX).unwrap_err().0.contains("not a regular file"));
+            }
+        }
     }
 
     #[test]

@@ -136,19 +136,31 @@ pub fn parse(text: &str, file: impl AsRef<Path>) -> Result<Scene, SceneErrors> {
             )]));
         }
     };
-    let scene = entry.parse_file(text).map_err(|errors| {
-        SceneErrors(errors.into_iter().map(|(offset, message)| source.at(offset, message)).collect())
-    })?;
-    let issues = scene.validate();
-    if !issues.is_empty() {
-        return Err(SceneErrors(
-            issues
-                .into_iter()
-                .map(|issue| source.at(locate(root.get_ref(), &issue.field), issue.to_string()))
-                .collect(),
-        ));
+    // Every problem at once: what cannot be read, and what the rest (read with those
+    // entries left out) breaks of the valid ranges.
+    let (mut problems, scene) = match entry.parse_file(text) {
+        Ok(scene) => (Vec::new(), Some(scene)),
+        Err((errors, rest)) => (errors, rest),
+    };
+    if let Some(scene) = &scene {
+        let blanked: Vec<usize> = problems.iter().map(|p| p.0).collect();
+        for issue in scene.validate() {
+            let offset = locate(root.get_ref(), &issue.field);
+            // A key left out holds its default: a problem reported there is the one found.
+            if !blanked.contains(&offset) {
+                problems.push((offset, issue.to_string()));
+            }
+        }
     }
-    Ok(scene.with_source(source))
+    match scene {
+        Some(scene) if problems.is_empty() => Ok(scene.with_source(source)),
+        _ => {
+            problems.sort_by_key(|p| p.0);
+            Err(SceneErrors(
+                problems.into_iter().map(|(offset, message)| source.at(offset, message)).collect(),
+            ))
+        }
+    }
 }
 
 /// Keys that scene files once held, with what to do instead: an old scene's unknown
@@ -178,17 +190,26 @@ fn with_removal_hint(message: &str) -> String {
     }
 }
 
+/// What [`deserialize_all`] found wrong: (byte offset, message) per problem, and the
+/// value read once every offending entry was blanked out (their defaults in their
+/// place), if it could be read, so its other problems can be found too.
+pub(crate) type Unread<T> = (Vec<(usize, String)>, Option<T>);
+
 /// Deserialize, collecting every unknown key and bad value rather than stopping at the
 /// first: after each error the offending `key = value` is blanked out (positions kept)
-/// and the text is read again. Returns (byte offset, message) per problem.
-pub(crate) fn deserialize_all<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Vec<(usize, String)>> {
+/// and the text is read again.
+pub(crate) fn deserialize_all<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Unread<T>> {
     const MAX_ERRORS: usize = 50;
     let mut work = text.to_string();
     let mut errors: Vec<(usize, String)> = Vec::new();
+    let mut rest = None;
     while errors.len() < MAX_ERRORS {
         match toml::from_str::<T>(&work) {
             Ok(value) if errors.is_empty() => return Ok(value),
-            Ok(_) => break,
+            Ok(value) => {
+                rest = Some(value);
+                break;
+            }
             Err(e) => {
                 let offset = e.span().map_or(0, |s| s.start);
                 let message = with_removal_hint(e.message().trim());
@@ -213,7 +234,7 @@ pub(crate) fn deserialize_all<T: serde::de::DeserializeOwned>(text: &str) -> Res
         }
     }
     errors.sort_by_key(|e| e.0);
-    Err(errors)
+    Err((errors, rest))
 }
 
 /// The byte range `key = value` of the innermost entry whose key or value contains
@@ -308,8 +329,10 @@ mod tests {
         let e = errors(
             "[scene]\nwidth = 0\nframez = 3\n[flame]\nsubstepz = 2\n[flame.sph]\ngas_constant = -1\nsupport_radius_m = \"big\"\n",
         );
-        assert_eq!(e.len(), 4, "{e:?}");
-        assert!(e[0].starts_with("s.toml:3:1: unknown field `framez`"), "{e:?}");
+        // The range problem of the rest (width = 0) comes with the unreadable entries.
+        assert_eq!(e.len(), 5, "{e:?}");
+        assert!(e[0].starts_with("s.toml:2:9: scene.width = 0"), "{e:?}");
+        assert!(e[1].starts_with("s.toml:3:1: unknown field `framez`"), "{e:?}");
         assert!(e.iter().any(|m| m.starts_with("s.toml:5:1: unknown field `substepz`")), "{e:?}");
         assert!(e.iter().any(|m| m.starts_with("s.toml:7:1: unknown field `gas_constant`")), "{e:?}");
         assert!(e.iter().any(|m| m.starts_with("s.toml:8:")), "{e:?}");

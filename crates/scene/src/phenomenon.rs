@@ -150,6 +150,24 @@ pub struct VolumeOptions {
     /// Voxel size, metres (`None`: the phenomenon's default, 1 cm for the flame, 1 km for
     /// the aurora).
     pub voxel_m: Option<f64>,
+    /// Most bytes a frame's volume may take (what the memory budget leaves beside the
+    /// simulation); `None`: no limit. A frame that would need more is refused before
+    /// its grids are made.
+    pub max_bytes: Option<u64>,
+}
+
+impl VolumeOptions {
+    /// `need` bytes if they are within [`VolumeOptions::max_bytes`], else why not.
+    pub fn admit(&self, need: u64, voxel: &str) -> Result<u64, String> {
+        match self.max_bytes {
+            Some(max) if need > max => Err(format!(
+                "a volume of {voxel} voxels needs up to {} of memory, more than the budget leaves ({}): use larger voxels or a larger memory budget",
+                crate::runner::gib(need),
+                crate::runner::gib(max)
+            )),
+            _ => Ok(need),
+        }
+    }
 }
 
 /// One phenomenon's scene file.
@@ -207,6 +225,14 @@ pub trait Phenomenon:
     /// Seconds of simulated time per frame (a flipbook's playback rate).
     fn frame_time_s(&self) -> f64;
 
+    /// Why a frame's image depends on the frames rendered before it, if it does (the
+    /// aurora's afterglow). Such a scene's frames are exact only when every frame from
+    /// the first is rendered: the runner renders every frame it simulates, and a
+    /// checkpoint (which holds only the simulation) cannot start it.
+    fn render_memory(&self) -> Option<&'static str> {
+        None
+    }
+
     /// Draw the phenomenon's light alone over black, for flipbooks (the caller has
     /// checked [`Phenomenon::FORMATS`]).
     fn emission_only(&mut self) {}
@@ -221,6 +247,13 @@ pub trait Phenomenon:
         _out: &mut Vec<u8>,
     ) -> Result<Value, String> {
         Err(format!("{} scenes write no volumes", Self::NAME))
+    }
+
+    /// Bytes a volume of the current state takes at `options` (an upper bound; where
+    /// the state grows, of its largest), checking the voxel size: called before the
+    /// first frame, so a render whose volumes cannot fit is refused before it starts.
+    fn volume_bytes(_built: &Built<Self>, _options: &VolumeOptions) -> Result<u64, String> {
+        Ok(0)
     }
 
     /// The current particles as a point cache ([`Format::Ply`]).

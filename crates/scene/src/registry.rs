@@ -41,7 +41,7 @@ pub trait Entry: Sync {
     fn default_scene(&self) -> Scene;
     /// Deserialize a scene file's text as this phenomenon's (not validated); every
     /// problem as (byte offset, message).
-    fn parse_file(&self, text: &str) -> Result<Scene, Vec<(usize, String)>>;
+    fn parse_file(&self, text: &str) -> Result<Scene, crate::parse::Unread<Scene>>;
     /// A scene from its JSON form (what [`Scene::to_json`] gives; not validated).
     fn scene_from_json(&self, value: Value) -> Result<Scene, String>;
 }
@@ -91,8 +91,8 @@ impl<P: Phenomenon> Entry for Registered<P> {
         Scene::new(P::default())
     }
 
-    fn parse_file(&self, text: &str) -> Result<Scene, Vec<(usize, String)>> {
-        deserialize_all::<P>(text).map(Scene::new)
+    fn parse_file(&self, text: &str) -> Result<Scene, crate::parse::Unread<Scene>> {
+        deserialize_all::<P>(text).map(Scene::new).map_err(|(errors, rest)| (errors, rest.map(Scene::new)))
     }
 
     fn scene_from_json(&self, value: Value) -> Result<Scene, String> {

@@ -125,12 +125,12 @@ pub enum RunError {
         message: String,
     },
     /// The sink could not take a frame.
-    #[error("frame {frame}: {source}")]
+    #[error("frame {frame}: {error}")]
     Sink {
         /// The frame.
         frame: u32,
-        /// Why.
-        source: SinkError,
+        /// Why (in the message: not also a `source`, which would print it twice).
+        error: SinkError,
     },
     /// The observer asked to stop.
     #[error("stopped after {frames} frame(s)")]
@@ -210,6 +210,8 @@ pub trait Products {
     ) -> Result<Value, SinkError>;
     /// The particles as a binary PLY file's bytes.
     fn points(&self) -> Result<Vec<u8>, SinkError>;
+    /// Bytes a volume at `options` takes ([`Phenomenon::volume_bytes`]).
+    fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, SinkError>;
 }
 
 /// Where rendered frames go.
@@ -335,6 +337,8 @@ pub struct Runner {
     clock: SharedClock,
     exposure: Exposure,
     preview: bool,
+    /// Why a frame's image depends on earlier renders ([`Scene::render_memory`]).
+    render_memory: Option<&'static str>,
 }
 
 impl Runner {
@@ -358,6 +362,7 @@ impl Runner {
             clock: SharedClock::default(),
             exposure: scene.settings().exposure(),
             preview: false,
+            render_memory: scene.render_memory(),
         })
     }
 
@@ -377,6 +382,25 @@ impl Runner {
     /// The estimate of the scene's memory and work the runner was built under.
     pub fn estimate(&self) -> &Estimate {
         &self.estimate
+    }
+
+    /// Add what writing the frames takes (`parts`: what, bytes; a flipbook's atlas, a
+    /// volume's grids) to the estimate, refused like [`Runner::with_limits`] when the
+    /// whole is over `limits`: checked before the first frame.
+    pub fn admit(&mut self, parts: Vec<(String, u64)>, limits: &Limits) -> Result<(), BuildError> {
+        let mut estimate = self.estimate.clone();
+        for (what, bytes) in parts {
+            estimate.memory_bytes = estimate.memory_bytes.saturating_add(bytes);
+            estimate.parts.push((what, bytes));
+        }
+        self.estimate = within(estimate, limits)?;
+        Ok(())
+    }
+
+    /// Bytes a volume of the current state at `options` takes (an upper bound that
+    /// allows for the state's growth), checking the voxel size.
+    pub fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, SinkError> {
+        self.run.as_products().volume_bytes(options)
     }
 
     /// Warnings found while building (each a sentence).
@@ -402,21 +426,37 @@ impl Runner {
         Ok(FrameRecord { frame, step_ms: t.ms(), counters, ..FrameRecord::default() })
     }
 
-    /// Render the current state (when the sink needs the image) and give it to `sink`
-    /// (if it wants this frame), completing `record`.
+    /// Why this scene's frames depend on the frames rendered before them, if they do
+    /// ([`Scene::render_memory`]): every frame simulated is then rendered, and
+    /// [`Runner::restore`] refuses checkpoints.
+    pub fn render_memory(&self) -> Option<&'static str> {
+        self.render_memory
+    }
+
+    /// Render the current state, completing `record`'s timings.
+    fn render(&mut self, record: &mut FrameRecord) {
+        let t = self.clock.stopwatch();
+        // A preview's subset turns with the frames simulated (0 before the first step).
+        let done = self.frames_done();
+        self.run.render(self.preview.then_some(done));
+        record.render_ms = Some(t.ms());
+        record.render_detail = self.run.render_detail();
+    }
+
+    /// Render the current state (when the sink needs the image, or every frame when
+    /// the scene has [`Runner::render_memory`]) and give it to `sink` (if it wants this
+    /// frame), completing `record`.
     pub fn output(&mut self, record: &mut FrameRecord, sink: &mut dyn FrameSink) -> Result<(), RunError> {
         if !sink.wants(record.frame) {
             record.skipped = true;
+            if self.render_memory.is_some() {
+                self.render(record);
+            }
             return Ok(());
         }
-        let rendered = sink.needs_image();
+        let rendered = sink.needs_image() || self.render_memory.is_some();
         if rendered {
-            let t = self.clock.stopwatch();
-            // A preview's subset turns with the frames simulated (0 before the first step).
-            let done = self.frames_done();
-            self.run.render(self.preview.then_some(done));
-            record.render_ms = Some(t.ms());
-            record.render_detail = self.run.render_detail();
+            self.render(record);
         }
         let t = self.clock.stopwatch();
         let layers = self.run.layers();
@@ -429,7 +469,7 @@ impl Runner {
             record,
             data: self.run.as_products(),
         };
-        sink.write(&output).map_err(|source| RunError::Sink { frame: record.frame, source })?;
+        sink.write(&output).map_err(|error| RunError::Sink { frame: record.frame, error })?;
         record.write_ms = Some(t.ms());
         Ok(())
     }
@@ -447,8 +487,14 @@ impl Runner {
     /// Continue from checkpoint `bytes` of this scene (any frame at or after which the
     /// run goes on); returns the frames simulated. A checkpoint that is damaged, of
     /// another scene or seed, or whose state does not fit is refused and the runner is
-    /// unchanged.
+    /// unchanged. A scene with [`Runner::render_memory`] refuses every checkpoint (its
+    /// frames need the renders of the frames before).
     pub fn restore(&mut self, bytes: &[u8]) -> Result<u32, CheckpointError> {
+        if let Some(why) = self.render_memory {
+            return Err(CheckpointError::State(format!(
+                "{why}, which a checkpoint (the simulation's state) does not hold: render from frame 0"
+            )));
+        }
         let (header, payload) = checkpoint::open(bytes)?;
         header.matches(&self.run.header())?;
         let frames = u32::try_from(header.frames_done)
@@ -474,12 +520,14 @@ impl Runner {
             let mut record = self.step()?;
             if frames.contains(&record.frame) {
                 self.output(&mut record, sink)?;
+            } else if self.render_memory.is_some() {
+                self.render(&mut record);
             }
             if observer.frame(&record).is_break() {
                 return Err(RunError::Cancelled { frames: record.frame + 1 });
             }
         }
-        sink.finish().map_err(|source| RunError::Sink { frame: frames.end.saturating_sub(1), source })
+        sink.finish().map_err(|error| RunError::Sink { frame: frames.end.saturating_sub(1), error })
     }
 
     /// Export `name` of the current state in `format` (see the phenomenon's exports).
@@ -518,6 +566,9 @@ pub(crate) fn live<P: Phenomenon>(
     limits: &Limits,
 ) -> Result<(Box<dyn Run>, Estimate), BuildError> {
     let loaded = scene.load(assets)?;
+    // The checks `validate` makes, so a render is refused with the same (located)
+    // problems; the warnings come again from the build.
+    scene.check(&loaded)?;
     let estimate = within(estimate(scene, &loaded), limits)?;
     let identity =
         checkpoint::identity(P::NAME, &checkpoint::simulation_tables(scene), P::files_identity(&loaded));
@@ -578,6 +629,10 @@ impl<P: Phenomenon> Products for Live<P> {
         out: &mut Vec<u8>,
     ) -> Result<Value, SinkError> {
         P::volume(&self.built, options, scratch, out).map_err(SinkError)
+    }
+
+    fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, SinkError> {
+        P::volume_bytes(&self.built, options).map_err(SinkError)
     }
 
     fn points(&self) -> Result<Vec<u8>, SinkError> {

@@ -45,9 +45,10 @@ impl Scene {
         self.inner.settings()
     }
 
-    /// The `[scene]` table, to change (the scene is no longer the file's).
+    /// The `[scene]` table, to change (command-line overrides: size, seed). Problems
+    /// are still located in the file the scene was read from, whose other keys this
+    /// does not move.
     pub fn settings_mut(&mut self) -> &mut SceneSettings {
-        self.source = None;
         self.inner.settings_mut()
     }
 
@@ -71,7 +72,7 @@ impl Scene {
             let names: Vec<&str> = p.views().iter().map(|v: &View| v.name).collect();
             return Err(format!("`{view}` is not a {} view: use {}", p.name(), names.join(" or ")));
         }
-        self.source = None;
+        // As for `settings_mut`, the file still locates problems with other keys.
         self.inner.set_view(view);
         Ok(())
     }
@@ -79,6 +80,12 @@ impl Scene {
     /// Seconds of simulated time per frame.
     pub fn frame_time_s(&self) -> f64 {
         self.inner.frame_time_s()
+    }
+
+    /// Why a frame's image depends on the frames rendered before it, if it does
+    /// ([`Phenomenon::render_memory`]).
+    pub fn render_memory(&self) -> Option<&'static str> {
+        self.inner.render_memory()
     }
 
     /// Whether `render` can write `format` for this scene; if not, the error names the
@@ -223,6 +230,7 @@ trait AnyScene: Send + Sync + fmt::Debug {
     fn to_json(&self) -> Value;
     fn frame_time_s(&self) -> f64;
     fn emission_only(&mut self);
+    fn render_memory(&self) -> Option<&'static str>;
     fn to_toml(&self) -> Result<String, String>;
     fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError>;
     fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError>;
@@ -273,6 +281,10 @@ impl<P: Phenomenon> AnyScene for P {
 
     fn emission_only(&mut self) {
         Phenomenon::emission_only(self)
+    }
+
+    fn render_memory(&self) -> Option<&'static str> {
+        Phenomenon::render_memory(self)
     }
 
     fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError> {

@@ -173,7 +173,9 @@ struct Session {
     render_cancel: Option<Arc<AtomicBool>>,
     /// The final render running, if any (one at a time per session).
     render_thread: Option<std::thread::JoinHandle<()>>,
-    renders: u32,
+    /// The scene's name for its final renders' folders: the shipped scene's or the
+    /// uploaded file's (the phenomenon's for a scene from the page).
+    scene_name: String,
     /// This session's share of the memory budget (previews and final renders).
     limits: Limits,
     encoder: std::sync::mpsc::SyncSender<EncodeJob>,
@@ -287,7 +289,7 @@ pub(crate) fn run(
         next_due: Instant::now(),
         render_cancel: None,
         render_thread: None,
-        renders: 0,
+        scene_name: String::new(),
         limits,
     };
     let _ = s.loop_until_closed(&inbox);
@@ -408,7 +410,10 @@ impl Session {
         match m {
             Incoming::Builtin { name } => match registry::shipped(&name) {
                 Some(b) => match b.scene() {
-                    Ok(scene) => self.replace(scene)?,
+                    Ok(scene) => {
+                        self.scene_name = name;
+                        self.replace(scene)?
+                    }
                     Err(e) => self.error(format!("shipped scene {name} is invalid: {e}"))?,
                 },
                 None => self.error(format!("no shipped scene `{name}`"))?,
@@ -416,7 +421,11 @@ impl Session {
             Incoming::Toml { text, name } => {
                 let name = name.unwrap_or_else(|| "uploaded.toml".into());
                 match phenomena_scene::parse(&text, &name) {
-                    Ok(scene) => self.replace(scene)?,
+                    Ok(scene) => {
+                        self.scene_name =
+                            Path::new(&name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name);
+                        self.replace(scene)?
+                    }
                     Err(e) => self.send(json!({
                         "type": "error",
                         "message": format!("{name} was not loaded: {e}"),
@@ -428,6 +437,11 @@ impl Session {
                 Ok(s) => {
                     let problems = studio_problems(&s);
                     if problems.is_empty() {
+                        let same =
+                            self.scene.as_ref().is_some_and(|old| old.phenomenon().name() == phenomenon);
+                        if !same || self.scene_name.is_empty() {
+                            self.scene_name = phenomenon;
+                        }
                         self.replace(s)?;
                     } else {
                         self.error(format!("scene refused: {}", joined(&problems)))?;
@@ -649,10 +663,10 @@ impl Session {
         if self.render_thread.as_ref().is_some_and(|t| !t.is_finished()) {
             return self.error("a final render is still running: wait for it to finish");
         }
-        self.renders += 1;
-        let stamp =
-            std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-        let dir = self.out_root.join(format!("{}-{stamp}-{}", scene.phenomenon().name(), self.renders));
+        let dir = match render_folder(&self.out_root, &self.scene_name, format) {
+            Ok(dir) => dir,
+            Err(e) => return self.error(format!("render final: {e:#}")),
+        };
         let cancel = Arc::new(AtomicBool::new(false));
         self.render_cancel = Some(cancel.clone());
         let out = self.out.clone();
@@ -710,6 +724,33 @@ impl Session {
     }
 }
 
+/// A new folder for one final render, its own: `OUT/SCENE-YYYY-MM-DD-HHMMSS-FORMAT`
+/// (local time; the scene's name with anything but letters, digits, `.`, `_` and `-`
+/// as `_`), created here so no other render (another tab, another studio on the same
+/// folder) can take it: when the name is taken, `-2`, `-3`, ... is added.
+pub(crate) fn render_folder(out_root: &Path, scene_name: &str, format: Format) -> Result<PathBuf> {
+    ensure_dir(out_root)?;
+    let mut name: String = scene_name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || "._-".contains(c) { c } else { '_' })
+        .take(64)
+        .collect();
+    if name.is_empty() || name.starts_with('.') {
+        name.insert_str(0, "scene");
+    }
+    let stamp = chrono::Local::now().format("%Y-%m-%d-%H%M%S");
+    let base = format!("{name}-{stamp}-{}", format.name());
+    for n in 1..=1000 {
+        let dir = if n == 1 { out_root.join(&base) } else { out_root.join(format!("{base}-{n}")) };
+        match std::fs::create_dir(&dir) {
+            Ok(()) => return Ok(dir),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => anyhow::bail!("cannot create {}: {e}", dir.display()),
+        }
+    }
+    anyhow::bail!("cannot find a free folder name like {} in {}", base, out_root.display())
+}
+
 /// A final render's progress to the page; stops the render when cancelled or when the
 /// page is gone.
 struct FinalProgress<'a> {
@@ -756,6 +797,7 @@ fn render_to(
         h,
         fps,
     )?;
+    crate::render::admit_outputs(&mut runner, &mut frames, format, scene, limits)?;
     runner.run(0..total, frames.sink(), progress)?;
     Ok(())
 }
@@ -763,6 +805,25 @@ fn render_to(
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+
+    /// Two final renders started in the same second (two tabs, or two formats of one
+    /// scene) get folders of their own, named by scene, date and time and format.
+    #[test]
+    fn each_final_render_gets_a_folder_of_its_own() {
+        let root = tempfile::tempdir().unwrap();
+        let a = render_folder(root.path(), "flame-paper", Format::Png).unwrap();
+        let b = render_folder(root.path(), "flame-paper", Format::Png).unwrap();
+        let c = render_folder(root.path(), "flame-paper", Format::Exr).unwrap();
+        assert!(a != b && a.is_dir() && b.is_dir() && c.is_dir());
+        let name = a.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with("flame-paper-20") && name.ends_with("-png"), "{name}");
+        assert!(b.file_name().unwrap().to_string_lossy().starts_with(&name), "{}", b.display());
+        assert!(c.file_name().unwrap().to_string_lossy().ends_with("-exr"));
+        // A hostile name stays one plain folder inside the root.
+        let d = render_folder(root.path(), "../x\n/..", Format::Png).unwrap();
+        assert_eq!(d.parent().unwrap(), root.path());
+        assert!(d.file_name().unwrap().to_string_lossy().starts_with("scene.._x__.."), "{}", d.display());
+    }
 
     #[test]
     fn saved_scenes_read_back_identically() {

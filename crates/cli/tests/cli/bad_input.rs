@@ -187,3 +187,63 @@ fn validate_is_quick_and_the_memory_budget_holds() {
     let out = run(dir.path(), &["validate", &deep, "--max-memory-gib", "-1"]);
     assert_eq!(out.status.code(), Some(2), "a budget must be positive");
 }
+
+/// `validate` and `render` check a scene by one path: a problem found when the scene is
+/// built (an `object_groups` that does not fit the mesh, a sparkle cone with too many
+/// candidates) is located at its key by both, also when the command line overrides the
+/// size or the view.
+#[test]
+fn render_locates_what_validate_locates() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let snow = std::fs::read_to_string(root.join("snow-table.toml"))
+        .unwrap()
+        .replace("[snow]\n", "[snow]\nobject_groups = []\n");
+    let snow = write(dir.path(), "groups.toml", &snow);
+    let sparkle = std::fs::read_to_string(root.join("sparkle-diamond-dust.toml"))
+        .unwrap()
+        .replace("exponent_n = 10000.0", "exponent_n = 2.0");
+    let sparkle = write(dir.path(), "cone.toml", &sparkle);
+    for (scene, at) in [
+        (&snow, "groups.toml:19:17: snow.object_groups"),
+        (&sparkle, "cone.toml:27:17: sparkle.phong.threshold_i_e"),
+    ] {
+        let v = fails(dir.path(), &["validate", scene]);
+        assert!(v.contains(at), "validate: {v}");
+        let r = fails(
+            dir.path(),
+            &["render", scene, "--out", "o", "--frames", "1", "--width", "64", "--height", "36"],
+        );
+        assert!(r.contains(at), "render: {r}");
+    }
+}
+
+/// Every problem of a file is reported, also when one is a value that cannot be read at
+/// all (a misspelt choice): the range problems of the rest come with it.
+#[test]
+fn a_bad_choice_does_not_hide_the_other_problems() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        "[scene]\nframes = 0\n[flame]\nmode = \"paperr\"\n[flame.emitter]\nrate_per_s = -5.0\n",
+    );
+    let e = fails(dir.path(), &["validate", &scene]);
+    assert!(e.contains("two.toml:2:10: scene.frames = 0"), "{e}");
+    assert!(e.contains("two.toml:4:8: unknown variant `paperr`"), "{e}");
+    assert!(e.contains("two.toml:6:14: flame.emitter.rate_per_s = -5"), "{e}");
+}
+
+/// An aurora whose source shape lies wholly outside the plane would render black frames
+/// (the particles are born on it): refused at the keyframe, with the plane's extent.
+#[test]
+fn an_aurora_that_cannot_show_anything_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        dir.path(),
+        "away.toml",
+        "[scene]\nframes = 20\n[aurora]\n[[aurora.keyframes]]\nframe = 0\nsheets = [[[-5000.0, 200.0], [-4000.0, 160.0]]]\n[[aurora.keyframes]]\nframe = 10\nsheets = [[[60.0, 200.0], [300.0, 250.0]]]\n",
+    );
+    let e = fails(dir.path(), &["validate", &scene]);
+    assert!(e.contains("away.toml:6:10: aurora.keyframes[0].sheets") && e.contains("[0, 400]"), "{e}");
+}

@@ -208,3 +208,101 @@ fn a_checkpoint_serves_other_sizes_and_resume() {
     assert!(resumed.contains("kept 6 finished frame(s)") && resumed.contains("at frame 4"), "{resumed}");
     assert_eq!(frames(&dir.path().join("ref"))[4..], frames(&dir.path().join("big"))[..]);
 }
+
+/// What is not a regular checkpoint file is refused without being read whole, and the
+/// render falls back with a message: a FIFO (it hung the render), a symlink to
+/// `/dev/zero` (read until memory ran out) and a sparse file of 1.5 GiB whose header is
+/// not a checkpoint's.
+#[test]
+fn checkpoints_are_read_as_regular_files_header_first_within_the_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = TINY_FLAME.replace("frames = 4", "frames = 12");
+    let scene = write(dir.path(), "tiny.toml", &text);
+    ok(dir.path(), &["render", &scene, "--out", "whole", "--checkpoint-every", "4"]);
+    let whole = frames(&dir.path().join("whole"));
+    let ck = dir.path().join("ck");
+    std::fs::create_dir(&ck).unwrap();
+    // Frame 4: the real checkpoint; 8: a FIFO; the render of 8..12 falls back to 4.
+    std::fs::copy(
+        dir.path().join("whole/checkpoints/checkpoint_00004.ckpt"),
+        ck.join("checkpoint_00004.ckpt"),
+    )
+    .unwrap();
+    let made = std::process::Command::new("mkfifo").arg(ck.join("checkpoint_00008.ckpt")).status().unwrap();
+    assert!(made.success());
+    let render = |out: &str, extra: &[&str]| {
+        let mut args = vec!["render", &scene, "--out", out, "--frames", "8..12", "--checkpoint-dir", "ck"];
+        args.extend_from_slice(extra);
+        let out = run(dir.path(), &args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        (String::from_utf8_lossy(&out.stdout).into_owned(), stderr)
+    };
+    let (stdout, stderr) = render("fifo", &[]);
+    assert!(
+        stderr.contains("checkpoint_00008.ckpt not used") && stderr.contains("not a regular file"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("started from the checkpoint at frame 4"), "{stdout}");
+    assert_eq!(frames(&dir.path().join("fifo")), whole[8..]);
+
+    std::fs::remove_file(ck.join("checkpoint_00008.ckpt")).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", ck.join("checkpoint_00008.ckpt")).unwrap();
+    let (_, stderr) = render("zero", &[]);
+    assert!(stderr.contains("not a regular file"), "{stderr}");
+    assert_eq!(frames(&dir.path().join("zero")), whole[8..]);
+
+    // A sparse 1.5 GiB file takes no disk; only its first bytes may be read.
+    std::fs::remove_file(ck.join("checkpoint_00008.ckpt")).unwrap();
+    let sparse = std::fs::File::create(ck.join("checkpoint_00008.ckpt")).unwrap();
+    sparse.set_len(3 << 29).unwrap();
+    let (_, stderr) = render("sparse", &["--max-memory-gib", "1"]);
+    assert!(stderr.contains("not a phenomena checkpoint"), "{stderr}");
+    assert_eq!(frames(&dir.path().join("sparse")), whole[8..]);
+
+    // (A real checkpoint over what the budget leaves: `output.rs` test
+    // `checkpoints_are_refused_by_their_header_before_being_read`.)
+    // A checkpoint folder that is a file is an error, not ignored.
+    let e = crate::fails(
+        dir.path(),
+        &["render", &scene, "--out", "f", "--frames", "8..12", "--checkpoint-dir", "tiny.toml"],
+    );
+    assert!(e.contains("is a file, not a folder"), "{e}");
+}
+
+/// `[render.sky] afterglow = true` carries light from frame to frame: a render of frames
+/// A..B, one resumed, and one offered checkpoints all render every frame from 0 (saying
+/// so), and their frames equal the uninterrupted render's bytes.
+#[test]
+fn an_afterglow_is_rendered_from_frame_zero_and_equals_one_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        dir.path(),
+        "glow.toml",
+        "[scene]\nframes = 8\nwidth = 64\nheight = 36\n[aurora]\n[aurora.motion]\nparticles = 3000\n[render.sky]\nafterglow = true\n",
+    );
+    ok(dir.path(), &["render", &scene, "--out", "whole", "--checkpoint-every", "4"]);
+    let whole = frames(&dir.path().join("whole"));
+    assert_eq!(whole.len(), 8);
+    // The afterglow makes a frame depend on the ones before: rendering 5..8 without
+    // frames 0..5 drawn would differ (checked: frame 5 of a render without afterglow).
+    let out = run(
+        dir.path(),
+        &["render", &scene, "--out", "part", "--frames", "5..8", "--checkpoint-dir", "whole/checkpoints"],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("afterglow") && stderr.contains("rendering every frame from 0"), "{stderr}");
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("started from the checkpoint"));
+    assert_eq!(frames(&dir.path().join("part")), whole[5..]);
+    std::fs::remove_file(dir.path().join("whole/frame_00006.png")).unwrap();
+    ok(dir.path(), &["render", &scene, "--out", "whole", "--resume"]);
+    assert_eq!(frames(&dir.path().join("whole")), whole);
+    let plain = write(
+        dir.path(),
+        "plain.toml",
+        &std::fs::read_to_string(&scene).unwrap().replace("afterglow = true", "afterglow = false"),
+    );
+    ok(dir.path(), &["render", &plain, "--out", "plain", "--frames", "5..6"]);
+    assert_ne!(frames(&dir.path().join("plain"))[0], whole[5], "the afterglow changes frame 5");
+}

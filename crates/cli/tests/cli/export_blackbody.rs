@@ -185,3 +185,77 @@ fn the_aurora_profile_reads_the_air_of_other_conditions() {
     assert!(err.contains("atmosphere_msis21_minor.csv") && err.contains("line 3"), "{err}");
     assert!(!dir.path().join("x.csv").exists());
 }
+
+/// `--air` tables whose values parse but are not air are refused at their file and
+/// line, never written as NaN profiles or a panic: a NaN altitude in the first row or
+/// mid-table, densities and temperatures of 1e300 and 1e-300, negative altitudes; a
+/// FIFO in place of a table is refused without waiting for a writer.
+#[test]
+fn air_tables_that_are_not_air_are_refused_at_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let air = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/air/tromso");
+    let copy = |case: &str, file: &str, text: &str| {
+        let d = dir.path().join(case);
+        std::fs::create_dir(&d).unwrap();
+        for name in ["atmosphere_msis21.csv", "atmosphere_msis21_minor.csv", "ionosphere_iri90.csv"] {
+            std::fs::copy(format!("{air}/{name}"), d.join(name)).unwrap();
+        }
+        std::fs::write(d.join(file), text).unwrap();
+        d.to_string_lossy().into_owned()
+    };
+    let neutral = "altitude_km,n_o,n_n2,n_o2,temperature_k\n";
+    let cases = [
+        (
+            "minor-nan-first",
+            "atmosphere_msis21_minor.csv",
+            "altitude_km,n_n,n_no\nNaN,1,1\n500,1,1\n".to_string(),
+            "line 2",
+        ),
+        (
+            "minor-nan-mid",
+            "atmosphere_msis21_minor.csv",
+            "altitude_km,n_n,n_no\n80,1,1\nNaN,1,1\n500,1,1\n".into(),
+            "line 3",
+        ),
+        (
+            "huge",
+            "atmosphere_msis21.csv",
+            format!("{neutral}80,1e300,1e20,1e19,200\n500,1e14,1e12,1e10,800\n"),
+            "line 2",
+        ),
+        (
+            "tiny",
+            "atmosphere_msis21.csv",
+            format!("{neutral}80,1e16,1e-300,1e19,200\n500,1e14,1e12,1e10,800\n"),
+            "line 2",
+        ),
+        (
+            "hot",
+            "atmosphere_msis21.csv",
+            format!("{neutral}80,1e16,1e20,1e19,200\n500,1e14,1e12,1e10,1e300\n"),
+            "line 3",
+        ),
+        (
+            "below",
+            "atmosphere_msis21.csv",
+            format!("{neutral}-900,1e16,1e20,1e19,200\n-800,1e14,1e12,1e10,800\n"),
+            "line 2",
+        ),
+    ];
+    for (case, file, text, line) in cases {
+        let d = copy(case, file, &text);
+        let out = format!("{case}.csv");
+        let err =
+            fails(dir.path(), &["export", "aurora-profile", "--energy-kev", "1", "--out", &out, "--air", &d]);
+        assert!(err.contains(&format!("{file}: {line}:")) && err.contains("out of range"), "{case}: {err}");
+        assert!(!dir.path().join(&out).exists(), "{case}: a profile was written");
+    }
+    let d = copy("fifo", "ionosphere_iri90.csv", "");
+    std::fs::remove_file(format!("{d}/ionosphere_iri90.csv")).unwrap();
+    let made =
+        std::process::Command::new("mkfifo").arg(format!("{d}/ionosphere_iri90.csv")).status().unwrap();
+    assert!(made.success());
+    let err =
+        fails(dir.path(), &["export", "aurora-profile", "--energy-kev", "1", "--out", "f.csv", "--air", &d]);
+    assert!(err.contains("ionosphere_iri90.csv") && err.contains("not a regular file"), "{err}");
+}

@@ -170,3 +170,91 @@ fn formats_a_phenomenon_cannot_write_are_refused_first() {
     assert!(e.contains("--resume"), "{e}");
     assert!(!dir.path().join("o").join("flipbook.png").exists());
 }
+
+/// Outputs count against the memory budget and are checked before the first frame:
+/// volumes of tiny voxels (the flame's 0.1 mm needed an 8 GB list and aborted; the
+/// aurora's 0.1 km, inside the documented range, tens of GB), an invalid voxel size,
+/// and a flipbook atlas over the budget are refused at once, naming the size, with no
+/// frame written.
+#[test]
+fn outputs_over_the_memory_budget_are_refused_before_the_first_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let flame = shipped("flame-paper.toml");
+    let aurora = shipped("aurora-scene2.toml");
+    let cases: [(&str, Vec<&str>, &str); 6] = [
+        (
+            "tiny",
+            vec![&flame, "--format", "vdb", "--voxel-m", "0.0001", "--frames", "40..41"],
+            "use larger voxels",
+        ),
+        ("zero", vec![&flame, "--format", "vdb", "--voxel-m", "0", "--frames", "40..41"], "voxel size 0 m"),
+        (
+            "nan",
+            vec![&flame, "--format", "vdb", "--voxel-m", "NaN", "--frames", "40..41"],
+            "voxel size NaN m",
+        ),
+        (
+            "aurora",
+            vec![
+                &aurora,
+                "--format",
+                "vdb",
+                "--voxel-km",
+                "0.1",
+                "--frames",
+                "30..31",
+                "--width",
+                "64",
+                "--height",
+                "36",
+            ],
+            "use larger voxels",
+        ),
+        (
+            "budget",
+            vec![
+                &flame,
+                "--format",
+                "vdb",
+                "--voxel-m",
+                "0.002",
+                "--frames",
+                "40..41",
+                "--width",
+                "64",
+                "--height",
+                "36",
+                "--max-memory-gib",
+                "0.05",
+            ],
+            "the budget",
+        ),
+        (
+            "atlas",
+            vec![
+                &flame,
+                "--format",
+                "flipbook",
+                "--frames",
+                "9",
+                "--width",
+                "4096",
+                "--height",
+                "4096",
+                "--max-memory-gib",
+                "1",
+            ],
+            "more than the budget of 1.00 GiB",
+        ),
+    ];
+    for (out, args, needle) in cases {
+        let mut all = vec!["render", "--out", out];
+        all.extend(args);
+        let e = fails(dir.path(), &all);
+        assert!(e.contains(needle), "{out}: {e}");
+        // Refused before the run, not when its first frame is written ("frame N: ...").
+        assert!(!e.contains("frame 30") && !e.contains("frame 40") && !e.contains("frame 0"), "{out}: {e}");
+        let written = std::fs::read_dir(dir.path().join(out)).map_or(0, |d| d.count());
+        assert_eq!(written, 0, "{out}: files written");
+    }
+}

@@ -78,3 +78,22 @@ fn sigterm_stops_between_frames_and_resume_finishes_the_same_bytes() {
         assert!(a.unwrap() == b.unwrap(), "{f} differs after the resume");
     }
 }
+
+/// A volume's manifest is written before the volume: a frame whose `.vdb` has no
+/// `.vdb.json` beside it (a failure between the two) is not finished, and `--resume`
+/// writes it again, volume and manifest.
+#[test]
+fn a_volume_without_its_manifest_is_written_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "tiny.toml", TINY_FLAME);
+    ok(dir.path(), &["render", &scene, "--out", "v", "--format", "vdb"]);
+    let v = dir.path().join("v");
+    let manifest = std::fs::read(v.join("frame_00002.vdb.json")).unwrap();
+    std::fs::remove_file(v.join("frame_00002.vdb.json")).unwrap();
+    // A manifest alone (the volume lost) is not finished either.
+    std::fs::remove_file(v.join("frame_00003.vdb")).unwrap();
+    let stdout = ok(dir.path(), &["render", &scene, "--out", "v", "--format", "vdb", "--resume"]);
+    assert!(stdout.contains("wrote 2 frame(s), kept 2 finished frame(s)"), "{stdout}");
+    assert_eq!(std::fs::read(v.join("frame_00002.vdb.json")).unwrap(), manifest);
+    assert!(v.join("frame_00003.vdb").is_file());
+}
