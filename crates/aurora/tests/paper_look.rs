@@ -20,11 +20,9 @@ use phenomena_aurora::fall::{PaperFall, PaperProduction, PaperQuenching};
 use phenomena_aurora::{ColourMode, SkySettings};
 
 #[test]
+#[ignore = "slow tier (200 frames of 120,000 particles): cargo test -- --include-ignored"]
 #[allow(clippy::print_stderr, reason = "the measurement, for the record of a run")]
 fn scene2_in_paper_mode_is_green_with_a_redder_top() {
-    if !common::slow_tests() {
-        return; // a slow test (200 frames of 120,000 particles): PHENOMENA_SLOW_TESTS=1 runs it
-    }
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 200);
     let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };

@@ -18,11 +18,9 @@ mod common;
 use phenomena_aurora::SkySettings;
 
 #[test]
+#[ignore = "slow tier (140 frames of 120,000 particles): cargo test -- --include-ignored"]
 #[allow(clippy::print_stderr, reason = "the measurement, for the record of a run")]
 fn scene2_has_a_redder_upper_border() {
-    if !common::slow_tests() {
-        return; // a slow test (140 frames of 120,000 particles): PHENOMENA_SLOW_TESTS=1 runs it
-    }
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 140);
     let frame = common::sky_frame(&sim, SkySettings::default(), 1280, 720);

@@ -24,10 +24,8 @@ fn strays_and_holes(redistribute: bool, damping_per_s: f32) -> (f64, usize) {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn without_redistribution_particles_stray_and_leave_holes() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // Fig 2.14: without redistribution particles that left the shape stay away and cells
     // near it empty; with it (and with no cell over the upper threshold after any
     // renewal, which the scenario tests check on every scene) both shrink. Strays are

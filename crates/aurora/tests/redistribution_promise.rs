@@ -50,10 +50,8 @@ fn promise_kept(name: &str) -> f64 {
 macro_rules! scene_test {
     ($test:ident, $file:literal) => {
         #[test]
+        #[ignore = "slow tier: cargo test -- --include-ignored"]
         fn $test() {
-            if !common::slow_tests() {
-                return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-            }
             promise_kept($file);
         }
     };

@@ -47,10 +47,8 @@ fn clouds(sim: &AuroraSim) -> usize {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn scene1_peeling() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     check("aurora-scene1.toml", |_, _| {});
 }
 
@@ -67,35 +65,27 @@ fn clouds_before_and_after(name: &str, before: u32) -> (usize, usize) {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn scene2_s_shape_and_split() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     let clouds = clouds_before_and_after("aurora-scene2.toml", 140);
     assert_eq!(clouds, (1, 2), "clouds at the S (frame 140) and after the split");
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn scene3_merge() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     let clouds = clouds_before_and_after("aurora-scene3.toml", 1);
     assert_eq!(clouds, (3, 2), "clouds at the start and after the merge");
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn scene4_folds_split_merge() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     check("aurora-scene4.toml", |_, _| {});
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn scene5_large() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     check("aurora-scene5.toml", |_, _| {});
 }

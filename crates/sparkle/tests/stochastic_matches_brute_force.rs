@@ -146,10 +146,8 @@ fn assert_same_mean(what: &str, a: &[f64], b: &[f64]) {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn lamp_scene_frames_match_brute_force() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // A wide cone (n = 20, cos θ = 0.9: p = 0.05, 50,000 glints a frame) so the mean
     // image converges: 150 seeds put ~5e4 glints in each of the 16×9 pixels, a relative
     // standard error of 0.5 % per method (weights (N·H)^20 add 16 %) and an expected
@@ -180,10 +178,8 @@ fn lamp_scene_frames_match_brute_force() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn glint_lifetimes_match_brute_force() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // A narrow cone (cos θ = 0.99, θ = 8.1°) and 4° of rotation a frame: glints last a
     // few frames. Lifetimes of glints born in frames 1-15 that die by frame 16.
     let seeds = 40;
@@ -207,10 +203,8 @@ fn glint_lifetimes_match_brute_force() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn count_is_binomial_before_and_after_births() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // 20,000 seeds of the stochastic model alone (p = 5.0e-4, 500 glints): the sample
     // variance's relative standard error is √(2/20000) = 1 %, so "within 5 %" is a 5σ
     // bound; the mean is held to 3σ as asked.
@@ -239,10 +233,8 @@ fn count_is_binomial_before_and_after_births() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn plates_match_brute_force() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // Horizontal plates (two-sided) under a low sun: glints gather around the subsun and
     // a pillar. Both tilts mix the two ways of drawing candidates: thinned cells, and
     // cells whose density bound would make the candidate probability exceed 1 (near the
@@ -287,10 +279,8 @@ fn plates_match_brute_force() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn leaves_under_a_moving_sun_match_brute_force() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // 10⁶ leaves on a crown, a 25° normal lobe, the sun sweeping 1° a frame: every
     // glint change comes from H moving, none from the leaves.
     let config = |method| SparkleConfig {
@@ -328,10 +318,8 @@ fn leaves_under_a_moving_sun_match_brute_force() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn two_sided_dust_under_a_moving_sun_seen_orthographically_matches_brute_force() {
-    if !common::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     // Two-sided facets (both caps), a sun climbing 1° a frame (H changes with time, the
     // regions' sun term) and an orthographic camera (V the same everywhere).
     let config = |method| SparkleConfig {

@@ -100,13 +100,6 @@ pub(crate) fn components(sim: &AuroraSim, min_count: u32, min_cells: usize) -> u
     found
 }
 
-/// Whether the slow scenario and statistical tests run: only with
-/// `PHENOMENA_SLOW_TESTS=1` (as `.ci/run` sets), so the everyday `cargo test` stays
-/// quick (rust-analyzer's `skip_slow_tests` habit).
-pub(crate) fn slow_tests() -> bool {
-    std::env::var_os("PHENOMENA_SLOW_TESTS").is_some_and(|v| v == "1")
-}
-
 /// Colour of a sky frame's curtain by height (issues 20 and 24). Which pixels are the
 /// curtain: in each image column, the rows whose luminance is at least `floor_share` of
 /// the frame's brightest pixel; the column's curtain runs from its highest to its lowest

@@ -19,13 +19,6 @@ mod sparkle;
 use std::path::Path;
 use std::process::Output;
 
-/// Whether the slow scenario and statistical tests run: only with
-/// `PHENOMENA_SLOW_TESTS=1` (as `.ci/run` sets), so the everyday `cargo test` stays
-/// quick (rust-analyzer's `skip_slow_tests` habit).
-pub fn slow_tests() -> bool {
-    std::env::var_os("PHENOMENA_SLOW_TESTS").is_some_and(|v| v == "1")
-}
-
 /// Run `phenomena` with `args` in `dir`.
 pub fn run(dir: &Path, args: &[&str]) -> Output {
     assert_cmd::cargo::cargo_bin_cmd!("phenomena").current_dir(dir).args(args).output().expect("binary runs")

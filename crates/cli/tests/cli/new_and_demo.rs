@@ -36,10 +36,8 @@ fn every_phenomenon_has_a_starter_that_validates_and_renders() {
 }
 
 #[test]
+#[ignore = "slow tier: cargo test -- --include-ignored"]
 fn demo_renders_every_system() {
-    if !crate::slow_tests() {
-        return; // a slow test: PHENOMENA_SLOW_TESTS=1 runs it
-    }
     let dir = tempfile::tempdir().unwrap();
     let stdout = ok(dir.path(), &["demo", "--out", "d"]);
     assert!(stdout.contains("demo written to d"), "{stdout}");

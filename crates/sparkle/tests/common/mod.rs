@@ -166,10 +166,3 @@ fn statistics_match_tabulated_values() {
     assert!(chi2_two_sample(&r, &r).2 > 0.99);
     assert!(chi2_two_sample(&r, &[300, 200, 100, 2, 1]).2 < 1e-6);
 }
-
-/// Whether the slow scenario and statistical tests run: only with
-/// `PHENOMENA_SLOW_TESTS=1` (as `.ci/run` sets), so the everyday `cargo test` stays
-/// quick (rust-analyzer's `skip_slow_tests` habit).
-pub(crate) fn slow_tests() -> bool {
-    std::env::var_os("PHENOMENA_SLOW_TESTS").is_some_and(|v| v == "1")
-}
