@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use anyhow::Result;
-use phenomena_scene::output::Format;
-use phenomena_scene::{Assets, registry};
+use phenomena_scene::job::Job;
+use phenomena_scene::{Assets, registry, shipped};
 
 use crate::export::{self, TableFormat};
 use crate::render::{self, RenderJob};
@@ -13,16 +13,19 @@ use crate::render::{self, RenderJob};
 /// Render the showcase into `out`; returns a summary of what was written.
 pub(crate) fn run(out: &Path, threads: Option<usize>) -> Result<String> {
     let mut lines = Vec::new();
-    for shipped in registry::SHIPPED.iter() {
+    for shipped in shipped::SHIPPED.iter() {
         let Some(demo) = &shipped.demo else { continue };
         let scene = shipped.scene()?;
         let job = RenderJob {
-            frames: Some(demo.frames.clone()),
             width: Some(demo.size.0),
             height: Some(demo.size.1),
             threads,
-            ..RenderJob::new(out.join(shipped.name), Format::Png)
-        };
+            ..RenderJob::new(out.join(shipped.name), registry::FORMATS[0])
+        }
+        .with_job(Job {
+            frames: Some(demo.frames.clone()),
+            ..Job::new(out.join(shipped.name), registry::FORMATS[0])
+        });
         // Shipped scenes read no files.
         lines.push(render::run_scene(scene, &Assets::none(), &job)?);
     }

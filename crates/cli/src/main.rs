@@ -13,8 +13,10 @@ use std::process::ExitCode;
 
 use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
-use phenomena_scene::output::{Format, ensure_dir, write_bytes_atomic};
-use phenomena_scene::{Assets, registry};
+use phenomena_scene::atlas::{Alpha, FlipbookSettings};
+use phenomena_scene::job::Job;
+use phenomena_scene::output::{ensure_dir, write_bytes_atomic};
+use phenomena_scene::{Assets, Format, OutputOptions, VolumeOptions, registry};
 
 use crate::export::TableFormat;
 use crate::render::RenderJob;
@@ -32,39 +34,14 @@ fn phenomenon_names() -> PossibleValuesParser {
     PossibleValuesParser::new(registry::PHENOMENA.iter().map(|p| p.name()))
 }
 
-/// Image formats of `render`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum FormatArg {
-    /// 8-bit sRGB PNG, exposed and tone mapped.
-    Png,
-    /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping).
-    Exr,
-    /// OpenVDB volumes, one per frame (flame: density, temperature, emission; aurora:
-    /// one emission grid per line).
-    Vdb,
-    /// Binary PLY particle caches, one per frame (flame, aurora, sparkle).
-    Ply,
-    /// One atlas PNG of every frame and a JSON descriptor, for game engines (flame,
-    /// sparkle).
-    Flipbook,
+/// Every output format (`--format`), from the registry.
+fn format_names() -> PossibleValuesParser {
+    PossibleValuesParser::new(registry::FORMATS.iter().map(|f| f.name()))
 }
 
-impl FormatArg {
-    /// The scene layer's format.
-    fn format(self) -> Format {
-        match self {
-            FormatArg::Png => Format::Png,
-            FormatArg::Exr => Format::Exr,
-            FormatArg::Vdb => Format::Vdb,
-            FormatArg::Ply => Format::Ply,
-            FormatArg::Flipbook => Format::Flipbook,
-        }
-    }
-
-    /// The name on the command line.
-    fn name(self) -> &'static str {
-        self.format().name()
-    }
+/// The format named by `--format` (one of [`format_names`], so always found).
+fn format_named(name: &str) -> anyhow::Result<Format> {
+    Format::named(name).ok_or_else(|| anyhow::anyhow!("--format {name}: no such format"))
 }
 
 /// How a flipbook stores alpha.
@@ -97,16 +74,22 @@ struct OutputArgs {
 }
 
 impl OutputArgs {
-    fn apply(&self, job: &mut RenderJob) {
-        job.volume.voxel_m = self.voxel_m.or(self.voxel_km.map(|km| km * 1e3));
-        job.flipbook = render::FlipbookArgs {
-            power_of_two: self.pot,
-            alpha: match self.alpha {
-                AlphaArg::Straight => phenomena_scene::flipbook::Alpha::Straight,
-                AlphaArg::Premultiplied => phenomena_scene::flipbook::Alpha::Premultiplied,
+    /// The formats' options.
+    fn options(&self) -> OutputOptions {
+        OutputOptions {
+            volume: VolumeOptions {
+                voxel_m: self.voxel_m.or(self.voxel_km.map(|km| km * 1e3)),
+                max_bytes: None,
             },
-            loop_frames: self.loop_frames,
-        };
+            flipbook: FlipbookSettings {
+                power_of_two: self.pot,
+                alpha: match self.alpha {
+                    AlphaArg::Straight => Alpha::Straight,
+                    AlphaArg::Premultiplied => Alpha::Premultiplied,
+                },
+                loop_frames: self.loop_frames,
+            },
+        }
     }
 }
 
@@ -159,9 +142,10 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
         threads: Option<u16>,
         /// Output format: png (tone mapped, 8-bit sRGB), exr (linear float radiance), vdb
-        /// (volumes), ply (particle caches) or flipbook (one atlas of every frame).
-        #[arg(long, value_enum, default_value_t = FormatArg::Png)]
-        format: FormatArg,
+        /// (volumes), ply (particle caches) or flipbook (one atlas of every frame); which
+        /// a phenomenon can be written in: `phenomena formats`.
+        #[arg(long, value_parser = format_names(), default_value = "png")]
+        format: String,
         #[command(flatten)]
         output: OutputArgs,
         /// Skip frames whose files already exist (they are still simulated).
@@ -292,9 +276,9 @@ enum FarmManager {
         phenomena: Option<PathBuf>,
         #[command(flatten)]
         overrides: Overrides,
-        /// Image format.
-        #[arg(long, value_enum, default_value_t = FormatArg::Png)]
-        format: FormatArg,
+        /// Output format (one of render's).
+        #[arg(long, value_parser = format_names(), default_value = "png")]
+        format: String,
         /// What to draw (one of the phenomenon's views).
         #[arg(long, value_parser = view_names())]
         view: Option<String>,
@@ -474,35 +458,42 @@ fn run(cli: Cli) -> anyhow::Result<String> {
             checkpoints,
             output,
         } => {
-            let mut job = RenderJob {
-                frames,
+            let job = RenderJob {
+                job: Job {
+                    frames,
+                    options: output.options(),
+                    resume,
+                    checkpoint_every: checkpoints.checkpoint_every,
+                    checkpoint_dir: checkpoints.checkpoint_dir,
+                    ..Job::new(out, format_named(&format)?)
+                },
                 width,
                 height,
                 seed,
                 threads: threads.map(usize::from),
-                resume,
                 stats,
                 view,
-                checkpoint_every: checkpoints.checkpoint_every,
-                checkpoint_dir: checkpoints.checkpoint_dir,
-                ..RenderJob::new(out, format.format())
+                quiet: false,
             };
-            output.apply(&mut job);
             render::run(&scene, &job)
         }
         Command::Simulate { scene, frames, seed, threads, checkpoint_every, checkpoint_dir, stats } => {
+            let job = Job {
+                frames,
+                checkpoint_every: Some(checkpoint_every),
+                checkpoint_dir: Some(checkpoint_dir.clone()),
+                images: false,
+                ..Job::new(checkpoint_dir, registry::FORMATS[0])
+            };
             render::run(
                 &scene,
                 &RenderJob {
-                    frames,
                     seed,
                     threads: threads.map(usize::from),
                     stats,
-                    checkpoint_every: Some(checkpoint_every),
-                    checkpoint_dir: Some(checkpoint_dir.clone()),
-                    images: false,
-                    ..RenderJob::new(checkpoint_dir, Format::Png)
-                },
+                    ..RenderJob::new(PathBuf::new(), job.format)
+                }
+                .with_job(job),
             )
         }
         Command::Farm {
@@ -520,7 +511,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     view,
                 },
         } => {
-            if format == FormatArg::Flipbook {
+            if !format_named(&format)?.resumable() {
                 anyhow::bail!(
                     "farm slurm --format flipbook: a flipbook is one atlas made of every frame, and the farm's tasks render their chunks apart; render png or exr frames on the farm, or the flipbook on one machine with `phenomena render --format flipbook`"
                 );
@@ -539,7 +530,7 @@ fn run(cli: Cli) -> anyhow::Result<String> {
                     args.extend(["--seed".to_string(), s.to_string()]);
                 }
             }
-            render_args.extend(["--format".to_string(), format.name().to_string()]);
+            render_args.extend(["--format".to_string(), format]);
             if let Some(v) = view {
                 render_args.extend(["--view".to_string(), v]);
             }

@@ -134,10 +134,10 @@ fn every_shipped_scene_is_registered_and_validates() {
         .collect();
     files.sort();
     let mut listed: Vec<String> =
-        phenomena_scene::registry::SHIPPED.iter().map(|s| format!("{}.toml", s.name)).collect();
+        phenomena_scene::shipped::SHIPPED.iter().map(|s| format!("{}.toml", s.name)).collect();
     listed.sort();
-    assert_eq!(files, listed, "scenes/ and phenomena_scene::registry::SHIPPED differ");
-    for s in phenomena_scene::registry::SHIPPED.iter() {
+    assert_eq!(files, listed, "scenes/ and phenomena_scene::shipped::SHIPPED differ");
+    for s in phenomena_scene::shipped::SHIPPED.iter() {
         // The file on disk, not only the embedded copy, validates.
         let scene =
             phenomena_scene::load(&dir.join(format!("{}.toml", s.name))).unwrap_or_else(|e| panic!("{e}"));

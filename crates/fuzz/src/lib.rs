@@ -28,7 +28,7 @@ use arbitrary::{Arbitrary, Unstructured};
 use phenomena_aurora::editor::{self, Drawn, EditOp};
 use phenomena_aurora::shape::PointRef;
 use phenomena_scene::aurora::AuroraScene;
-use phenomena_scene::{Assets, Limits, Scene, registry};
+use phenomena_scene::{Assets, Limits, Scene};
 use serde_json::{Value, json};
 
 /// A budget small enough that estimates of absurd scenes are refused rather than run.
@@ -235,7 +235,7 @@ fn leaves(v: &Value, path: String, out: &mut Vec<String>) {
 pub fn studio(data: &[u8]) {
     let mut u = Unstructured::new(data);
     let Ok(edits) = Vec::<Edit>::arbitrary(&mut u) else { return };
-    let mut scene: Scene = match registry::SHIPPED.first().map(|s| s.scene()) {
+    let mut scene: Scene = match phenomena_scene::shipped::SHIPPED.first().map(|s| s.scene()) {
         Some(Ok(s)) => s,
         _ => return,
     };
@@ -243,7 +243,8 @@ pub fn studio(data: &[u8]) {
     for edit in edits.iter().take(32) {
         match edit {
             Edit::Builtin(k) => {
-                let shipped = &registry::SHIPPED[usize::from(*k) % registry::SHIPPED.len()];
+                let shipped = &phenomena_scene::shipped::SHIPPED
+                    [usize::from(*k) % phenomena_scene::shipped::SHIPPED.len()];
                 scene = shipped.scene().expect("shipped scenes are valid");
                 drawn = scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default();
             }

@@ -14,10 +14,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
+use crate::budget::Estimate;
 use crate::cache::PointCache;
-use crate::output::Format;
-use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, View, VolumeOptions};
-use crate::runner::BuildError;
+use crate::error::BuildError;
+use crate::phenomenon::{Built, Capability, ExportKind, Exported, Phenomenon, Scratch, View, VolumeOptions};
 use crate::settings::SceneSettings;
 
 /// An aurora scene file.
@@ -61,7 +61,7 @@ impl Phenomenon for AuroraScene {
         },
     ];
     const STARTER: &'static str = include_str!("../starters/aurora.toml");
-    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr, Format::Vdb, Format::Ply];
+    const CAN: &'static [Capability] = &[Capability::Volume, Capability::Points];
     type Sim = AuroraSim;
     type Renderer = AuroraRenderer;
     type Loaded = Option<Frame>;

@@ -10,10 +10,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::assets::Assets;
+use crate::budget::Estimate;
 use crate::cache::PointCache;
-use crate::output::Format;
-use crate::phenomenon::{Built, Estimate, Phenomenon, Scratch, Steer, View, VolumeOptions};
-use crate::runner::BuildError;
+use crate::error::BuildError;
+use crate::phenomenon::{Built, Capability, Phenomenon, Scratch, Steer, View, VolumeOptions};
 use crate::settings::SceneSettings;
 
 /// A flame scene file.
@@ -42,8 +42,7 @@ impl Phenomenon for FlameScene {
         View { name: "density", about: "particles as squares coloured by density (Fig 7)" },
     ];
     const STARTER: &'static str = include_str!("../starters/flame.toml");
-    const FORMATS: &'static [Format] =
-        &[Format::Png, Format::Exr, Format::Vdb, Format::Ply, Format::Flipbook];
+    const CAN: &'static [Capability] = &[Capability::Volume, Capability::Points, Capability::EmissionOnly];
     type Sim = FlameSim;
     type Renderer = FlameRenderer;
     type Loaded = Option<Frame>;

@@ -2,15 +2,16 @@
 //!
 //! - [`parse`] reads a scene file (TOML: a `[scene]` table and one phenomenon's tables)
 //!   and reports every problem at its line and column.
-//! - [`registry`] lists the phenomena ([`registry::PHENOMENA`]) and the scenes shipped
-//!   in `scenes/` ([`registry::SHIPPED`]); each phenomenon is one module ([`flame`],
-//!   [`aurora`], [`snow`], [`sparkle`]) implementing [`Phenomenon`].
+//! - [`registry`] lists the phenomena ([`registry::PHENOMENA`]: each an [`Entry`], one
+//!   module such as [`flame`], [`aurora`], [`snow`], [`sparkle`] implementing
+//!   [`Phenomenon`]) and the output formats ([`registry::FORMATS`]: each a [`Format`],
+//!   one module implementing [`OutputFormat`]); [`shipped`] the scenes in `scenes/`.
 //! - [`Assets`] is the only way a scene reads a file: from a folder, a studio session's
 //!   sandbox, or memory.
 //! - [`Runner`] builds a scene's simulation and renderer and runs them, handing frames
-//!   to a [`FrameSink`] ([`output::ImageSink`] writes PNG or EXR files,
-//!   [`output::CheckpointSink`] the simulation's state every N frames, [`checkpoint`]'s
-//!   format, from which [`Runner::restore`] continues).
+//!   to a [`FrameSink`]; [`job::render`] renders to files in a format, resuming and
+//!   starting from checkpoints ([`checkpoint`]'s format, from which [`Runner::restore`]
+//!   continues).
 //!
 //! A game or tool can load and run a scene with this crate alone:
 //!
@@ -42,29 +43,46 @@
 //! clock the caller gives [`Runner::set_clock`]).
 
 pub mod assets;
+pub mod atlas;
 pub mod aurora;
+mod budget;
 pub mod cache;
 pub mod checkpoint;
+mod entry;
+mod error;
+mod exr;
 pub mod flame;
-pub mod flipbook;
+mod flipbook;
+pub mod format;
+pub mod job;
 pub mod output;
 mod parse;
 mod phenomenon;
+mod ply;
+mod png;
 pub mod registry;
 mod runner;
 mod scene;
 mod settings;
+pub mod shipped;
+mod sink;
 pub mod snow;
+mod source;
 pub mod sparkle;
+mod vdb;
 
 pub use assets::{AssetError, Assets};
-pub use parse::{LoadError, Located, MAX_SCENE_BYTES, SceneErrors, load, parse};
+pub use budget::{Estimate, Limits, Report, gib};
+pub use entry::Entry;
+pub use error::{BuildError, RunError, SinkError};
+pub use exr::write_exr;
+pub use format::{Format, OutputFormat, OutputOptions};
+pub use parse::{LoadError, MAX_SCENE_BYTES, load, parse};
 pub use phenomenon::{
-    Built, Estimate, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, encode_volume,
+    Built, Capability, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, encode_volume,
 };
-pub use runner::{
-    BuildError, FrameRecord, FrameSink, Limits, Observer, Only, Output, Products, Report, RunError, Runner,
-    Simulate, SinkError, Tee, gib,
-};
+pub use runner::Runner;
 pub use scene::{Scene, set_path};
 pub use settings::{MAX_SIDE_PX, SceneSettings};
+pub use sink::{FrameRecord, FrameSink, Observer, Only, Output, Simulate, State, Tee};
+pub use source::{Located, SceneErrors};

@@ -1,8 +1,8 @@
-//! Writing files: frame sinks for PNG and EXR and for checkpoints (and finding and
-//! reading the checkpoints back), and the atomic write they share. Every
-//! output goes to a temporary name in the same folder (unique to the process) and is
-//! renamed into place, so an interrupted write never leaves a half-written file under
-//! the real name.
+//! Writing files: the atomic write every output shares, numbered frame files
+//! ([`NumberedFiles`], what each per-frame format writes through), and checkpoints
+//! (written every N frames, found and read back). Every output goes to a temporary
+//! name in the same folder (unique to the process) and is renamed into place, so an
+//! interrupted write never leaves a half-written file under the real name.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -10,71 +10,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use phenomena_core::color::srgb_encode_u8_fast;
 use phenomena_core::image::Frame;
-use phenomena_core::phenomenon::Layer;
 use phenomena_core::tonemap::Exposure;
 
-use crate::flipbook::{Atlas, Descriptor, FlipbookOptions, Layout};
-use crate::phenomenon::{Scratch, VolumeOptions};
-use crate::runner::{FrameSink, Output, SinkError};
+use crate::error::SinkError;
+use crate::sink::{FrameSink, Output, State};
 
-/// Image formats for frames.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ImageFormat {
-    /// 8-bit sRGB PNG, exposed and tone mapped.
-    Png,
-    /// 32-bit float linear OpenEXR (scene-referred radiance, no tone mapping), with
-    /// the renderer's layers as extra channels.
-    Exr,
-}
-
-impl ImageFormat {
-    /// The file extension.
-    pub fn extension(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "png",
-            ImageFormat::Exr => "exr",
-        }
-    }
-}
-
-/// What `render --format` writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Format {
-    /// PNG frames.
-    Png,
-    /// OpenEXR frames.
-    Exr,
-    /// OpenVDB volumes, one file per frame.
-    Vdb,
-    /// Particle caches, one binary PLY per frame.
-    Ply,
-    /// One atlas PNG and a JSON descriptor of all frames.
-    Flipbook,
-}
-
-impl Format {
-    /// Every format.
-    pub const ALL: [Format; 5] = [Format::Png, Format::Exr, Format::Vdb, Format::Ply, Format::Flipbook];
-
-    /// The name on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Format::Png => "png",
-            Format::Exr => "exr",
-            Format::Vdb => "vdb",
-            Format::Ply => "ply",
-            Format::Flipbook => "flipbook",
-        }
-    }
-
-    /// The format named `name`.
-    pub fn from_name(name: &str) -> Option<Format> {
-        Self::ALL.into_iter().find(|f| f.name() == name)
-    }
-}
-
-fn error(e: impl std::fmt::Display) -> SinkError {
+pub(crate) fn error(e: impl std::fmt::Display) -> SinkError {
     SinkError(e.to_string())
 }
 
@@ -168,53 +109,6 @@ pub fn to_srgb8(frame: &Frame, exposure: &Exposure) -> Vec<u8> {
     out
 }
 
-/// Write a frame as PNG (tone mapped) or EXR (linear, with `layers` as extra channels
-/// named as given, e.g. `aurora_557_7.Y`), atomically.
-pub fn write_frame(
-    path: &Path,
-    frame: &Frame,
-    layers: &[Layer<'_>],
-    format: ImageFormat,
-    exposure: &Exposure,
-) -> Result<(), SinkError> {
-    let (w, h) = (frame.width() as u32, frame.height() as u32);
-    match format {
-        ImageFormat::Png => write_png_rgb8(path, w, h, &to_srgb8(frame, exposure)),
-        ImageFormat::Exr if !layers.is_empty() => write_atomic(path, |tmp| {
-            use exr::prelude::*;
-            let mut list: Vec<AnyChannel<FlatSamples>> = vec![
-                AnyChannel::new("R", FlatSamples::F32(frame.c0.data().to_vec())),
-                AnyChannel::new("G", FlatSamples::F32(frame.c1.data().to_vec())),
-                AnyChannel::new("B", FlatSamples::F32(frame.c2.data().to_vec())),
-            ];
-            for layer in layers {
-                list.push(AnyChannel::new(layer.name, FlatSamples::F32(layer.plane.data().to_vec())));
-            }
-            Image::from_channels((frame.width(), frame.height()), AnyChannels::sort(SmallVec::from_vec(list)))
-                .write()
-                .non_parallel()
-                .to_file(tmp)
-                .map_err(error)
-        }),
-        ImageFormat::Exr => write_atomic(path, |tmp| {
-            use exr::prelude::*;
-            let data = frame.to_interleaved();
-            let width = frame.width();
-            let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
-                let i = (y * width + x) * 3;
-                (data[i], data[i + 1], data[i + 2])
-            });
-            // One thread, blocks in order: the same pixels give the same bytes (the
-            // parallel writer emits compressed blocks in completion order).
-            Image::from_channels((frame.width(), frame.height()), channels)
-                .write()
-                .non_parallel()
-                .to_file(tmp)
-                .map_err(error)
-        }),
-    }
-}
-
 /// Write 8-bit RGB as PNG, atomically.
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), SinkError> {
     write_atomic(path, |tmp| {
@@ -245,147 +139,79 @@ pub fn ensure_dir(dir: &Path) -> Result<(), SinkError> {
     Ok(())
 }
 
-/// Frames as numbered image files: `DIR/frame_00000.png`, ...
-pub struct ImageSink {
+/// A sink of files: what an output format opens for a run ([`crate::format`]).
+pub trait Files: FrameSink + Send {
+    /// Whether frame `index` is already written whole (what `--resume` keeps).
+    fn finished(&self, index: u32) -> bool;
+    /// Frames written by this run, and frames kept because they were finished.
+    fn counts(&self) -> (u32, u32);
+    /// Memory it needs at its peak beside the simulation, bytes, from the state before
+    /// the first frame (a flipbook's atlas, a volume's grids); checked against the
+    /// budget before the run starts, which also checks the format's options.
+    fn memory_bytes(&self, _state: State<'_>) -> Result<u64, SinkError> {
+        Ok(0)
+    }
+    /// Refuse frames that would take more than `max_bytes` (what the budget leaves).
+    fn limit_memory(&mut self, _max_bytes: u64) {}
+    /// One line on what was written into `dir`.
+    fn summary(&self, dir: &Path) -> String {
+        let (written, kept) = self.counts();
+        format!(
+            "wrote {written} frame(s){} to {}",
+            if kept > 0 { format!(", kept {kept} finished frame(s)") } else { String::new() },
+            dir.display()
+        )
+    }
+}
+
+/// What a format writes for one frame into its own numbered file.
+pub trait PerFrame: Send {
+    /// The files' extension (`png`).
+    fn extension(&self) -> &'static str;
+    /// Whether the frame's image is needed (data formats write from the state alone).
+    fn needs_image(&self) -> bool;
+    /// Write `out` to `path`, atomically.
+    fn write(&mut self, path: &Path, out: &Output<'_>) -> Result<(), SinkError>;
+    /// Whether the file at `path` is a finished frame.
+    fn finished(&self, path: &Path) -> bool {
+        path.is_file()
+    }
+    /// As [`Files::memory_bytes`].
+    fn memory_bytes(&self, _state: State<'_>) -> Result<u64, SinkError> {
+        Ok(0)
+    }
+    /// As [`Files::limit_memory`].
+    fn limit_memory(&mut self, _max_bytes: u64) {}
+}
+
+/// Frames as numbered files, `DIR/frame_00000.EXT`, each written by a [`PerFrame`].
+/// With `resume`, frames whose files are finished are kept (not written again) and
+/// temporary files of writers that were killed are removed.
+pub struct NumberedFiles<W> {
     dir: PathBuf,
-    format: ImageFormat,
     resume: bool,
     written: u32,
     kept: u32,
+    writer: W,
 }
 
-impl ImageSink {
-    /// Frames into `dir` (created if missing). With `resume`, frames whose files exist
-    /// are kept (not rendered again) and temporary files of writers that were killed
-    /// are removed.
-    pub fn new(dir: &Path, format: ImageFormat, resume: bool) -> Result<Self, SinkError> {
+impl<W: PerFrame> NumberedFiles<W> {
+    /// Files into `dir` (created if missing).
+    pub fn new(dir: &Path, resume: bool, writer: W) -> Result<Self, SinkError> {
         ensure_dir(dir)?;
         if resume {
             remove_stale_temps(dir);
         }
-        Ok(Self { dir: dir.to_path_buf(), format, resume, written: 0, kept: 0 })
+        Ok(Self { dir: dir.to_path_buf(), resume, written: 0, kept: 0, writer })
     }
 
     /// The file of frame `index`.
     pub fn path(&self, index: u32) -> PathBuf {
-        self.dir.join(format!("frame_{index:05}.{}", self.format.extension()))
-    }
-
-    /// Frames written.
-    pub fn written(&self) -> u32 {
-        self.written
-    }
-
-    /// Frames kept because their files existed (`resume`).
-    pub fn kept(&self) -> u32 {
-        self.kept
+        self.dir.join(format!("frame_{index:05}.{}", self.writer.extension()))
     }
 }
 
-impl ImageSink {
-    /// Whether frame `index` is finished (its file exists).
-    pub fn finished(&self, index: u32) -> bool {
-        self.path(index).is_file()
-    }
-}
-
-impl FrameSink for ImageSink {
-    fn wants(&mut self, index: u32) -> bool {
-        if self.resume && self.finished(index) {
-            self.kept += 1;
-            return false;
-        }
-        true
-    }
-
-    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
-        write_frame(&self.path(out.index), out.frame, out.layers, self.format, &out.exposure)?;
-        self.written += 1;
-        Ok(())
-    }
-}
-
-/// What a [`DataSink`] writes per frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Data {
-    /// An OpenVDB file of the phenomenon's grids.
-    Volume(VolumeOptions),
-    /// A binary PLY particle cache.
-    Points,
-}
-
-/// Frames as numbered data files, `DIR/frame_00000.vdb` or `.ply`, written atomically
-/// from the simulation's state (no image is rendered).
-pub struct DataSink {
-    dir: PathBuf,
-    data: Data,
-    resume: bool,
-    written: u32,
-    kept: u32,
-    scratch: Scratch,
-    bytes: Vec<u8>,
-}
-
-impl DataSink {
-    /// Files into `dir` (created if missing); `resume` as for [`ImageSink::new`].
-    pub fn new(dir: &Path, data: Data, resume: bool) -> Result<Self, SinkError> {
-        ensure_dir(dir)?;
-        if resume {
-            remove_stale_temps(dir);
-        }
-        Ok(Self {
-            dir: dir.to_path_buf(),
-            data,
-            resume,
-            written: 0,
-            kept: 0,
-            scratch: Scratch::default(),
-            bytes: Vec::new(),
-        })
-    }
-
-    /// The file of frame `index`.
-    pub fn path(&self, index: u32) -> PathBuf {
-        let ext = match self.data {
-            Data::Volume(_) => "vdb",
-            Data::Points => "ply",
-        };
-        self.dir.join(format!("frame_{index:05}.{ext}"))
-    }
-
-    /// Files written.
-    pub fn written(&self) -> u32 {
-        self.written
-    }
-
-    /// Files kept because they existed (`resume`).
-    pub fn kept(&self) -> u32 {
-        self.kept
-    }
-}
-
-impl DataSink {
-    /// What it writes.
-    pub fn data(&self) -> Data {
-        self.data
-    }
-
-    /// Refuse volumes that would take more than `max_bytes` ([`VolumeOptions::max_bytes`]).
-    pub fn limit_volumes(&mut self, max_bytes: u64) {
-        if let Data::Volume(options) = &mut self.data {
-            options.max_bytes = Some(max_bytes);
-        }
-    }
-
-    /// Whether frame `index` is finished: its file exists and, for a volume, its
-    /// manifest too (written first, so a volume beside its manifest is whole).
-    pub fn finished(&self, index: u32) -> bool {
-        let path = self.path(index);
-        path.is_file() && (!matches!(self.data, Data::Volume(_)) || manifest_path(&path).is_file())
-    }
-}
-
-impl FrameSink for DataSink {
+impl<W: PerFrame> FrameSink for NumberedFiles<W> {
     fn wants(&mut self, index: u32) -> bool {
         if self.resume && self.finished(index) {
             self.kept += 1;
@@ -395,30 +221,32 @@ impl FrameSink for DataSink {
     }
 
     fn needs_image(&self) -> bool {
-        false
+        self.writer.needs_image()
     }
 
     fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
         let path = self.path(out.index);
-        match &self.data {
-            Data::Volume(options) => {
-                let mut manifest = out.data.volume(options, &mut self.scratch, &mut self.bytes)?;
-                manifest["frame"] = out.index.into();
-                let text = serde_json::to_string_pretty(&manifest).map_err(error)?;
-                // The manifest first: a volume is never left without one (a failure
-                // between the two leaves a manifest alone, which `--resume` redoes).
-                let manifest = manifest_path(&path);
-                let _ = std::fs::remove_file(&path);
-                write_bytes_atomic(&manifest, text.as_bytes())?;
-                write_bytes_atomic(&path, &self.bytes)?;
-            }
-            Data::Points => {
-                self.bytes = out.data.points()?;
-                write_bytes_atomic(&path, &self.bytes)?;
-            }
-        }
+        self.writer.write(&path, out)?;
         self.written += 1;
         Ok(())
+    }
+}
+
+impl<W: PerFrame> Files for NumberedFiles<W> {
+    fn finished(&self, index: u32) -> bool {
+        self.writer.finished(&self.path(index))
+    }
+
+    fn counts(&self) -> (u32, u32) {
+        (self.written, self.kept)
+    }
+
+    fn memory_bytes(&self, state: State<'_>) -> Result<u64, SinkError> {
+        self.writer.memory_bytes(state)
+    }
+
+    fn limit_memory(&mut self, max_bytes: u64) {
+        self.writer.limit_memory(max_bytes)
     }
 }
 
@@ -428,102 +256,6 @@ pub fn manifest_path(vdb: &Path) -> PathBuf {
     let mut name = vdb.file_name().unwrap_or_default().to_os_string();
     name.push(".json");
     vdb.with_file_name(name)
-}
-
-/// All the frames of a run as one flipbook ([`crate::flipbook`]): `DIR/flipbook.png`
-/// (RGBA) and `DIR/flipbook.json`, written when the run finishes.
-pub struct FlipbookSink {
-    dir: PathBuf,
-    options: FlipbookOptions,
-    layout: Layout,
-    atlas: Option<Atlas>,
-    first: Option<u32>,
-    last: u32,
-}
-
-impl FlipbookSink {
-    /// A flipbook of `rendered` frames of `width × height` into `dir` (created if
-    /// missing), refused at once when it cannot be laid out.
-    pub fn new(
-        dir: &Path,
-        rendered: u32,
-        width: u32,
-        height: u32,
-        options: FlipbookOptions,
-    ) -> Result<Self, SinkError> {
-        let layout = crate::flipbook::layout(rendered, width, height, &options).map_err(SinkError)?;
-        ensure_dir(dir)?;
-        Ok(Self {
-            dir: dir.to_path_buf(),
-            options,
-            layout,
-            atlas: Some(Atlas::new(layout, options)),
-            first: None,
-            last: 0,
-        })
-    }
-
-    /// Memory the flipbook holds at its peak, bytes: the atlas, the loop's head frames
-    /// and one frame resized to its cell.
-    pub fn memory_bytes(&self) -> u64 {
-        let cell = u64::from(self.layout.frame_width) * u64::from(self.layout.frame_height);
-        Atlas::memory_bytes(&self.layout, &self.options) + cell * 24
-    }
-
-    /// The atlas's layout.
-    pub fn layout(&self) -> &Layout {
-        &self.layout
-    }
-
-    /// The atlas image's path.
-    pub fn image_path(&self) -> PathBuf {
-        self.dir.join("flipbook.png")
-    }
-}
-
-impl FrameSink for FlipbookSink {
-    fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
-        let (w, h) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
-        let frame = if (out.frame.width(), out.frame.height()) == (w, h) {
-            std::borrow::Cow::Borrowed(out.frame)
-        } else {
-            std::borrow::Cow::Owned(out.frame.resized(w, h))
-        };
-        let linear = frame.to_interleaved();
-        let mut display = Vec::with_capacity(linear.len());
-        out.exposure.apply_all(&linear, |v| display.push(v));
-        self.atlas
-            .as_mut()
-            .ok_or_else(|| error("the flipbook is already written"))?
-            .push(display)
-            .map_err(SinkError)?;
-        self.first.get_or_insert(out.index);
-        self.last = out.index;
-        Ok(())
-    }
-
-    fn finish(&mut self) -> Result<(), SinkError> {
-        let atlas = self.atlas.take().ok_or_else(|| error("the flipbook is already written"))?;
-        let rgba = atlas.finish().map_err(SinkError)?;
-        let (w, h) = (self.layout.atlas_width, self.layout.atlas_height);
-        let image = self.image_path();
-        write_atomic(&image, |tmp| {
-            image::save_buffer_with_format(tmp, &rgba, w, h, image::ColorType::Rgba8, image::ImageFormat::Png)
-                .map_err(error)
-        })?;
-        let descriptor = Descriptor {
-            image: "flipbook.png".into(),
-            layout: self.layout,
-            fps: self.options.fps,
-            alpha: self.options.alpha,
-            loop_frames: self.options.loop_frames,
-            order: "row-major from the top left",
-            color_space: "sRGB",
-            source_frames: [self.first.unwrap_or(0), self.last + 1],
-        };
-        let json = serde_json::to_string_pretty(&descriptor).map_err(error)?;
-        write_bytes_atomic(&self.dir.join("flipbook.json"), json.as_bytes())
-    }
 }
 
 /// The file of the checkpoint from which frame `frames_done` is the next to simulate.

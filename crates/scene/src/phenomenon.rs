@@ -1,7 +1,8 @@
 //! The one trait each phenomenon's scene module implements: its file struct (the whole
 //! scene file: `[scene]` plus the phenomenon's tables) is the implementing type. Code
-//! above it (the runner, the CLI, the studio) reaches phenomena only through the
-//! [`crate::registry`], so adding a phenomenon is one module plus one registry line.
+//! above it (the runner, the CLI, the studio) reaches phenomena only through their
+//! [`crate::registry`] entries, so adding a phenomenon is one module plus one registry
+//! line (`tests/contract.rs` runs every entry through every command and format).
 
 use std::fmt::Debug;
 
@@ -13,10 +14,23 @@ use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 use crate::assets::Assets;
+use crate::budget::Estimate;
 use crate::cache::PointCache;
-use crate::output::Format;
-use crate::runner::BuildError;
+use crate::error::BuildError;
 use crate::settings::SceneSettings;
+
+/// What a phenomenon can give besides its frames' images; an output format that needs
+/// one is offered only for phenomena that have it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Capability {
+    /// Its state as OpenVDB grids ([`Phenomenon::volume`]).
+    Volume,
+    /// Its particles as a point cache ([`Phenomenon::points`]).
+    Points,
+    /// Its light alone over black, for sprites ([`Phenomenon::emission_only`]).
+    EmissionOnly,
+}
 
 /// A way a phenomenon can draw its frames (`[render] view` and `--view`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -67,36 +81,6 @@ pub struct Built<P: Phenomenon> {
     pub renderer: P::Renderer,
     /// Warnings, each a sentence.
     pub warnings: Vec<String>,
-}
-
-/// What running a scene will cost, estimated from its settings (and its files) before
-/// anything is built. Memory counts the large buffers (particles, maps, images, splat
-/// lists) at their peak, so it is a floor more than a ceiling; `work` says what one
-/// frame does in the phenomenon's own terms.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct Estimate {
-    /// Memory held at the peak, bytes.
-    pub memory_bytes: u64,
-    /// The memory by part: (what, bytes).
-    pub parts: Vec<(String, u64)>,
-    /// The work of one frame.
-    pub work: String,
-    /// What cannot be checked before running, each a sentence.
-    pub unchecked: Vec<String>,
-}
-
-impl Estimate {
-    /// An estimate of `work` from memory parts (what, bytes).
-    pub fn of(work: String, parts: Vec<(&str, f64)>) -> Self {
-        let parts: Vec<(String, u64)> =
-            parts.into_iter().map(|(what, bytes)| (what.to_string(), bytes.max(0.0).ceil() as u64)).collect();
-        Self {
-            memory_bytes: parts.iter().map(|p| p.1).fold(0, u64::saturating_add),
-            parts,
-            work,
-            unchecked: Vec::new(),
-        }
-    }
 }
 
 /// Buffers a sink keeps for a phenomenon between frames (a volume's grids: tens of
@@ -162,8 +146,8 @@ impl VolumeOptions {
         match self.max_bytes {
             Some(max) if need > max => Err(format!(
                 "a volume of {voxel} voxels needs up to {} of memory, more than the budget leaves ({}): use larger voxels or a larger memory budget",
-                crate::runner::gib(need),
-                crate::runner::gib(max)
+                crate::budget::gib(need),
+                crate::budget::gib(max)
             )),
             _ => Ok(need),
         }
@@ -182,8 +166,9 @@ pub trait Phenomenon:
     const VIEWS: &'static [View];
     /// The data it can export.
     const EXPORTS: &'static [ExportKind] = &[];
-    /// The formats `render --format` writes for it; the first is the default.
-    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr];
+    /// What it can give besides images, which some output formats need
+    /// ([`crate::format::OutputFormat::needs`]).
+    const CAN: &'static [Capability] = &[];
     /// A commented scene file holding every default (`phenomena new`).
     const STARTER: &'static str;
 
@@ -233,11 +218,11 @@ pub trait Phenomenon:
         None
     }
 
-    /// Draw the phenomenon's light alone over black, for flipbooks (the caller has
-    /// checked [`Phenomenon::FORMATS`]).
+    /// Draw the phenomenon's light alone over black, for flipbooks (called only when
+    /// [`Phenomenon::CAN`] holds [`Capability::EmissionOnly`]).
     fn emission_only(&mut self) {}
 
-    /// The current state as OpenVDB grids ([`Format::Vdb`]), encoded into `out`
+    /// The current state as OpenVDB grids (the `vdb` format), encoded into `out`
     /// (cleared first, by [`encode_volume`]), returning their manifest; `scratch` is the
     /// phenomenon's to keep buffers in between frames.
     fn volume(
@@ -256,7 +241,7 @@ pub trait Phenomenon:
         Ok(0)
     }
 
-    /// The current particles as a point cache ([`Format::Ply`]).
+    /// The current particles as a point cache (the `ply` format).
     fn points(_built: &Built<Self>) -> Result<PointCache, String> {
         Err(format!("{} scenes write no particle caches", Self::NAME))
     }

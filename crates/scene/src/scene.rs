@@ -1,7 +1,6 @@
 //! [`Scene`]: a parsed scene file of any phenomenon, with typed access for code that
 //! knows which one it holds.
 
-use std::any::Any;
 use std::fmt;
 use std::path::Path;
 use std::sync::Arc;
@@ -10,59 +9,68 @@ use phenomena_core::validate::{Issue, Issues};
 use serde_json::Value;
 
 use crate::assets::Assets;
-use crate::output::Format;
-use crate::parse::{Located, Source};
-use crate::phenomenon::{Estimate, Phenomenon, View};
-use crate::registry::{self, Entry};
-use crate::runner::{BuildError, Limits, Report, Run};
+use crate::budget::Estimate;
+use crate::budget::{Limits, Report};
+use crate::entry::{BuiltBox, Entry, FileBox};
+use crate::error::BuildError;
+use crate::phenomenon::{Phenomenon, View};
 use crate::settings::SceneSettings;
+use crate::source::{Located, Source};
 
-/// A scene of any phenomenon.
+/// A scene of any phenomenon: its file struct beside the registry entry that knows its
+/// type.
 pub struct Scene {
-    inner: Box<dyn AnyScene>,
-    /// The file it was read from, to locate later problems (none once it is changed).
+    entry: Entry,
+    file: FileBox,
+    /// The file it was read from, to locate later problems.
     source: Option<Arc<Source>>,
 }
 
 impl Scene {
     /// A scene holding `file`.
     pub fn new<P: Phenomenon>(file: P) -> Self {
-        Self { inner: Box::new(file), source: None }
+        Self { entry: Entry::of::<P>(), file: Box::new(file), source: None }
     }
 
+    /// A scene of `entry` holding `file` (made by that entry).
+    pub(crate) fn from_parts(entry: Entry, file: FileBox, source: Option<Source>) -> Self {
+        Self { entry, file, source: source.map(Arc::new) }
+    }
+
+    /// This scene as read from `source` (its problems located there).
     pub(crate) fn with_source(mut self, source: Source) -> Self {
         self.source = Some(Arc::new(source));
         self
     }
 
     /// Its phenomenon.
-    pub fn phenomenon(&self) -> &'static dyn Entry {
-        self.inner.entry()
+    pub fn phenomenon(&self) -> Entry {
+        self.entry
     }
 
     /// The `[scene]` table.
     pub fn settings(&self) -> &SceneSettings {
-        self.inner.settings()
+        self.entry.ops().settings(&*self.file)
     }
 
     /// The `[scene]` table, to change (command-line overrides: size, seed). Problems
     /// are still located in the file the scene was read from, whose other keys this
     /// does not move.
     pub fn settings_mut(&mut self) -> &mut SceneSettings {
-        self.inner.settings_mut()
+        self.entry.ops().settings_mut(&mut *self.file)
     }
 
     /// Every problem, with field paths from the file's root (`flame.sph.k`).
     pub fn validate(&self) -> Vec<Issue> {
         let mut i = Issues::default();
-        self.inner.settings().validate(&mut i);
-        self.inner.validate(&mut i);
+        self.settings().validate(&mut i);
+        self.entry.ops().validate(&*self.file, &mut i);
         i.into_result().err().unwrap_or_default()
     }
 
     /// The view drawn.
     pub fn view(&self) -> &'static str {
-        self.inner.view()
+        self.entry.ops().view(&*self.file)
     }
 
     /// Draw `view`; a view the phenomenon cannot draw is refused with the ones it can.
@@ -73,54 +81,40 @@ impl Scene {
             return Err(format!("`{view}` is not a {} view: use {}", p.name(), names.join(" or ")));
         }
         // As for `settings_mut`, the file still locates problems with other keys.
-        self.inner.set_view(view);
+        self.entry.ops().set_view(&mut *self.file, view);
         Ok(())
     }
 
     /// Seconds of simulated time per frame.
     pub fn frame_time_s(&self) -> f64 {
-        self.inner.frame_time_s()
+        self.entry.ops().frame_time_s(&*self.file)
     }
 
     /// Why a frame's image depends on the frames rendered before it, if it does
     /// ([`Phenomenon::render_memory`]).
     pub fn render_memory(&self) -> Option<&'static str> {
-        self.inner.render_memory()
-    }
-
-    /// Whether `render` can write `format` for this scene; if not, the error names the
-    /// formats it can.
-    pub fn supports(&self, format: Format) -> Result<(), String> {
-        let formats = self.phenomenon().formats();
-        if formats.contains(&format) {
-            return Ok(());
-        }
-        let names: Vec<&str> = formats.iter().map(|f| f.name()).collect();
-        Err(format!(
-            "{} scenes are not written as {}: use {}",
-            self.phenomenon().name(),
-            format.name(),
-            names.join(", ")
-        ))
+        self.entry.ops().render_memory(&*self.file)
     }
 
     /// Draw the phenomenon's light alone over black (for flipbooks); refused for a
-    /// phenomenon that has no flipbook format.
+    /// phenomenon without [`crate::phenomenon::Capability::EmissionOnly`].
     pub fn emission_only(&mut self) -> Result<(), String> {
-        self.supports(Format::Flipbook)?;
+        if !self.entry.can(crate::phenomenon::Capability::EmissionOnly) {
+            return Err(format!("{} scenes cannot be drawn as light alone over black", self.entry.name()));
+        }
         self.source = None;
-        self.inner.emission_only();
+        self.entry.ops().emission_only(&mut *self.file);
         Ok(())
     }
 
-    /// The scene as JSON (the form a front end edits; [`crate::registry::Entry::scene_from_json`] reads it).
+    /// The scene as JSON (the form a front end edits; [`Entry::scene_from_json`] reads it).
     pub fn to_json(&self) -> Value {
-        self.inner.to_json()
+        self.entry.ops().to_json(&*self.file)
     }
 
     /// The scene as a TOML file that reads back to the same scene.
     pub fn to_toml(&self) -> Result<String, String> {
-        self.inner.to_toml()
+        self.entry.ops().to_toml(&*self.file)
     }
 
     /// This scene with the value at dotted path `path` (`flame.emitter.rate_per_s`; no
@@ -135,13 +129,13 @@ impl Scene {
 
     /// The phenomenon's file struct, when it is `P`.
     pub fn get<P: Phenomenon>(&self) -> Option<&P> {
-        self.inner.as_any().downcast_ref()
+        self.file.downcast_ref()
     }
 
     /// The phenomenon's file struct, to change, when it is `P`.
     pub fn get_mut<P: Phenomenon>(&mut self) -> Option<&mut P> {
         self.source = None;
-        self.inner.as_any_mut().downcast_mut()
+        self.file.downcast_mut()
     }
 
     /// `message` about the value at `field` (a dotted path) at its line and column in
@@ -155,12 +149,9 @@ impl Scene {
         self.source.as_ref().map(|s| s.file.as_path())
     }
 
-    pub(crate) fn build(
-        &self,
-        assets: &Assets,
-        limits: &Limits,
-    ) -> Result<(Box<dyn Run>, Estimate), BuildError> {
-        self.inner.build(assets, limits)
+    /// Build the simulation and renderer (see [`crate::Runner::with_limits`]).
+    pub(crate) fn build(&self, assets: &Assets, limits: &Limits) -> Result<(BuiltBox, Estimate), BuildError> {
+        self.entry.ops().build(&*self.file, assets, limits)
     }
 
     /// Read the scene's files and make every check its simulation and renderer would
@@ -171,26 +162,30 @@ impl Scene {
         if !issues.is_empty() {
             return Err(BuildError::Invalid(issues));
         }
-        self.inner.check(assets, limits)
+        self.entry.ops().check(&*self.file, assets, limits)
     }
 }
 
 impl Clone for Scene {
     fn clone(&self) -> Self {
-        Self { inner: self.inner.clone_box(), source: self.source.clone() }
+        Self {
+            entry: self.entry,
+            file: self.entry.ops().clone_file(&*self.file),
+            source: self.source.clone(),
+        }
     }
 }
 
 impl PartialEq for Scene {
     /// Scenes are equal when their contents are (wherever they were read from).
     fn eq(&self, other: &Self) -> bool {
-        self.inner.eq_dyn(&*other.inner)
+        self.entry == other.entry && self.entry.ops().eq_files(&*self.file, &*other.file)
     }
 }
 
 impl fmt::Debug for Scene {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.inner.fmt(f)
+        self.entry.ops().debug_file(&*self.file, f)
     }
 }
 
@@ -219,99 +214,6 @@ pub fn set_path(root: &mut Value, path: &str, value: Value) -> Result<(), String
     Ok(())
 }
 
-/// A phenomenon's file struct without its type.
-trait AnyScene: Send + Sync + fmt::Debug {
-    fn entry(&self) -> &'static dyn Entry;
-    fn settings(&self) -> &SceneSettings;
-    fn settings_mut(&mut self) -> &mut SceneSettings;
-    fn validate(&self, issues: &mut Issues);
-    fn view(&self) -> &'static str;
-    fn set_view(&mut self, view: &str);
-    fn to_json(&self) -> Value;
-    fn frame_time_s(&self) -> f64;
-    fn emission_only(&mut self);
-    fn render_memory(&self) -> Option<&'static str>;
-    fn to_toml(&self) -> Result<String, String>;
-    fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError>;
-    fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError>;
-    fn clone_box(&self) -> Box<dyn AnyScene>;
-    fn eq_dyn(&self, other: &dyn AnyScene) -> bool;
-    fn as_any(&self) -> &dyn Any;
-    fn as_any_mut(&mut self) -> &mut dyn Any;
-}
-
-impl<P: Phenomenon> AnyScene for P {
-    fn entry(&self) -> &'static dyn Entry {
-        // Every implementation of `Phenomenon` is listed in the registry (a test checks
-        // each module's name is there).
-        registry::phenomenon(P::NAME).unwrap_or(registry::PHENOMENA[0])
-    }
-
-    fn settings(&self) -> &SceneSettings {
-        Phenomenon::settings(self)
-    }
-
-    fn settings_mut(&mut self) -> &mut SceneSettings {
-        Phenomenon::settings_mut(self)
-    }
-
-    fn validate(&self, issues: &mut Issues) {
-        Phenomenon::validate(self, issues)
-    }
-
-    fn view(&self) -> &'static str {
-        Phenomenon::view(self)
-    }
-
-    fn set_view(&mut self, view: &str) {
-        Phenomenon::set_view(self, view)
-    }
-
-    fn to_json(&self) -> Value {
-        serde_json::to_value(self).unwrap_or(Value::Null)
-    }
-
-    fn to_toml(&self) -> Result<String, String> {
-        toml::to_string(self).map_err(|e| e.to_string())
-    }
-
-    fn frame_time_s(&self) -> f64 {
-        Phenomenon::frame_time_s(self)
-    }
-
-    fn emission_only(&mut self) {
-        Phenomenon::emission_only(self)
-    }
-
-    fn render_memory(&self) -> Option<&'static str> {
-        Phenomenon::render_memory(self)
-    }
-
-    fn build(&self, assets: &Assets, limits: &Limits) -> Result<(Box<dyn Run>, Estimate), BuildError> {
-        crate::runner::live(self, assets, limits)
-    }
-
-    fn check(&self, assets: &Assets, limits: &Limits) -> Result<Report, BuildError> {
-        crate::runner::check(self, assets, limits)
-    }
-
-    fn clone_box(&self) -> Box<dyn AnyScene> {
-        Box::new(self.clone())
-    }
-
-    fn eq_dyn(&self, other: &dyn AnyScene) -> bool {
-        other.as_any().downcast_ref::<P>().is_some_and(|o| o == self)
-    }
-
-    fn as_any(&self) -> &dyn Any {
-        self
-    }
-
-    fn as_any_mut(&mut self) -> &mut dyn Any {
-        self
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -330,7 +232,7 @@ mod tests {
 
     #[test]
     fn with_value_reads_back_through_the_types() {
-        let scene = crate::registry::shipped("flame-paper").unwrap().scene().unwrap();
+        let scene = crate::shipped::shipped("flame-paper").unwrap().scene().unwrap();
         let seeded = scene.with_value("scene.seed", json!(77)).unwrap();
         assert_eq!(seeded.settings().seed, 77);
         assert!(scene.with_value("flame.nonsense", json!(1)).is_err(), "unknown keys are refused");

@@ -13,8 +13,9 @@ use phenomena_snow::{
 use serde::{Deserialize, Serialize};
 
 use crate::assets::{AssetError, Assets};
-use crate::phenomenon::{Built, Estimate, ExportKind, Exported, Phenomenon, View};
-use crate::runner::BuildError;
+use crate::budget::Estimate;
+use crate::error::BuildError;
+use crate::phenomenon::{Built, ExportKind, Exported, Phenomenon, View};
 use crate::settings::SceneSettings;
 
 /// Where a snow scene's geometry comes from (`[geometry]`): a built-in scene or a mesh

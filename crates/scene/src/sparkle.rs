@@ -9,10 +9,10 @@ use phenomena_sparkle::{
 use serde::{Deserialize, Serialize};
 
 use crate::assets::Assets;
+use crate::budget::Estimate;
 use crate::cache::PointCache;
-use crate::output::Format;
-use crate::phenomenon::{Built, Estimate, Phenomenon, View};
-use crate::runner::BuildError;
+use crate::error::BuildError;
+use crate::phenomenon::{Built, Capability, Phenomenon, View};
 use crate::settings::SceneSettings;
 
 /// A sparkle scene file (diamond dust or leaf glitter).
@@ -37,7 +37,7 @@ impl Phenomenon for SparkleScene {
     const VIEWS: &'static [View] =
         &[View { name: "glints", about: "the glints (and glare) over the sky, the crown or an image" }];
     const STARTER: &'static str = include_str!("../starters/sparkle.toml");
-    const FORMATS: &'static [Format] = &[Format::Png, Format::Exr, Format::Ply, Format::Flipbook];
+    const CAN: &'static [Capability] = &[Capability::Points, Capability::EmissionOnly];
     type Sim = SparkleSim;
     type Renderer = SparkleRenderer;
     type Loaded = Option<Frame>;

@@ -81,7 +81,9 @@ impl Catalogue {
     pub(crate) fn build() -> Self {
         let mut controls = BTreeMap::new();
         for p in registry::PHENOMENA {
-            let Some(s) = registry::SHIPPED.iter().find(|s| s.phenomenon == p.name()) else { continue };
+            let Some(s) = phenomena_scene::shipped::SHIPPED.iter().find(|s| s.phenomenon == p.name()) else {
+                continue;
+            };
             let Ok(scene) = s.scene() else { continue };
             controls.insert(p.name(), probe(*p, &scene.to_json()));
         }
@@ -100,13 +102,13 @@ impl Catalogue {
 }
 
 /// Every control of a scene's JSON form.
-fn probe(p: &dyn Entry, root: &Value) -> Vec<Control> {
+fn probe(p: Entry, root: &Value) -> Vec<Control> {
     let mut out = Vec::new();
     walk(p, root, root, String::new(), &mut out);
     out
 }
 
-fn walk(p: &dyn Entry, root: &Value, v: &Value, path: String, out: &mut Vec<Control>) {
+fn walk(p: Entry, root: &Value, v: &Value, path: String, out: &mut Vec<Control>) {
     let join = |k: &str| if path.is_empty() { k.to_string() } else { format!("{path}.{k}") };
     match v {
         Value::Object(map) => {
@@ -152,7 +154,7 @@ fn control(path: &str, kind: &'static str, valid: Option<Expected>, choices: Vec
 }
 
 /// What validation expects at `path`, told by a far out-of-range value.
-fn range_of(p: &dyn Entry, root: &Value, path: &str, candidates: &[Value]) -> Option<Expected> {
+fn range_of(p: Entry, root: &Value, path: &str, candidates: &[Value]) -> Option<Expected> {
     for c in candidates {
         let mut v = root.clone();
         if set_path(&mut v, path, c.clone()).is_err() {
@@ -167,7 +169,7 @@ fn range_of(p: &dyn Entry, root: &Value, path: &str, candidates: &[Value]) -> Op
 }
 
 /// The variants the deserialiser lists for an unknown value at `path`.
-fn choices_of(p: &dyn Entry, root: &Value, path: &str) -> Vec<String> {
+fn choices_of(p: Entry, root: &Value, path: &str) -> Vec<String> {
     let mut v = root.clone();
     if set_path(&mut v, path, Value::from("\u{1}")).is_err() {
         return Vec::new();
@@ -213,7 +215,7 @@ mod tests {
         // Each control's advertised bounds are values its scene accepts.
         let c = Catalogue::build();
         for p in registry::PHENOMENA {
-            let s = registry::SHIPPED.iter().find(|s| s.phenomenon == p.name()).unwrap();
+            let s = phenomena_scene::shipped::SHIPPED.iter().find(|s| s.phenomenon == p.name()).unwrap();
             let root = s.scene().unwrap().to_json();
             for ctl in c.of(p.name()) {
                 let (Some(lo), Some(hi)) = (ctl.min, ctl.max) else { continue };

@@ -25,9 +25,11 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use phenomena_aurora::editor::{self, Drawn, EditOp};
 use phenomena_scene::aurora::AuroraScene;
-use phenomena_scene::output::{Format, ensure_dir, to_srgb8, write_bytes_atomic};
+use phenomena_scene::job::Job;
+use phenomena_scene::output::{ensure_dir, to_srgb8, write_bytes_atomic};
 use phenomena_scene::{
-    Assets, FrameRecord, FrameSink, Limits, Observer, Output, Runner, Scene, SinkError, Steer, registry,
+    Assets, Format, FrameRecord, FrameSink, Limits, Observer, Output, Runner, Scene, SinkError, Steer,
+    registry, shipped,
 };
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -125,11 +127,11 @@ pub(crate) fn hello(id: &str, controls: &super::controls::Catalogue) -> String {
         "phenomena": registry::PHENOMENA
             .iter()
             .map(|p| {
-                let formats: Vec<&str> = p.formats().iter().map(|f| f.name()).collect();
+                let formats: Vec<&str> = Format::of(*p).iter().map(|f| f.name()).collect();
                 json!({"name": p.name(), "about": p.about(), "formats": formats})
             })
             .collect::<Vec<_>>(),
-        "builtins": registry::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
+        "builtins": shipped::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
         "featured": controls.featured(),
         "limits": { "upload_bytes": super::MAX_UPLOAD_BYTES, "message_bytes": super::MAX_MESSAGE_BYTES },
     })
@@ -408,7 +410,7 @@ impl Session {
 
     fn handle(&mut self, m: Incoming) -> Result<(), Closed> {
         match m {
-            Incoming::Builtin { name } => match registry::shipped(&name) {
+            Incoming::Builtin { name } => match shipped::shipped(&name) {
                 Some(b) => match b.scene() {
                     Ok(scene) => {
                         self.scene_name = name;
@@ -644,22 +646,19 @@ impl Session {
             return self.error(format!("the scene is not valid: {}", joined(&problems)));
         }
         let name = format.unwrap_or("png");
-        let Some(format) = Format::from_name(name) else {
-            let all: Vec<&str> = Format::ALL.iter().map(|f| f.name()).collect();
+        let Some(format) = Format::named(name) else {
+            let all: Vec<&str> = registry::FORMATS.iter().map(|f| f.name()).collect();
             return self.error(format!("render final: no format `{name}`: use {}", all.join(", ")));
         };
-        if let Err(e) = scene.supports(format) {
-            return self.error(format!("render final: {e}"));
-        }
-        if format == Format::Flipbook
-            && let Err(e) = scene.emission_only()
-        {
+        if let Err(e) = format.check(scene.phenomenon()) {
             return self.error(format!("render final: {e}"));
         }
         let total = frames.unwrap_or(scene.settings().frames);
         if !(1..=100_000).contains(&total) {
             return self.error(format!("render final: frames = {total}: expected [1, 100000]"));
         }
+        // The count asked for is the scene's length (the saved scene says so).
+        scene.settings_mut().frames = total;
         if self.render_thread.as_ref().is_some_and(|t| !t.is_finished()) {
             return self.error("a final render is still running: wait for it to finish");
         }
@@ -787,18 +786,8 @@ fn render_to(
     ensure_dir(dir)?;
     let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
     write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
-    let mut runner = Runner::with_limits(scene, assets, limits)?;
-    let (w, h) = (scene.settings().width, scene.settings().height);
-    let fps = crate::render::frame_rate(scene);
-    let mut frames = crate::render::Frames::new(
-        &crate::render::RenderJob::new(dir.to_path_buf(), format),
-        total,
-        w,
-        h,
-        fps,
-    )?;
-    crate::render::admit_outputs(&mut runner, &mut frames, format, scene, limits)?;
-    runner.run(0..total, frames.sink(), progress)?;
+    let job = Job { frames: Some(0..total), ..Job::new(dir, format) };
+    phenomena_scene::job::render(scene.clone(), assets, limits, &job, progress)?;
     Ok(())
 }
 
@@ -810,24 +799,25 @@ pub(super) mod tests {
     /// scene) get folders of their own, named by scene, date and time and format.
     #[test]
     fn each_final_render_gets_a_folder_of_its_own() {
+        let png = || Format::named("png").unwrap();
         let root = tempfile::tempdir().unwrap();
-        let a = render_folder(root.path(), "flame-paper", Format::Png).unwrap();
-        let b = render_folder(root.path(), "flame-paper", Format::Png).unwrap();
-        let c = render_folder(root.path(), "flame-paper", Format::Exr).unwrap();
+        let a = render_folder(root.path(), "flame-paper", png()).unwrap();
+        let b = render_folder(root.path(), "flame-paper", png()).unwrap();
+        let c = render_folder(root.path(), "flame-paper", Format::named("exr").unwrap()).unwrap();
         assert!(a != b && a.is_dir() && b.is_dir() && c.is_dir());
         let name = a.file_name().unwrap().to_string_lossy().into_owned();
         assert!(name.starts_with("flame-paper-20") && name.ends_with("-png"), "{name}");
         assert!(b.file_name().unwrap().to_string_lossy().starts_with(&name), "{}", b.display());
         assert!(c.file_name().unwrap().to_string_lossy().ends_with("-exr"));
         // A hostile name stays one plain folder inside the root.
-        let d = render_folder(root.path(), "../x\n/..", Format::Png).unwrap();
+        let d = render_folder(root.path(), "../x\n/..", png()).unwrap();
         assert_eq!(d.parent().unwrap(), root.path());
         assert!(d.file_name().unwrap().to_string_lossy().starts_with("scene.._x__.."), "{}", d.display());
     }
 
     #[test]
     fn saved_scenes_read_back_identically() {
-        for b in &registry::SHIPPED {
+        for b in &shipped::SHIPPED {
             let scene = b.scene().unwrap();
             let text = scene_toml(&scene).unwrap();
             let back = phenomena_scene::parse(&text, "saved.toml")

@@ -1,0 +1,364 @@
+//! Flipbook atlases for game engines: a render's frames tiled into one RGBA atlas
+//! (rows × columns, row-major from the top left) with a JSON descriptor, the texture
+//! sheet a particle system or a sprite shader plays. Assembly only; the `flipbook`
+//! format ([`crate::flipbook`]) writes the files.
+//!
+//! Frames are rendered over black (the phenomenon's emission alone) and tone mapped as
+//! PNG frames are; alpha is the largest of the three display-linear channels, the usual
+//! coverage of an emissive sprite. `straight`: colour = value / alpha; `premultiplied`:
+//! colour = value. Either way `colour · alpha` (or the premultiplied colour) over a
+//! black background gives back the frame, and additive blending keeps the glow.
+//!
+//! `loop_frames = K` makes a seamless loop of N frames: the result has N − K frames,
+//! the first K cross-faded with the K that follow the last, frame j (j < K) being
+//! w_j · f_j + (1 − w_j) · f_{N−K+j} with w_j = (j + 1)/(K + 1), so the step from the
+//! last frame back to the first is as small as any other step of the fade.
+
+use serde::Serialize;
+
+/// How the atlas stores alpha.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Alpha {
+    /// Colour not multiplied by alpha.
+    Straight,
+    /// Colour multiplied by alpha.
+    Premultiplied,
+}
+
+/// A flipbook's choices (the `flipbook` format's options; its rate comes from the
+/// scene).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FlipbookSettings {
+    /// Cells and grid in powers of two (frames resampled to the cell size).
+    pub power_of_two: bool,
+    /// Straight or premultiplied alpha.
+    pub alpha: Alpha,
+    /// Frames cross-faded into the first for a seamless loop (0: no loop).
+    pub loop_frames: u32,
+}
+
+impl Default for FlipbookSettings {
+    fn default() -> Self {
+        Self { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0 }
+    }
+}
+
+/// Largest atlas side, pixels (what current engines and GPUs take).
+pub const MAX_ATLAS_SIDE: u32 = 16384;
+
+/// How to lay out a flipbook.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlipbookOptions {
+    /// Cells and grid rounded to powers of two (frames resampled to the cell size).
+    pub power_of_two: bool,
+    /// Straight or premultiplied alpha.
+    pub alpha: Alpha,
+    /// Frames cross-faded into the first to make a loop (0: none).
+    pub loop_frames: u32,
+    /// Playback rate, frames per second (the scene's).
+    pub fps: f64,
+}
+
+/// The atlas's layout for `frames` frames of `width × height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Layout {
+    /// Frames in the atlas (after the loop's cross-fade).
+    pub frames: u32,
+    /// Columns of cells.
+    pub columns: u32,
+    /// Rows of cells.
+    pub rows: u32,
+    /// Cell width, pixels.
+    pub frame_width: u32,
+    /// Cell height, pixels.
+    pub frame_height: u32,
+    /// Atlas width, pixels.
+    pub atlas_width: u32,
+    /// Atlas height, pixels.
+    pub atlas_height: u32,
+}
+
+/// The layout of `rendered` frames of `width × height` under `options`, or why there
+/// cannot be one (a loop longer than half the frames, an atlas over
+/// [`MAX_ATLAS_SIDE`]).
+pub fn layout(rendered: u32, width: u32, height: u32, options: &FlipbookOptions) -> Result<Layout, String> {
+    if rendered == 0 {
+        return Err("a flipbook needs at least one frame".into());
+    }
+    if options.loop_frames > rendered / 2 {
+        return Err(format!(
+            "--loop {} needs at least {} frames: the cross-fade takes at most half of the {rendered} rendered",
+            options.loop_frames,
+            2 * options.loop_frames
+        ));
+    }
+    let frames = rendered - options.loop_frames;
+    let mut columns = (f64::from(frames).sqrt().ceil() as u32).max(1);
+    let (mut w, mut h) = (width, height);
+    if options.power_of_two {
+        columns = columns.next_power_of_two();
+        w = nearest_power_of_two(w);
+        h = nearest_power_of_two(h);
+    }
+    let mut rows = frames.div_ceil(columns);
+    if options.power_of_two {
+        rows = rows.next_power_of_two();
+    }
+    let (aw, ah) = (u64::from(columns) * u64::from(w), u64::from(rows) * u64::from(h));
+    if aw > u64::from(MAX_ATLAS_SIDE) || ah > u64::from(MAX_ATLAS_SIDE) {
+        return Err(format!(
+            "the atlas of {frames} frames of {w}x{h} would be {aw}x{ah} pixels, over {MAX_ATLAS_SIDE} a side: render smaller frames (--width, --height) or fewer (--frames)"
+        ));
+    }
+    Ok(Layout {
+        frames,
+        columns,
+        rows,
+        frame_width: w,
+        frame_height: h,
+        atlas_width: aw as u32,
+        atlas_height: ah as u32,
+    })
+}
+
+/// The power of two nearest to `v` (in log scale; at least 1).
+fn nearest_power_of_two(v: u32) -> u32 {
+    let up = v.max(1).next_power_of_two();
+    let down = (up / 2).max(1);
+    if f64::from(v) / f64::from(down) < f64::from(up) / f64::from(v) { down } else { up }
+}
+
+/// Frames of display-linear RGB (interleaved, each `layout.frame_width ×
+/// frame_height`) cross-faded for the loop and tiled into RGBA8 (sRGB colour) with
+/// `options.alpha`; `frames.len()` must be `layout.frames + options.loop_frames`.
+/// (All frames at once; [`Atlas`] builds the same bytes a frame at a time.)
+pub fn atlas(frames: &[Vec<f32>], layout: &Layout, options: &FlipbookOptions) -> Result<Vec<u8>, String> {
+    let k = options.loop_frames as usize;
+    let n = layout.frames as usize;
+    if frames.len() != n + k {
+        return Err(format!("{} frames for a flipbook of {} (+{k} cross-faded)", frames.len(), n));
+    }
+    let mut atlas = Atlas::new(*layout, *options);
+    for f in frames {
+        atlas.push(f.clone())?;
+    }
+    atlas.finish()
+}
+
+/// An atlas built a frame at a time: each cell is encoded into the RGBA8 atlas as its
+/// frame arrives, and only the first `loop_frames` frames are kept (as display-linear
+/// floats) until the frames cross-faded into them arrive. Memory: the atlas and those
+/// frames ([`Atlas::memory_bytes`]), not every frame.
+pub struct Atlas {
+    layout: Layout,
+    options: FlipbookOptions,
+    rgba: Vec<u8>,
+    /// The loop's head frames, until their tails arrive.
+    heads: Vec<Vec<f32>>,
+    pushed: usize,
+}
+
+impl Atlas {
+    /// An empty atlas of `layout`.
+    pub fn new(layout: Layout, options: FlipbookOptions) -> Self {
+        Self { layout, options, rgba: Vec::new(), heads: Vec::new(), pushed: 0 }
+    }
+
+    /// Bytes an atlas of `layout` holds at its peak: the RGBA8 image and the loop's
+    /// head frames.
+    pub fn memory_bytes(layout: &Layout, options: &FlipbookOptions) -> u64 {
+        let cell = u64::from(layout.frame_width) * u64::from(layout.frame_height);
+        u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4
+            + u64::from(options.loop_frames) * cell * 12
+    }
+
+    /// The next frame (display-linear RGB, interleaved, the cell's size).
+    pub fn push(&mut self, frame: Vec<f32>) -> Result<(), String> {
+        let (k, n) = (self.options.loop_frames as usize, self.layout.frames as usize);
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        if frame.len() != fw * fh * 3 {
+            return Err(format!("a frame of {} values for cells of {fw}x{fh}", frame.len()));
+        }
+        if self.pushed >= n + k {
+            return Err(format!("more than the {} frames of a flipbook of {n} (+{k} cross-faded)", n + k));
+        }
+        if self.rgba.is_empty() {
+            self.rgba = vec![0u8; self.layout.atlas_width as usize * self.layout.atlas_height as usize * 4];
+        }
+        let j = self.pushed;
+        self.pushed += 1;
+        if j < k {
+            self.heads.push(frame);
+        } else if j < n {
+            self.cell(j, &frame);
+        } else {
+            // Tail frame n + i fades into head i (`looped`'s weights).
+            let i = j - n;
+            let head = std::mem::take(&mut self.heads[i]);
+            let w = (i + 1) as f32 / (k + 1) as f32;
+            let faded: Vec<f32> = head.iter().zip(&frame).map(|(&a, &b)| w * a + (1.0 - w) * b).collect();
+            self.cell(i, &faded);
+        }
+        Ok(())
+    }
+
+    /// Encode `values` into cell `j`.
+    fn cell(&mut self, j: usize, values: &[f32]) {
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        let aw = self.layout.atlas_width as usize;
+        let (cx, cy) = (j % self.layout.columns as usize, j / self.layout.columns as usize);
+        for y in 0..fh {
+            let row = ((cy * fh + y) * aw + cx * fw) * 4;
+            for x in 0..fw {
+                let v = &values[(y * fw + x) * 3..(y * fw + x) * 3 + 3];
+                self.rgba[row + x * 4..row + x * 4 + 4].copy_from_slice(&rgba(v, self.options.alpha));
+            }
+        }
+    }
+
+    /// The atlas's RGBA8 pixels, once every frame was pushed.
+    pub fn finish(self) -> Result<Vec<u8>, String> {
+        let (k, n) = (self.options.loop_frames as usize, self.layout.frames as usize);
+        if self.pushed != n + k {
+            return Err(format!("{} frames for a flipbook of {} (+{k} cross-faded)", self.pushed, n));
+        }
+        Ok(self.rgba)
+    }
+}
+
+/// Frame `j` of the looped sequence (display-linear RGB).
+pub fn looped(frames: &[Vec<f32>], j: usize, n: usize, k: usize) -> std::borrow::Cow<'_, [f32]> {
+    if j >= k {
+        return std::borrow::Cow::Borrowed(&frames[j]);
+    }
+    let w = (j + 1) as f32 / (k + 1) as f32;
+    let (a, b) = (&frames[j], &frames[n + j]);
+    std::borrow::Cow::Owned(a.iter().zip(b).map(|(&a, &b)| w * a + (1.0 - w) * b).collect())
+}
+
+/// One pixel as sRGB8 colour and 8-bit alpha.
+fn rgba(v: &[f32], alpha: Alpha) -> [u8; 4] {
+    use phenomena_core::color::srgb_encode_u8_fast;
+    let c = [v[0].clamp(0.0, 1.0), v[1].clamp(0.0, 1.0), v[2].clamp(0.0, 1.0)];
+    let a = c[0].max(c[1]).max(c[2]);
+    let colour = match alpha {
+        Alpha::Premultiplied => c,
+        Alpha::Straight if a > 0.0 => c.map(|x| x / a),
+        Alpha::Straight => [0.0; 3],
+    };
+    [
+        srgb_encode_u8_fast(colour[0]),
+        srgb_encode_u8_fast(colour[1]),
+        srgb_encode_u8_fast(colour[2]),
+        (a * 255.0).round() as u8,
+    ]
+}
+
+/// The descriptor written beside the atlas.
+#[derive(Clone, Debug, Serialize)]
+pub struct Descriptor {
+    /// The atlas image's file name.
+    pub image: String,
+    /// The layout.
+    #[serde(flatten)]
+    pub layout: Layout,
+    /// Playback rate.
+    pub fps: f64,
+    /// Straight or premultiplied alpha.
+    pub alpha: Alpha,
+    /// Frames cross-faded into the first (0: not a loop).
+    pub loop_frames: u32,
+    /// Cell order.
+    pub order: &'static str,
+    /// Colour encoding of the atlas.
+    pub color_space: &'static str,
+    /// The scene frames the flipbook was made from, first and last + 1.
+    pub source_frames: [u32; 2],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts(pot: bool, loop_frames: u32) -> FlipbookOptions {
+        FlipbookOptions { power_of_two: pot, alpha: Alpha::Straight, loop_frames, fps: 60.0 }
+    }
+
+    #[test]
+    fn layouts() {
+        let l = layout(10, 100, 60, &opts(false, 0)).unwrap();
+        assert_eq!((l.columns, l.rows, l.atlas_width, l.atlas_height), (4, 3, 400, 180));
+        let l = layout(10, 100, 60, &opts(true, 0)).unwrap();
+        assert_eq!((l.columns, l.rows, l.frame_width, l.frame_height), (4, 4, 128, 64));
+        assert!(l.atlas_width.is_power_of_two() && l.atlas_height.is_power_of_two());
+        let l = layout(20, 64, 64, &opts(false, 4)).unwrap();
+        assert_eq!(l.frames, 16);
+        assert!(layout(20, 64, 64, &opts(false, 11)).unwrap_err().contains("--loop 11"));
+        assert!(layout(400, 4096, 4096, &opts(false, 0)).unwrap_err().contains("over 16384"));
+        assert_eq!(nearest_power_of_two(1), 1);
+        assert_eq!(nearest_power_of_two(180), 128);
+        assert_eq!(nearest_power_of_two(182), 256);
+    }
+
+    #[test]
+    fn alpha_modes_give_back_the_frame_over_black() {
+        let v = [0.5f32, 0.25, 0.1];
+        let s = rgba(&v, Alpha::Straight);
+        let p = rgba(&v, Alpha::Premultiplied);
+        assert_eq!(s[3], 128);
+        assert_eq!(s[0], 255);
+        assert_eq!(p[..3], [188, 137, 89]);
+        assert_eq!(rgba(&[0.0; 3], Alpha::Straight), [0, 0, 0, 0]);
+    }
+
+    /// The whole atlas made directly from every frame (each cell from [`looped`]), as
+    /// it was before [`Atlas`] built it a frame at a time.
+    fn atlas_of_all_frames(frames: &[Vec<f32>], layout: &Layout, options: &FlipbookOptions) -> Vec<u8> {
+        let (k, n) = (options.loop_frames as usize, layout.frames as usize);
+        let (fw, fh, aw) =
+            (layout.frame_width as usize, layout.frame_height as usize, layout.atlas_width as usize);
+        let mut out = vec![0u8; aw * layout.atlas_height as usize * 4];
+        for j in 0..n {
+            let cell = looped(frames, j, n, k);
+            let (cx, cy) = (j % layout.columns as usize, j / layout.columns as usize);
+            for y in 0..fh {
+                for x in 0..fw {
+                    let at = ((cy * fh + y) * aw + cx * fw + x) * 4;
+                    out[at..at + 4].copy_from_slice(&rgba(&cell[(y * fw + x) * 3..][..3], options.alpha));
+                }
+            }
+        }
+        out
+    }
+
+    /// Building the atlas a frame at a time gives the bytes of building it from every
+    /// frame at once, with and without a loop, in both alpha modes.
+    #[test]
+    fn the_atlas_built_frame_by_frame_equals_the_whole() {
+        for (rendered, k, alpha) in
+            [(7, 0, Alpha::Straight), (12, 3, Alpha::Premultiplied), (10, 5, Alpha::Straight)]
+        {
+            let options = FlipbookOptions { power_of_two: false, alpha, loop_frames: k, fps: 30.0 };
+            let l = layout(rendered, 5, 3, &options).unwrap();
+            let frames: Vec<Vec<f32>> = (0..rendered)
+                .map(|f| (0..45).map(|v| ((f * 45 + v) as f32 * 0.618).fract() * 1.2).collect())
+                .collect();
+            assert_eq!(atlas(&frames, &l, &options).unwrap(), atlas_of_all_frames(&frames, &l, &options));
+        }
+    }
+
+    #[test]
+    fn the_loop_cross_fades_the_tail_into_the_head() {
+        // Frames whose value is their index: the loop's seam steps by no more than the
+        // fade's own steps.
+        let n = 12;
+        let frames: Vec<Vec<f32>> = (0..n).map(|i| vec![i as f32 / n as f32; 3]).collect();
+        let (k, m) = (4, n - 4);
+        let seq: Vec<f32> = (0..m).map(|j| looped(&frames, j, m, k)[0]).collect();
+        let steps: Vec<f32> = seq.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        let seam = (seq[0] - seq[m - 1]).abs();
+        assert!(seam <= steps.iter().copied().fold(0.0, f32::max) + 1e-6, "seam {seam} steps {steps:?}");
+        assert_eq!(seq[m - 1], frames[m - 1][0]);
+    }
+}
