@@ -143,7 +143,7 @@ enum Command {
         threads: Option<u16>,
         /// Output format: png (tone mapped, 8-bit sRGB), exr (linear float radiance), vdb
         /// (volumes), ply (particle caches) or flipbook (one atlas of every frame); which
-        /// a phenomenon can be written in: `phenomena formats`.
+        /// a phenomenon offers is checked before anything runs.
         #[arg(long, value_parser = format_names(), default_value = "png")]
         format: String,
         #[command(flatten)]

@@ -50,6 +50,11 @@ pub fn write_atomic(
     result
 }
 
+/// Remove the file at `path` if there is one (a stale output about to be replaced).
+pub(crate) fn remove_if_there(path: &Path) {
+    let _ = std::fs::remove_file(path);
+}
+
 /// Write bytes atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), SinkError> {
     write_atomic(path, |tmp| {

@@ -8,7 +8,9 @@ use std::path::Path;
 
 use crate::error::SinkError;
 use crate::format::{OutputFormat, Target};
-use crate::output::{Files, NumberedFiles, PerFrame, error, manifest_path, write_bytes_atomic};
+use crate::output::{
+    Files, NumberedFiles, PerFrame, error, manifest_path, remove_if_there, write_bytes_atomic,
+};
 use crate::phenomenon::{Capability, Scratch, VolumeOptions};
 use crate::sink::{Output, State};
 
@@ -57,7 +59,7 @@ impl PerFrame for VolumeFrames {
         let text = serde_json::to_string_pretty(&manifest).map_err(error)?;
         // The manifest first: a volume is never left without one (a failure between
         // the two leaves a manifest alone, which a resumed render writes again).
-        let _ = std::fs::remove_file(path);
+        remove_if_there(path);
         write_bytes_atomic(&manifest_path(path), text.as_bytes())?;
         write_bytes_atomic(path, &self.bytes)
     }
