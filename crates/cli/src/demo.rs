@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use anyhow::Result;
-use phenomena_scene::job::Job;
 use phenomena_scene::{Assets, registry, shipped};
 
 use crate::export::{self, TableFormat};
@@ -16,16 +15,13 @@ pub(crate) fn run(out: &Path, threads: Option<usize>) -> Result<String> {
     for shipped in shipped::SHIPPED.iter() {
         let Some(demo) = &shipped.demo else { continue };
         let scene = shipped.scene()?;
-        let job = RenderJob {
+        let mut job = RenderJob {
             width: Some(demo.size.0),
             height: Some(demo.size.1),
             threads,
             ..RenderJob::new(out.join(shipped.name), registry::FORMATS[0])
-        }
-        .with_job(Job {
-            frames: Some(demo.frames.clone()),
-            ..Job::new(out.join(shipped.name), registry::FORMATS[0])
-        });
+        };
+        job.job.frames = Some(demo.frames.clone());
         // Shipped scenes read no files.
         lines.push(render::run_scene(scene, &Assets::none(), &job)?);
     }

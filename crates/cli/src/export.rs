@@ -164,49 +164,70 @@ pub(crate) fn aurora_profile(
         bail!("{}", text.join("; "));
     }
     let air = air_tables(air_dir)?;
-    let air: &phenomena_aurora::atmosphere::Atmosphere = &air;
-    let model = ColumnModel::new(air, &precipitation, &Yields::default());
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        ensure_dir(parent)?;
-    }
+    let model = ColumnModel::new(&air, &precipitation, &Yields::default());
     let csv = if aurora_only { model.to_csv_aurora_only() } else { model.to_csv() };
-    write_bytes_atomic(out, csv.as_bytes())?;
-    use phenomena_aurora::emission::Line;
+    write_creating_folder(out, csv.as_bytes())?;
     let mut also = String::new();
     if let Some(path) = red_line {
-        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            ensure_dir(parent)?;
-        }
-        write_bytes_atomic(path, model.red_line_csv().as_bytes())?;
+        write_creating_folder(path, model.red_line_csv().as_bytes())?;
         also = format!(" and the red line's budget to {}", path.display());
     }
     if let Some(path) = paper {
-        use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_peak_km, paper_profile};
-        let params = PaperFall::default();
-        let emission = PaperEmission::new(air, &params, &precipitation, &Yields::default());
-        let top_km = f64::from(phenomena_aurora::SkySettings::default().top_altitude_km);
-        let profile = paper_profile(air, &params, &emission, top_km);
-        let (bottom_km, _) = air.range_km();
-        let mut csv = String::from("altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5\n");
-        for (k, row) in profile.iter().enumerate() {
-            csv.push_str(&format!("{}", bottom_km + k as f64 + 0.5));
-            for v in row {
-                csv.push_str(&format!(",{v:.6e}"));
-            }
-            csv.push('\n');
-        }
-        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            ensure_dir(parent)?;
-        }
-        write_bytes_atomic(path, csv.as_bytes())?;
-        let peak = |line: Line| paper_peak_km(air, &profile, line);
-        also.push_str(&format!(
-            "; the paper mode's emission by altitude (557.7 nm peak at {} km, 630.0 nm at {} km) to {}",
-            peak(Line::O557),
-            peak(Line::O630),
-            path.display()
-        ));
+        also.push_str(&paper_profile_csv(&air, &precipitation, path)?);
     }
+    Ok(format!("{}{also}", column_summary(&model, aurora_only, out)))
+}
+
+/// `bytes` to `path` atomically, its folder made if missing.
+fn write_creating_folder(path: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        ensure_dir(parent)?;
+    }
+    Ok(write_bytes_atomic(path, bytes)?)
+}
+
+/// Write the `paper` mode's expected emission by altitude (default `[render.sky.paper]`,
+/// production ratios from this precipitation's column) as CSV to `path`; returns what
+/// the summary says of it.
+fn paper_profile_csv(
+    air: &phenomena_aurora::atmosphere::Atmosphere,
+    precipitation: &phenomena_aurora::deposition::Precipitation,
+    path: &Path,
+) -> Result<String> {
+    use phenomena_aurora::deposition::Yields;
+    use phenomena_aurora::emission::Line;
+    use phenomena_aurora::fall::{PaperEmission, PaperFall, paper_peak_km, paper_profile};
+    let params = PaperFall::default();
+    let emission = PaperEmission::new(air, &params, precipitation, &Yields::default());
+    let top_km = f64::from(phenomena_aurora::SkySettings::default().top_altitude_km);
+    let profile = paper_profile(air, &params, &emission, top_km);
+    let (bottom_km, _) = air.range_km();
+    let mut csv = String::from("altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5\n");
+    for (k, row) in profile.iter().enumerate() {
+        csv.push_str(&format!("{}", bottom_km + k as f64 + 0.5));
+        for v in row {
+            csv.push_str(&format!(",{v:.6e}"));
+        }
+        csv.push('\n');
+    }
+    write_creating_folder(path, csv.as_bytes())?;
+    let peak = |line: Line| paper_peak_km(air, &profile, line);
+    Ok(format!(
+        "; the paper mode's emission by altitude (557.7 nm peak at {} km, 630.0 nm at {} km) to {}",
+        peak(Line::O557),
+        peak(Line::O630),
+        path.display()
+    ))
+}
+
+/// One line on the column written to `out`: rows, the green line's column and peak,
+/// and the red line's (the aurora's alone, or with the night sky's own glow).
+fn column_summary(
+    model: &phenomena_aurora::deposition::ColumnModel,
+    aurora_only: bool,
+    out: &Path,
+) -> String {
+    use phenomena_aurora::emission::Line;
     let red = if aurora_only {
         format!(
             "630.0 nm {:.0} R of aurora (the night sky's own glow left out), peak at {} km",
@@ -221,13 +242,13 @@ pub(crate) fn aurora_profile(
             model.seen_peak_altitude_km(Line::O630)
         )
     };
-    Ok(format!(
-        "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; {red}) to {}{also}",
+    format!(
+        "wrote the column model ({} rows; 557.7 nm column {:.0} R, peak at {} km; {red}) to {}",
         model.altitudes_km().len(),
         model.seen_column_photons_cm2_s(Line::O557) / 1e6,
         model.seen_peak_altitude_km(Line::O557),
         out.display()
-    ))
+    )
 }
 
 /// Simulate the scene file `scene_path` for `steps` frames and write its export `name`

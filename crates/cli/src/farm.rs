@@ -115,9 +115,68 @@ fn header(job: &FarmJob, name: &str, mem_mib: u64) -> String {
     h
 }
 
+/// Everything the three scripts are written from, checked and made absolute.
+struct Layout {
+    /// The scene's file name without extension, as the job names use it.
+    stem: String,
+    /// The same for comment lines (control characters escaped).
+    name: String,
+    /// `phenomena` and the scene, quoted for bash.
+    bin: String,
+    scene_arg: String,
+    farm: PathBuf,
+    logs: PathBuf,
+    checkpoints: PathBuf,
+    frames: PathBuf,
+    total: u32,
+    tasks: u32,
+    mem_mib: u64,
+}
+
 /// Write the farm's scripts under `OUT/farm/` (and with `--submit` submit them through
 /// `sbatch`); returns a summary with what to run or watch.
 pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
+    let l = layout(job)?;
+    ensure_dir(&l.logs)?;
+    let scripts = [
+        ("simulate.sbatch", simulate_script(job, &l)),
+        ("render.sbatch", render_script(job, &l)),
+        ("submit.sh", submit_script(&l)),
+    ];
+    for (file, text) in scripts {
+        let path = l.farm.join(file);
+        write_bytes_atomic(&path, text.as_bytes())?;
+        set_executable(&path)?;
+    }
+    let mut summary = format!(
+        "{}: {} frames in {} task(s) of {} frames; scripts in {}",
+        l.name,
+        l.total,
+        l.tasks,
+        job.chunk,
+        l.farm.display()
+    );
+    if job.submit {
+        let sim = sbatch(&l.farm, &["simulate.sbatch"])?;
+        let dep = format!("--dependency=afterok:{sim}");
+        let array = sbatch(&l.farm, &[&dep, "render.sbatch"])?;
+        write_bytes_atomic(&l.farm.join("jobs.txt"), format!("simulate {sim}\nrender {array}\n").as_bytes())?;
+        let _ = write!(
+            summary,
+            "\nsubmitted: simulation job {sim}, render array job {array}\nwatch: squeue -j {sim},{array}   finished: sacct -j {sim},{array} (sacct -c where accounting storage is off)   logs: {}\nrerun task I alone: sbatch --array=I {}",
+            l.logs.display(),
+            l.farm.join("render.sbatch").display()
+        );
+    } else {
+        let _ = write!(summary, "\nsubmit with: {}", l.farm.join("submit.sh").display());
+    }
+    Ok(summary)
+}
+
+/// Check the job and the scene (refused now rather than on the farm: bad names, an
+/// invalid scene, a missing file, a scene over the memory budget or one whose frames
+/// cannot be rendered in chunks) and lay out its paths.
+fn layout(job: &FarmJob) -> Result<Layout> {
     if job.chunk == 0 {
         bail!("--chunk 0: give the number of frames each task renders (1 or more)");
     }
@@ -128,8 +187,6 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
     check_out(&out)?;
     let scene_path = abs(&job.scene)?;
     let scene = phenomena_scene::load(&scene_path)?;
-    // Refused now rather than on the farm: an invalid scene, a missing file, a scene
-    // over the memory budget.
     let report = scene
         .check(&phenomena_scene::Assets::beside(&scene_path), &crate::render::limits())
         .map_err(|e| crate::render::located(&scene, e))?;
@@ -139,90 +196,85 @@ pub(crate) fn slurm(job: &FarmJob) -> Result<String> {
             job.scene.display()
         );
     }
-    let total = scene.settings().frames;
-    let tasks = total.div_ceil(job.chunk);
-    let farm = out.join("farm");
-    let logs = farm.join("logs");
-    ensure_dir(&logs)?;
-    let checkpoints = out.join("checkpoints");
-    let frames = out.join("frames");
     let binary = match &job.binary {
         Some(b) => abs(b)?,
         None => std::env::current_exe().context("cannot find this phenomena binary")?,
     };
-    // The estimate with room for the allocator and the frame writer; at least 256 MiB.
-    let mem_mib = (report.estimate.memory_bytes / (1 << 20)) * 3 / 2 + 256;
+    let total = scene.settings().frames;
     let stem = scene_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    // What comment lines and job names say of the scene; the paths the commands use are
-    // quoted for the shell instead.
-    let name = comment(&stem);
-    let bin = sh(&binary.to_string_lossy());
-    let scene_arg = sh(&scene_path.to_string_lossy());
+    let farm = out.join("farm");
+    Ok(Layout {
+        // What comment lines and job names say of the scene; the paths the commands use
+        // are quoted for the shell instead.
+        name: comment(&stem),
+        stem,
+        bin: sh(&binary.to_string_lossy()),
+        scene_arg: sh(&scene_path.to_string_lossy()),
+        logs: farm.join("logs"),
+        farm,
+        checkpoints: out.join("checkpoints"),
+        frames: out.join("frames"),
+        total,
+        tasks: total.div_ceil(job.chunk),
+        // The estimate with room for the allocator and the frame writer; at least 256 MiB.
+        mem_mib: (report.estimate.memory_bytes / (1 << 20)) * 3 / 2 + 256,
+    })
+}
 
-    let mut simulate = header(job, &format!("phenomena-sim-{stem}"), mem_mib);
-    let _ = writeln!(simulate, "#SBATCH --output={}", sh(&logs.join("simulate-%j.out").to_string_lossy()));
-    let _ = writeln!(simulate, "# Simulate {name} once, a checkpoint every {} frames.", job.chunk);
-    let _ = writeln!(simulate, "set -euo pipefail");
-    let mut extra = job.simulate_args.iter().map(|a| format!(" {}", sh(a))).collect::<String>();
+/// The simulation job: the whole scene once, a checkpoint every chunk.
+fn simulate_script(job: &FarmJob, l: &Layout) -> String {
+    let mut s = header(job, &format!("phenomena-sim-{}", l.stem), l.mem_mib);
+    let _ = writeln!(s, "#SBATCH --output={}", sh(&l.logs.join("simulate-%j.out").to_string_lossy()));
+    let _ = writeln!(s, "# Simulate {} once, a checkpoint every {} frames.", l.name, job.chunk);
+    let _ = writeln!(s, "set -euo pipefail");
+    let extra = job.simulate_args.iter().map(|a| format!(" {}", sh(a))).collect::<String>();
     let _ = writeln!(
-        simulate,
-        "exec {bin} simulate {scene_arg} --checkpoint-every {} --checkpoint-dir {} --threads \"${{SLURM_CPUS_PER_TASK:-1}}\"{extra}",
+        s,
+        "exec {} simulate {} --checkpoint-every {} --checkpoint-dir {} --threads \"${{SLURM_CPUS_PER_TASK:-1}}\"{extra}",
+        l.bin,
+        l.scene_arg,
         job.chunk,
-        sh(&checkpoints.to_string_lossy()),
+        sh(&l.checkpoints.to_string_lossy()),
     );
+    s
+}
 
-    extra = job.render_args.iter().map(|a| format!(" {}", sh(a))).collect();
-    let mut render = header(job, &format!("phenomena-render-{stem}"), mem_mib);
-    let _ = writeln!(render, "#SBATCH --array=0-{}", tasks - 1);
-    let _ = writeln!(render, "#SBATCH --output={}", sh(&logs.join("render-%A_%a.out").to_string_lossy()));
+/// The render array job: task i renders chunk i from its checkpoint.
+fn render_script(job: &FarmJob, l: &Layout) -> String {
+    let (k, total) = (job.chunk, l.total);
+    let mut s = header(job, &format!("phenomena-render-{}", l.stem), l.mem_mib);
+    let _ = writeln!(s, "#SBATCH --array=0-{}", l.tasks - 1);
+    let _ = writeln!(s, "#SBATCH --output={}", sh(&l.logs.join("render-%A_%a.out").to_string_lossy()));
     let _ = writeln!(
-        render,
-        "# Task i renders frames i*{k}..(i+1)*{k} of {name} from checkpoint i*{k}; rerun task i alone\n# with: sbatch --array=i {}",
-        comment(&farm.join("render.sbatch").to_string_lossy()),
-        k = job.chunk
+        s,
+        "# Task i renders frames i*{k}..(i+1)*{k} of {} from checkpoint i*{k}; rerun task i alone\n# with: sbatch --array=i {}",
+        l.name,
+        comment(&l.farm.join("render.sbatch").to_string_lossy()),
     );
-    let _ = writeln!(render, "set -euo pipefail");
-    let _ =
-        writeln!(render, "i=${{SLURM_ARRAY_TASK_ID:?this script is an array job: submit it with sbatch}}");
-    let _ = writeln!(render, "a=$(( i * {} ))", job.chunk);
-    let _ = writeln!(render, "b=$(( a + {} < {total} ? a + {} : {total} ))", job.chunk, job.chunk);
+    let _ = writeln!(s, "set -euo pipefail");
+    let _ = writeln!(s, "i=${{SLURM_ARRAY_TASK_ID:?this script is an array job: submit it with sbatch}}");
+    let _ = writeln!(s, "a=$(( i * {k} ))");
+    let _ = writeln!(s, "b=$(( a + {k} < {total} ? a + {k} : {total} ))");
+    let extra = job.render_args.iter().map(|a| format!(" {}", sh(a))).collect::<String>();
     let _ = writeln!(
-        render,
-        "exec {bin} render {scene_arg} --out {} --frames \"$a..$b\" --checkpoint-dir {} --threads \"${{SLURM_CPUS_PER_TASK:-1}}\"{extra}",
-        sh(&frames.to_string_lossy()),
-        sh(&checkpoints.to_string_lossy()),
+        s,
+        "exec {} render {} --out {} --frames \"$a..$b\" --checkpoint-dir {} --threads \"${{SLURM_CPUS_PER_TASK:-1}}\"{extra}",
+        l.bin,
+        l.scene_arg,
+        sh(&l.frames.to_string_lossy()),
+        sh(&l.checkpoints.to_string_lossy()),
     );
+    s
+}
 
-    let submit = format!(
-        "#!/bin/bash\n# Submit the farm render of {name}: the simulation, then the render tasks after it.\nset -euo pipefail\ncd {}\nsim=$(sbatch --parsable simulate.sbatch)\nrender=$(sbatch --parsable --dependency=afterok:\"${{sim%%;*}}\" render.sbatch)\necho \"simulation job ${{sim%%;*}}, render array job ${{render%%;*}} ({tasks} tasks)\"\n",
-        sh(&farm.to_string_lossy())
-    );
-    let scripts = [("simulate.sbatch", &simulate), ("render.sbatch", &render), ("submit.sh", &submit)];
-    for (file, text) in scripts {
-        let path = farm.join(file);
-        write_bytes_atomic(&path, text.as_bytes())?;
-        set_executable(&path)?;
-    }
-    let mut summary = format!(
-        "{name}: {total} frames in {tasks} task(s) of {} frames; scripts in {}",
-        job.chunk,
-        farm.display()
-    );
-    if job.submit {
-        let sim = sbatch(&farm, &["simulate.sbatch"])?;
-        let dep = format!("--dependency=afterok:{sim}");
-        let array = sbatch(&farm, &[&dep, "render.sbatch"])?;
-        write_bytes_atomic(&farm.join("jobs.txt"), format!("simulate {sim}\nrender {array}\n").as_bytes())?;
-        let _ = write!(
-            summary,
-            "\nsubmitted: simulation job {sim}, render array job {array}\nwatch: squeue -j {sim},{array}   finished: sacct -j {sim},{array} (sacct -c where accounting storage is off)   logs: {}\nrerun task I alone: sbatch --array=I {}",
-            logs.display(),
-            farm.join("render.sbatch").display()
-        );
-    } else {
-        let _ = write!(summary, "\nsubmit with: {}", farm.join("submit.sh").display());
-    }
-    Ok(summary)
+/// The submission: the simulation, then the render tasks once it succeeded.
+fn submit_script(l: &Layout) -> String {
+    format!(
+        "#!/bin/bash\n# Submit the farm render of {}: the simulation, then the render tasks after it.\nset -euo pipefail\ncd {}\nsim=$(sbatch --parsable simulate.sbatch)\nrender=$(sbatch --parsable --dependency=afterok:\"${{sim%%;*}}\" render.sbatch)\necho \"simulation job ${{sim%%;*}}, render array job ${{render%%;*}} ({} tasks)\"\n",
+        l.name,
+        sh(&l.farm.to_string_lossy()),
+        l.tasks
+    )
 }
 
 /// Run `sbatch --parsable ARGS` in `dir`; returns the job id.

@@ -14,7 +14,6 @@ use std::process::ExitCode;
 use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
 use phenomena_scene::atlas::{Alpha, FlipbookSettings};
-use phenomena_scene::job::Job;
 use phenomena_scene::output::{ensure_dir, write_bytes_atomic};
 use phenomena_scene::{Assets, Format, OutputOptions, VolumeOptions, registry};
 
@@ -126,66 +125,10 @@ struct Overrides {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Simulate a scene file and write its frames as DIR/frame_00000.png, ...
-    Render {
-        /// The scene file (TOML).
-        scene: PathBuf,
-        /// Output directory (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-        /// Frames to write: A..B (B not included), A..=B, or N. Earlier frames are
-        /// simulated but not written. Default: all of the scene's frames.
-        #[arg(long, value_parser = render::parse_frame_range)]
-        frames: Option<std::ops::Range<u32>>,
-        #[command(flatten)]
-        overrides: Overrides,
-        /// Worker threads (default: one per core). Output is identical for any count.
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
-        threads: Option<u16>,
-        /// Output format: png (tone mapped, 8-bit sRGB), exr (linear float radiance), vdb
-        /// (volumes), ply (particle caches) or flipbook (one atlas of every frame); which
-        /// a phenomenon offers is checked before anything runs.
-        #[arg(long, value_parser = format_names(), default_value = "png")]
-        format: String,
-        #[command(flatten)]
-        output: OutputArgs,
-        /// Skip frames whose files already exist (they are still simulated).
-        #[arg(long)]
-        resume: bool,
-        /// Write one JSON object per frame (timings, particle counts) to this file.
-        #[arg(long)]
-        stats: Option<PathBuf>,
-        /// What to draw: one of the scene's phenomenon's views (flame: flame, density;
-        /// aurora: sky, plane; snow: scene, probability; sparkle: glints).
-        #[arg(long, value_parser = view_names())]
-        view: Option<String>,
-        #[command(flatten)]
-        checkpoints: CheckpointArgs,
-    },
+    Render(RenderArgs),
     /// Simulate a scene file without drawing it, writing checkpoints (the first stage of
     /// a farm render: `render --frames A..B` then starts at frame A from them).
-    Simulate {
-        /// The scene file (TOML).
-        scene: PathBuf,
-        /// Frames to simulate: up to B (A..B starts from a checkpoint at or before A).
-        /// Default: all of the scene's frames.
-        #[arg(long, value_parser = render::parse_frame_range)]
-        frames: Option<std::ops::Range<u32>>,
-        /// Random seed (overrides the scene).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads (default: one per core). Output is identical for any count.
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
-        threads: Option<u16>,
-        /// Write a checkpoint after every N frames.
-        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
-        checkpoint_every: u32,
-        /// Folder of the checkpoints.
-        #[arg(long, value_name = "DIR")]
-        checkpoint_dir: PathBuf,
-        /// Write one JSON object per frame (timings, particle counts) to this file.
-        #[arg(long)]
-        stats: Option<PathBuf>,
-    },
+    Simulate(SimulateArgs),
     /// Render on a farm: write (and submit) the jobs of a farm manager.
     Farm {
         #[command(subcommand)]
@@ -198,53 +141,13 @@ enum Command {
     },
     /// Serve the studio: a local web page that draws aurora shapes, steers every
     /// phenomenon and shows it live (needs a build with `--features studio`).
-    Studio {
-        /// Address to listen on. Loopback by default: other machines cannot connect.
-        #[arg(long, default_value = "127.0.0.1")]
-        bind: std::net::IpAddr,
-        /// Port (0 picks a free one; the address is printed).
-        #[arg(long, default_value_t = 7878)]
-        port: u16,
-        /// Open the page in the desktop's browser.
-        #[arg(long)]
-        open: bool,
-        /// Folder for "render final" outputs.
-        #[arg(long, default_value = "studio-renders")]
-        out: PathBuf,
-        /// Most browser tabs served at once.
-        #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
-        max_sessions: u16,
-        /// Another host name the page may be reached by (besides 127.0.0.1, localhost,
-        /// ::1 and the --bind address); repeat for more. Requests naming any other
-        /// host are refused (a defence against DNS rebinding).
-        #[arg(long = "allow-host", value_name = "HOST")]
-        allow_hosts: Vec<String>,
-    },
+    Studio(StudioArgs),
     /// Check a scene file and report every problem with file:line:column.
-    Validate {
-        /// The scene file (TOML).
-        scene: PathBuf,
-    },
+    Validate(ValidateArgs),
     /// Write a commented starter scene holding every default.
-    New {
-        /// The phenomenon.
-        #[arg(value_parser = phenomenon_names())]
-        phenomenon: String,
-        /// Where to write it (default: `./PHENOMENON.toml`).
-        path: Option<PathBuf>,
-        /// Overwrite an existing file.
-        #[arg(long)]
-        force: bool,
-    },
+    New(NewArgs),
     /// Render a short showcase of every system into a folder.
-    Demo {
-        /// Output directory.
-        #[arg(long, default_value = "demo-out")]
-        out: PathBuf,
-        /// Worker threads (default: one per core).
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
-        threads: Option<u16>,
-    },
+    Demo(DemoArgs),
 }
 
 /// Farm managers.
@@ -253,36 +156,7 @@ enum FarmManager {
     /// Slurm: OUT/farm/simulate.sbatch simulates the scene once, writing a checkpoint
     /// every CHUNK frames; OUT/farm/render.sbatch, an array job started after it
     /// succeeds, renders chunk i (frames i*CHUNK..) from its checkpoint into OUT/frames.
-    Slurm {
-        /// The scene file (TOML).
-        scene: PathBuf,
-        /// Output folder: frames/, checkpoints/, farm/ (scripts and logs).
-        #[arg(long)]
-        out: PathBuf,
-        /// Frames per render task.
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-        chunk: u32,
-        /// Slurm partition (default: the cluster's default).
-        #[arg(long)]
-        partition: Option<String>,
-        /// Submit the jobs with sbatch (otherwise run OUT/farm/submit.sh yourself).
-        #[arg(long)]
-        submit: bool,
-        /// CPUs per job (each job uses that many threads).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1024))]
-        cpus_per_task: u16,
-        /// The phenomena binary the jobs run, as the compute nodes see it (default: this one).
-        #[arg(long, value_name = "PATH")]
-        phenomena: Option<PathBuf>,
-        #[command(flatten)]
-        overrides: Overrides,
-        /// Output format (one of render's).
-        #[arg(long, value_parser = format_names(), default_value = "png")]
-        format: String,
-        /// What to draw (one of the phenomenon's views).
-        #[arg(long, value_parser = view_names())]
-        view: Option<String>,
-    },
+    Slurm(SlurmArgs),
 }
 
 /// Checkpoint options of `render`.
@@ -329,337 +203,498 @@ enum SpectrumArg {
 #[derive(Subcommand, Debug)]
 enum ExportWhat {
     /// An aurora's particles after frame F: CSV `x,z,vx,vz` (km, km/s).
-    Particles {
-        /// The aurora scene file.
-        scene: PathBuf,
-        /// The frame after which to export (0 = after the first step).
-        #[arg(long)]
-        frame: u32,
-        /// Output CSV file.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Particles(ParticlesArgs),
     /// An aurora's intermediate target shape at frame F: CSV `sheet,index,x,z,next`.
-    Shape {
-        /// The aurora scene file.
-        scene: PathBuf,
-        /// The frame after which to export.
-        #[arg(long)]
-        frame: u32,
-        /// Output CSV file.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Shape(ShapeArgs),
     /// The aurora's model atmosphere (NRLMSIS 2.1, 80-500 km at 1 km): CSV
     /// `altitude_km,n_o,n_n2,n_o2,temperature_k` (m⁻³, K).
-    Atmosphere {
-        /// Only csv.
-        #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
-        format: DataFormat,
-        /// Output file.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Atmosphere(AtmosphereArgs),
     /// The aurora's 1-D column model (physical mode): volume emission rate of each line,
     /// photons cm⁻³ s⁻¹, 80-500 km at 1 km: CSV
     /// `altitude_km,v_391_4,v_427_8,v_557_7,v_630_0,v_670_5`.
-    AuroraProfile {
-        /// Mono-energetic energy or Maxwellian characteristic energy, keV (0.1-1000).
-        #[arg(long)]
-        energy_kev: f64,
-        /// Electron spectrum.
-        #[arg(long, value_enum, default_value_t = SpectrumArg::Maxwellian)]
-        spectrum: SpectrumArg,
-        /// Energy flux, erg cm⁻² s⁻¹.
-        #[arg(long, default_value_t = 1.0)]
-        flux_erg: f64,
-        /// Only csv.
-        #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
-        format: DataFormat,
-        /// Output file.
-        #[arg(long)]
-        out: PathBuf,
-        /// Also write the red line's budget (electron density, O(¹D) production by
-        /// source, the share that radiates, 630.0 nm) as CSV to this file.
-        #[arg(long)]
-        red_line: Option<PathBuf>,
-        /// Also write the `paper` mode's expected emission by altitude (default
-        /// `[render.sky.paper]`, production ratios from this column) as CSV to this
-        /// file: `altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5`, emissions per
-        /// falling electron per km, 1 km bins (centres).
-        #[arg(long)]
-        paper: Option<PathBuf>,
-        /// Write the aurora's emission alone, without the night sky's own glow (the
-        /// 630.0 nm of the night F region, IRI-90, which is there with no aurora at
-        /// all): what the renderer draws on a curtain. By default the profile is what a
-        /// photometer under the aurora sees, both together.
-        #[arg(long)]
-        aurora_only: bool,
-        /// Use the air of other conditions: a directory with the three tables
-        /// `atmosphere_msis21.csv` (O, N₂, O₂, T), `atmosphere_msis21_minor.csv` (N, NO)
-        /// and `ionosphere_iri90.csv` (night O⁺), as `tools/gen_atmosphere.py --out DIR`
-        /// and `tools/iri90/make_table.sh` write them. Default: the shipped tables
-        /// (65° N 0° E, a winter midnight, F10.7 = 100, Ap = 10; `tests/data/air/tromso` has
-        /// 69.6° N 19.0° E, F10.7 = 150, Ap = 15).
-        #[arg(long, value_name = "DIR")]
-        air: Option<PathBuf>,
-    },
+    AuroraProfile(AuroraProfileArgs),
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
-    SnowMesh {
-        /// The snow scene file.
-        scene: PathBuf,
-        /// glb (glTF 2.0 binary), obj or ply (binary).
-        #[arg(long, value_enum, default_value_t = MeshFormat::Glb)]
-        format: MeshFormat,
-        /// Simulated time, hours.
-        #[arg(long)]
-        time_h: Option<f64>,
-        /// Output file.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    SnowMesh(SnowMeshArgs),
     /// The blackbody colour table (paper Fig 1): CIE 1931 xy and normalised linear sRGB.
-    Blackbody {
-        /// Lowest temperature, K.
-        #[arg(long, default_value_t = 1000.0)]
-        min_k: f64,
-        /// Highest temperature, K (included when on the step grid).
-        #[arg(long, default_value_t = 10000.0)]
-        max_k: f64,
-        /// Temperature step, K.
-        #[arg(long, default_value_t = 100.0)]
-        step_k: f64,
-        /// csv (temperature_k,x,y,r,g,b) or png (a 1-pixel-high strip).
-        #[arg(long, value_enum, default_value_t = TableFormat::Csv)]
-        format: TableFormat,
-        /// Output file.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Blackbody(BlackbodyArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct RenderArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Frames to write: A..B (B not included), A..=B, or N. Earlier frames are
+    /// simulated but not written. Default: all of the scene's frames.
+    #[arg(long, value_parser = render::parse_frame_range)]
+    frames: Option<std::ops::Range<u32>>,
+    #[command(flatten)]
+    overrides: Overrides,
+    /// Worker threads (default: one per core). Output is identical for any count.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Output format: png (tone mapped, 8-bit sRGB), exr (linear float radiance), vdb
+    /// (volumes), ply (particle caches) or flipbook (one atlas of every frame); which
+    /// a phenomenon offers is checked before anything runs.
+    #[arg(long, value_parser = format_names(), default_value = "png")]
+    format: String,
+    #[command(flatten)]
+    output: OutputArgs,
+    /// Skip frames whose files already exist (they are still simulated).
+    #[arg(long)]
+    resume: bool,
+    /// Write one JSON object per frame (timings, particle counts) to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// What to draw: one of the scene's phenomenon's views (flame: flame, density;
+    /// aurora: sky, plane; snow: scene, probability; sparkle: glints).
+    #[arg(long, value_parser = view_names())]
+    view: Option<String>,
+    #[command(flatten)]
+    checkpoints: CheckpointArgs,
+}
+
+#[derive(clap::Args, Debug)]
+struct SimulateArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Frames to simulate: up to B (A..B starts from a checkpoint at or before A).
+    /// Default: all of the scene's frames.
+    #[arg(long, value_parser = render::parse_frame_range)]
+    frames: Option<std::ops::Range<u32>>,
+    /// Random seed (overrides the scene).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (default: one per core). Output is identical for any count.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+    /// Write a checkpoint after every N frames.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    checkpoint_every: u32,
+    /// Folder of the checkpoints.
+    #[arg(long, value_name = "DIR")]
+    checkpoint_dir: PathBuf,
+    /// Write one JSON object per frame (timings, particle counts) to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
+struct StudioArgs {
+    /// Address to listen on. Loopback by default: other machines cannot connect.
+    #[arg(long, default_value = "127.0.0.1")]
+    bind: std::net::IpAddr,
+    /// Port (0 picks a free one; the address is printed).
+    #[arg(long, default_value_t = 7878)]
+    port: u16,
+    /// Open the page in the desktop's browser.
+    #[arg(long)]
+    open: bool,
+    /// Folder for "render final" outputs.
+    #[arg(long, default_value = "studio-renders")]
+    out: PathBuf,
+    /// Most browser tabs served at once.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u16).range(1..=64))]
+    max_sessions: u16,
+    /// Another host name the page may be reached by (besides 127.0.0.1, localhost,
+    /// ::1 and the --bind address); repeat for more. Requests naming any other
+    /// host are refused (a defence against DNS rebinding).
+    #[arg(long = "allow-host", value_name = "HOST")]
+    allow_hosts: Vec<String>,
+}
+
+#[derive(clap::Args, Debug)]
+struct ValidateArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+struct NewArgs {
+    /// The phenomenon.
+    #[arg(value_parser = phenomenon_names())]
+    phenomenon: String,
+    /// Where to write it (default: `./PHENOMENON.toml`).
+    path: Option<PathBuf>,
+    /// Overwrite an existing file.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(clap::Args, Debug)]
+struct DemoArgs {
+    /// Output directory.
+    #[arg(long, default_value = "demo-out")]
+    out: PathBuf,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
+}
+
+#[derive(clap::Args, Debug)]
+struct SlurmArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Output folder: frames/, checkpoints/, farm/ (scripts and logs).
+    #[arg(long)]
+    out: PathBuf,
+    /// Frames per render task.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    chunk: u32,
+    /// Slurm partition (default: the cluster's default).
+    #[arg(long)]
+    partition: Option<String>,
+    /// Submit the jobs with sbatch (otherwise run OUT/farm/submit.sh yourself).
+    #[arg(long)]
+    submit: bool,
+    /// CPUs per job (each job uses that many threads).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    cpus_per_task: u16,
+    /// The phenomena binary the jobs run, as the compute nodes see it (default: this one).
+    #[arg(long, value_name = "PATH")]
+    phenomena: Option<PathBuf>,
+    #[command(flatten)]
+    overrides: Overrides,
+    /// Output format (one of render's).
+    #[arg(long, value_parser = format_names(), default_value = "png")]
+    format: String,
+    /// What to draw (one of the phenomenon's views).
+    #[arg(long, value_parser = view_names())]
+    view: Option<String>,
+}
+
+#[derive(clap::Args, Debug)]
+struct ParticlesArgs {
+    /// The aurora scene file.
+    scene: PathBuf,
+    /// The frame after which to export (0 = after the first step).
+    #[arg(long)]
+    frame: u32,
+    /// Output CSV file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+struct ShapeArgs {
+    /// The aurora scene file.
+    scene: PathBuf,
+    /// The frame after which to export.
+    #[arg(long)]
+    frame: u32,
+    /// Output CSV file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+struct AtmosphereArgs {
+    /// Only csv.
+    #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
+    format: DataFormat,
+    /// Output file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+struct AuroraProfileArgs {
+    /// Mono-energetic energy or Maxwellian characteristic energy, keV (0.1-1000).
+    #[arg(long)]
+    energy_kev: f64,
+    /// Electron spectrum.
+    #[arg(long, value_enum, default_value_t = SpectrumArg::Maxwellian)]
+    spectrum: SpectrumArg,
+    /// Energy flux, erg cm⁻² s⁻¹.
+    #[arg(long, default_value_t = 1.0)]
+    flux_erg: f64,
+    /// Only csv.
+    #[arg(long, value_enum, default_value_t = DataFormat::Csv)]
+    format: DataFormat,
+    /// Output file.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write the red line's budget (electron density, O(¹D) production by
+    /// source, the share that radiates, 630.0 nm) as CSV to this file.
+    #[arg(long)]
+    red_line: Option<PathBuf>,
+    /// Also write the `paper` mode's expected emission by altitude (default
+    /// `[render.sky.paper]`, production ratios from this column) as CSV to this
+    /// file: `altitude_km,e_391_4,e_427_8,e_557_7,e_630_0,e_670_5`, emissions per
+    /// falling electron per km, 1 km bins (centres).
+    #[arg(long)]
+    paper: Option<PathBuf>,
+    /// Write the aurora's emission alone, without the night sky's own glow (the
+    /// 630.0 nm of the night F region, IRI-90, which is there with no aurora at
+    /// all): what the renderer draws on a curtain. By default the profile is what a
+    /// photometer under the aurora sees, both together.
+    #[arg(long)]
+    aurora_only: bool,
+    /// Use the air of other conditions: a directory with the three tables
+    /// `atmosphere_msis21.csv` (O, N₂, O₂, T), `atmosphere_msis21_minor.csv` (N, NO)
+    /// and `ionosphere_iri90.csv` (night O⁺), as `tools/gen_atmosphere.py --out DIR`
+    /// and `tools/iri90/make_table.sh` write them. Default: the shipped tables
+    /// (65° N 0° E, a winter midnight, F10.7 = 100, Ap = 10; `tests/data/air/tromso` has
+    /// 69.6° N 19.0° E, F10.7 = 150, Ap = 15).
+    #[arg(long, value_name = "DIR")]
+    air: Option<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
+struct SnowMeshArgs {
+    /// The snow scene file.
+    scene: PathBuf,
+    /// glb (glTF 2.0 binary), obj or ply (binary).
+    #[arg(long, value_enum, default_value_t = MeshFormat::Glb)]
+    format: MeshFormat,
+    /// Simulated time, hours.
+    #[arg(long)]
+    time_h: Option<f64>,
+    /// Output file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+struct BlackbodyArgs {
+    /// Lowest temperature, K.
+    #[arg(long, default_value_t = 1000.0)]
+    min_k: f64,
+    /// Highest temperature, K (included when on the step grid).
+    #[arg(long, default_value_t = 10000.0)]
+    max_k: f64,
+    /// Temperature step, K.
+    #[arg(long, default_value_t = 100.0)]
+    step_k: f64,
+    /// csv (temperature_k,x,y,r,g,b) or png (a 1-pixel-high strip).
+    #[arg(long, value_enum, default_value_t = TableFormat::Csv)]
+    format: TableFormat,
+    /// Output file.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 fn run(cli: Cli) -> anyhow::Result<String> {
     // The studio shuts down on these signals itself.
-    if !matches!(cli.command, Command::Studio { .. }) {
+    if !matches!(cli.command, Command::Studio(_)) {
         render::handle_signals();
     }
     match cli.command {
-        Command::Render {
-            scene,
-            out,
-            frames,
-            overrides: Overrides { width, height, seed },
-            threads,
-            format,
-            resume,
-            stats,
-            view,
-            checkpoints,
-            output,
-        } => {
-            let job = RenderJob {
-                job: Job {
-                    frames,
-                    options: output.options(),
-                    resume,
-                    checkpoint_every: checkpoints.checkpoint_every,
-                    checkpoint_dir: checkpoints.checkpoint_dir,
-                    ..Job::new(out, format_named(&format)?)
-                },
-                width,
-                height,
-                seed,
-                threads: threads.map(usize::from),
-                stats,
-                view,
-                quiet: false,
-            };
-            render::run(&scene, &job)
+        Command::Render(a) => a.run(),
+        Command::Simulate(a) => a.run(),
+        Command::Farm { manager: FarmManager::Slurm(a) } => a.run(),
+        Command::Export { what } => what.run(),
+        Command::New(a) => a.run(),
+        Command::Studio(a) => a.run(),
+        Command::Demo(a) => demo::run(&a.out, a.threads.map(usize::from)),
+        Command::Validate(a) => a.run(),
+    }
+}
+
+impl RenderArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let Overrides { width, height, seed } = self.overrides;
+        let mut job = RenderJob::new(self.out, format_named(&self.format)?);
+        job.job.frames = self.frames;
+        job.job.options = self.output.options();
+        job.job.resume = self.resume;
+        job.job.checkpoint_every = self.checkpoints.checkpoint_every;
+        job.job.checkpoint_dir = self.checkpoints.checkpoint_dir;
+        let job = RenderJob {
+            width,
+            height,
+            seed,
+            threads: self.threads.map(usize::from),
+            stats: self.stats,
+            view: self.view,
+            ..job
+        };
+        render::run(&self.scene, &job)
+    }
+}
+
+impl SimulateArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let mut job = RenderJob::new(self.checkpoint_dir.clone(), registry::FORMATS[0]);
+        job.job.frames = self.frames;
+        job.job.checkpoint_every = Some(self.checkpoint_every);
+        job.job.checkpoint_dir = Some(self.checkpoint_dir);
+        job.job.images = false;
+        let job =
+            RenderJob { seed: self.seed, threads: self.threads.map(usize::from), stats: self.stats, ..job };
+        render::run(&self.scene, &job)
+    }
+}
+
+impl SlurmArgs {
+    fn run(self) -> anyhow::Result<String> {
+        if !format_named(&self.format)?.resumable() {
+            anyhow::bail!(
+                "farm slurm --format {}: a flipbook is one atlas made of every frame, and the farm's tasks render their chunks apart; render png or exr frames on the farm, or the flipbook on one machine with `phenomena render --format flipbook`",
+                self.format
+            );
         }
-        Command::Simulate { scene, frames, seed, threads, checkpoint_every, checkpoint_dir, stats } => {
-            let job = Job {
-                frames,
-                checkpoint_every: Some(checkpoint_every),
-                checkpoint_dir: Some(checkpoint_dir.clone()),
-                images: false,
-                ..Job::new(checkpoint_dir, registry::FORMATS[0])
-            };
-            render::run(
-                &scene,
-                &RenderJob {
-                    seed,
-                    threads: threads.map(usize::from),
-                    stats,
-                    ..RenderJob::new(PathBuf::new(), job.format)
-                }
-                .with_job(job),
-            )
-        }
-        Command::Farm {
-            manager:
-                FarmManager::Slurm {
-                    scene,
-                    out,
-                    chunk,
-                    partition,
-                    submit,
-                    cpus_per_task,
-                    phenomena,
-                    overrides: Overrides { width, height, seed },
-                    format,
-                    view,
-                },
-        } => {
-            if !format_named(&format)?.resumable() {
-                anyhow::bail!(
-                    "farm slurm --format flipbook: a flipbook is one atlas made of every frame, and the farm's tasks render their chunks apart; render png or exr frames on the farm, or the flipbook on one machine with `phenomena render --format flipbook`"
-                );
+        let Overrides { width, height, seed } = self.overrides;
+        let mut render_args = Vec::new();
+        let mut simulate_args = Vec::new();
+        for (flag, value) in
+            [("--width", width.map(|w| w.to_string())), ("--height", height.map(|h| h.to_string()))]
+        {
+            if let Some(v) = value {
+                render_args.extend([flag.to_string(), v]);
             }
-            let mut render_args = Vec::new();
-            let mut simulate_args = Vec::new();
-            for (flag, value) in
-                [("--width", width.map(|w| w.to_string())), ("--height", height.map(|h| h.to_string()))]
-            {
-                if let Some(v) = value {
-                    render_args.extend([flag.to_string(), v]);
-                }
+        }
+        if let Some(s) = seed {
+            for args in [&mut render_args, &mut simulate_args] {
+                args.extend(["--seed".to_string(), s.to_string()]);
             }
-            if let Some(s) = seed {
-                for args in [&mut render_args, &mut simulate_args] {
-                    args.extend(["--seed".to_string(), s.to_string()]);
-                }
+        }
+        render_args.extend(["--format".to_string(), self.format]);
+        if let Some(v) = self.view {
+            render_args.extend(["--view".to_string(), v]);
+        }
+        farm::slurm(&farm::FarmJob {
+            scene: self.scene,
+            out: self.out,
+            chunk: self.chunk,
+            partition: self.partition,
+            submit: self.submit,
+            render_args,
+            simulate_args,
+            cpus_per_task: self.cpus_per_task,
+            binary: self.phenomena,
+        })
+    }
+}
+
+impl ExportWhat {
+    fn run(self) -> anyhow::Result<String> {
+        match self {
+            ExportWhat::Blackbody(a) => export::blackbody(a.min_k, a.max_k, a.step_k, a.format, &a.out),
+            ExportWhat::Atmosphere(a) => export::atmosphere(&a.out),
+            ExportWhat::AuroraProfile(a) => a.run(),
+            ExportWhat::SnowMesh(a) => a.run(),
+            ExportWhat::Particles(a) => {
+                export::scene_export(&a.scene, "particles", "csv", |s| after_frame(s, a.frame), &a.out)
             }
-            render_args.extend(["--format".to_string(), format]);
-            if let Some(v) = view {
-                render_args.extend(["--view".to_string(), v]);
+            ExportWhat::Shape(a) => {
+                export::scene_export(&a.scene, "shape", "csv", |s| after_frame(s, a.frame), &a.out)
             }
-            farm::slurm(&farm::FarmJob {
-                scene,
-                out,
-                chunk,
-                partition,
-                submit,
-                render_args,
-                simulate_args,
-                cpus_per_task,
-                binary: phenomena,
-            })
         }
-        Command::Export { what: ExportWhat::Blackbody { min_k, max_k, step_k, format, out } } => {
-            export::blackbody(min_k, max_k, step_k, format, &out)
-        }
-        Command::Export { what: ExportWhat::Atmosphere { format: DataFormat::Csv, out } } => {
-            export::atmosphere(&out)
-        }
-        Command::Export {
-            what:
-                ExportWhat::AuroraProfile {
-                    energy_kev,
-                    spectrum,
-                    flux_erg,
-                    format: DataFormat::Csv,
-                    out,
-                    red_line,
-                    paper,
-                    aurora_only,
-                    air,
-                },
-        } => {
-            let spectrum = match spectrum {
-                SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
-                SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
-            };
-            let outputs = export::ProfileOutputs {
-                out: &out,
-                red_line: red_line.as_deref(),
-                paper: paper.as_deref(),
-                aurora_only,
-            };
-            export::aurora_profile(energy_kev, spectrum, flux_erg, air.as_deref(), &outputs)
-        }
-        Command::Export { what: ExportWhat::SnowMesh { scene, format, time_h, out } } => {
-            let format = match format {
-                MeshFormat::Glb => "glb",
-                MeshFormat::Obj => "obj",
-                MeshFormat::Ply => "ply",
-            };
-            let steps = |s: &phenomena_scene::Scene| {
-                let Some(snow) = s.get::<phenomena_scene::snow::SnowScene>() else { return Ok(0) };
-                let dt = f64::from(snow.snow.time_step_h);
-                let time = time_h.unwrap_or(f64::from(snow.scene.frames) * dt);
-                if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
-                    anyhow::bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
-                }
-                Ok((time / dt).round() as u32)
-            };
-            export::scene_export(&scene, "snow-mesh", format, steps, &out)
-        }
-        Command::Export { what: ExportWhat::Particles { scene, frame, out } } => {
-            export::scene_export(&scene, "particles", "csv", |s| after_frame(s, frame), &out)
-        }
-        Command::Export { what: ExportWhat::Shape { scene, frame, out } } => {
-            export::scene_export(&scene, "shape", "csv", |s| after_frame(s, frame), &out)
-        }
-        Command::New { phenomenon, path, force } => {
-            let entry = registry::phenomenon(&phenomenon)
-                .ok_or_else(|| anyhow::anyhow!("no phenomenon `{phenomenon}`: use {}", registry::names()))?;
-            let path = path.unwrap_or_else(|| PathBuf::from(format!("{}.toml", entry.name())));
-            if path.exists() && !force {
-                anyhow::bail!("{} already exists (use --force to overwrite)", path.display());
+    }
+}
+
+impl AuroraProfileArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let spectrum = match self.spectrum {
+            SpectrumArg::Mono => phenomena_aurora::deposition::Spectrum::Mono,
+            SpectrumArg::Maxwellian => phenomena_aurora::deposition::Spectrum::Maxwellian,
+        };
+        let outputs = export::ProfileOutputs {
+            out: &self.out,
+            red_line: self.red_line.as_deref(),
+            paper: self.paper.as_deref(),
+            aurora_only: self.aurora_only,
+        };
+        export::aurora_profile(self.energy_kev, spectrum, self.flux_erg, self.air.as_deref(), &outputs)
+    }
+}
+
+impl SnowMeshArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let format = match self.format {
+            MeshFormat::Glb => "glb",
+            MeshFormat::Obj => "obj",
+            MeshFormat::Ply => "ply",
+        };
+        let time_h = self.time_h;
+        // Hours to frames by the scene's own frame time (one snow step per frame).
+        let steps = |s: &phenomena_scene::Scene| {
+            let dt_h = s.frame_time_s() / 3600.0;
+            let time = time_h.unwrap_or(f64::from(s.settings().frames) * dt_h);
+            if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
+                anyhow::bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
             }
-            if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-                ensure_dir(parent)?;
-            }
-            write_bytes_atomic(&path, entry.starter().as_bytes())?;
-            Ok(format!(
-                "wrote {}; render it with: phenomena render {} --out out",
-                path.display(),
-                path.display()
-            ))
+            Ok((time / dt_h).round() as u32)
+        };
+        export::scene_export(&self.scene, "snow-mesh", format, steps, &self.out)
+    }
+}
+
+impl NewArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let entry = registry::phenomenon(&self.phenomenon).ok_or_else(|| {
+            anyhow::anyhow!("no phenomenon `{}`: use {}", self.phenomenon, registry::names())
+        })?;
+        let path = self.path.unwrap_or_else(|| PathBuf::from(format!("{}.toml", entry.name())));
+        if path.exists() && !self.force {
+            anyhow::bail!("{} already exists (use --force to overwrite)", path.display());
         }
-        #[cfg(feature = "studio")]
-        Command::Studio { bind, port, open, out, max_sessions, allow_hosts } => {
-            studio::serve(studio::Options {
-                bind,
-                port,
-                open,
-                out,
-                max_sessions: usize::from(max_sessions),
-                allow_hosts,
-            })
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            ensure_dir(parent)?;
         }
-        #[cfg(not(feature = "studio"))]
-        Command::Studio { .. } => anyhow::bail!(
+        write_bytes_atomic(&path, entry.starter().as_bytes())?;
+        // Each scene its own folder: starters of several phenomena do not overwrite each
+        // other's frames.
+        let stem = path.file_stem().map_or_else(|| entry.name().into(), |s| s.to_string_lossy());
+        Ok(format!(
+            "wrote {}; render it with: phenomena render {} --out out/{stem}",
+            path.display(),
+            path.display()
+        ))
+    }
+}
+
+impl StudioArgs {
+    #[cfg(feature = "studio")]
+    fn run(self) -> anyhow::Result<String> {
+        studio::serve(studio::Options {
+            bind: self.bind,
+            port: self.port,
+            open: self.open,
+            out: self.out,
+            max_sessions: usize::from(self.max_sessions),
+            allow_hosts: self.allow_hosts,
+        })
+    }
+
+    #[cfg(not(feature = "studio"))]
+    fn run(self) -> anyhow::Result<String> {
+        anyhow::bail!(
             "this phenomena was built without the studio: build it with `cargo build --release -p phenomena --features studio`"
-        ),
-        Command::Demo { out, threads } => demo::run(&out, threads.map(usize::from)),
-        Command::Validate { scene } => {
-            let s = phenomena_scene::load(&scene)?;
-            // Everything `render` checks before its first frame, without building the
-            // simulation: the files load, the simulation and renderer would accept the
-            // scene, and its estimated memory is within the budget.
-            let report =
-                s.check(&Assets::beside(&scene), &render::limits()).map_err(|e| render::located(&s, e))?;
-            for w in &report.warnings {
-                eprintln!("warning: {w}");
-            }
-            for u in &report.estimate.unchecked {
-                eprintln!("note: not checked before rendering: {u}");
-            }
-            render::log_estimate(&report.estimate);
-            let st = s.settings();
-            Ok(format!(
-                "{}: ok ({} scene, {} frames at {}x{}, seed {}; about {} of memory)",
-                scene.display(),
-                s.phenomenon().name(),
-                st.frames,
-                st.width,
-                st.height,
-                st.seed,
-                phenomena_scene::gib(report.estimate.memory_bytes)
-            ))
+        )
+    }
+}
+
+impl ValidateArgs {
+    fn run(self) -> anyhow::Result<String> {
+        let s = phenomena_scene::load(&self.scene)?;
+        // Everything `render` checks before its first frame, without building the
+        // simulation: the files load, the simulation and renderer would accept the
+        // scene, and its estimated memory is within the budget.
+        let report =
+            s.check(&Assets::beside(&self.scene), &render::limits()).map_err(|e| render::located(&s, e))?;
+        for w in &report.warnings {
+            eprintln!("warning: {w}");
         }
+        for u in &report.estimate.unchecked {
+            eprintln!("note: not checked before rendering: {u}");
+        }
+        render::log_estimate(&report.estimate);
+        let st = s.settings();
+        Ok(format!(
+            "{}: ok ({} scene, {} frames at {}x{}, seed {}; about {} of memory)",
+            self.scene.display(),
+            s.phenomenon().name(),
+            st.frames,
+            st.width,
+            st.height,
+            st.seed,
+            phenomena_scene::gib(report.estimate.memory_bytes)
+        ))
     }
 }
 

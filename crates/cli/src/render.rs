@@ -51,11 +51,6 @@ pub(crate) struct RenderJob {
 }
 
 impl RenderJob {
-    /// This job with the scene layer's `job` in it.
-    pub(crate) fn with_job(self, job: Job) -> Self {
-        Self { job, ..self }
-    }
-
     /// A job writing `format` frames into `out_dir` with every other option at its
     /// default.
     pub(crate) fn new(out_dir: PathBuf, format: Format) -> Self {

@@ -353,22 +353,43 @@ impl Drop for Deregister {
 }
 
 async fn run_socket(shared: Arc<Shared>, socket: WebSocket) {
+    let (mut tx, mut rx) = socket.split();
+    let Some((commands, mut outgoing)) = start_session(&shared, &mut tx).await else { return };
+    relay(&mut tx, &mut rx, &commands, &mut outgoing).await;
+    // The session thread ends (removing the session from the registry and deleting its
+    // folder) on this message, or on its next frame when the receiver is gone.
+    let _ = commands.send(Command::Close);
+}
+
+/// The socket's sending half.
+type Tx = futures_util::stream::SplitSink<WebSocket, Message>;
+
+/// Send `message` as an error to the page; `false` when the page is gone.
+async fn send_error(tx: &mut Tx, message: &str) -> bool {
+    let msg = serde_json::json!({"type": "error", "message": message});
+    tx.send(Message::Text(msg.to_string().into())).await.is_ok()
+}
+
+/// Register a session with its folder and its share of the memory budget, start its
+/// thread and greet the page; returns where its commands go and where its messages
+/// come from (`None`: it could not start, the page was told when it could be).
+async fn start_session(
+    shared: &Arc<Shared>,
+    tx: &mut Tx,
+) -> Option<(std::sync::mpsc::Sender<Command>, tokio::sync::mpsc::Receiver<session::Out>)> {
     let n = shared.counter.fetch_add(1, Ordering::Relaxed);
     let id = format!("{:016x}", shared.key.hash_one(n));
     let dir = match tempfile::Builder::new().prefix("phenomena-studio-").tempdir() {
         Ok(d) => d,
         Err(e) => {
-            let (mut tx, _) = socket.split();
-            let msg =
-                serde_json::json!({"type": "error", "message": format!("cannot make a session folder: {e}")});
-            let _ = tx.send(Message::Text(msg.to_string().into())).await;
-            return;
+            send_error(tx, &format!("cannot make a session folder: {e}")).await;
+            return None;
         }
     };
     let (commands, inbox) = std::sync::mpsc::channel::<Command>();
     // Two frames in flight at most: a slow page slows the simulation instead of
     // queueing stale frames.
-    let (outbox, mut outgoing) = tokio::sync::mpsc::channel::<session::Out>(2);
+    let (outbox, outgoing) = tokio::sync::mpsc::channel::<session::Out>(2);
     shared.sessions().insert(id.clone(), Entry { dir: dir.path().to_path_buf(), commands: commands.clone() });
     let guard = Deregister { shared: shared.clone(), id: id.clone() };
     let hello = session::hello(&id, &shared.controls);
@@ -382,58 +403,55 @@ async fn run_socket(shared: Arc<Shared>, socket: WebSocket) {
     });
     if let Err(e) = thread {
         tracing::error!("cannot start a session thread: {e}");
-        return;
+        return None;
     }
-    let (mut tx, mut rx) = socket.split();
-    if tx.send(Message::Text(hello.into())).await.is_err() {
-        return;
-    }
+    tx.send(Message::Text(hello.into())).await.ok()?;
+    Some((commands, outgoing))
+}
+
+/// Pass the page's messages to the session and the session's to the page until either
+/// is gone.
+async fn relay(
+    tx: &mut Tx,
+    rx: &mut futures_util::stream::SplitStream<WebSocket>,
+    commands: &std::sync::mpsc::Sender<Command>,
+    outgoing: &mut tokio::sync::mpsc::Receiver<session::Out>,
+) {
     loop {
         tokio::select! {
             incoming = rx.next() => match incoming {
-                Some(Ok(Message::Text(text))) => {
-                    let command = session::parse_command(&text);
-                    let command = match command {
-                        Ok(c) => c,
-                        Err(message) => {
-                            let msg = serde_json::json!({"type": "error", "message": message});
-                            if tx.send(Message::Text(msg.to_string().into())).await.is_err() {
-                                break;
-                            }
-                            continue;
+                Some(Ok(Message::Text(text))) => match session::parse_command(&text) {
+                    Ok(command) => {
+                        if commands.send(command).is_err() {
+                            break;
                         }
-                    };
-                    if commands.send(command).is_err() {
-                        break;
                     }
-                }
+                    Err(message) => {
+                        if !send_error(tx, &message).await {
+                            break;
+                        }
+                    }
+                },
                 Some(Ok(Message::Binary(_))) => {
-                    let msg = serde_json::json!({"type": "error", "message": "binary messages are not understood: send JSON text"});
-                    if tx.send(Message::Text(msg.to_string().into())).await.is_err() {
+                    if !send_error(tx, "binary messages are not understood: send JSON text").await {
                         break;
                     }
                 }
                 Some(Ok(_)) => {}
                 Some(Err(_)) | None => break,
             },
-            out = outgoing.recv() => match out {
-                Some(session::Out::Text(t)) => {
-                    if tx.send(Message::Text(t.into())).await.is_err() {
-                        break;
-                    }
+            out = outgoing.recv() => {
+                let sent = match out {
+                    Some(session::Out::Text(t)) => tx.send(Message::Text(t.into())).await,
+                    Some(session::Out::Binary(b)) => tx.send(Message::Binary(b.into())).await,
+                    None => break,
+                };
+                if sent.is_err() {
+                    break;
                 }
-                Some(session::Out::Binary(b)) => {
-                    if tx.send(Message::Binary(b.into())).await.is_err() {
-                        break;
-                    }
-                }
-                None => break,
-            },
+            }
         }
     }
-    // The session thread ends (removing the session from the registry and deleting its
-    // folder) on this message, or on its next frame when the receiver is gone.
-    let _ = commands.send(Command::Close);
 }
 
 #[cfg(test)]

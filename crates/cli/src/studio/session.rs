@@ -410,93 +410,111 @@ impl Session {
 
     fn handle(&mut self, m: Incoming) -> Result<(), Closed> {
         match m {
-            Incoming::Builtin { name } => match shipped::shipped(&name) {
-                Some(b) => match b.scene() {
-                    Ok(scene) => {
-                        self.scene_name = name;
-                        self.replace(scene)?
-                    }
-                    Err(e) => self.error(format!("shipped scene {name} is invalid: {e}"))?,
-                },
-                None => self.error(format!("no shipped scene `{name}`"))?,
-            },
+            Incoming::Builtin { name } => self.load_builtin(name),
             Incoming::Toml { text, name } => {
-                let name = name.unwrap_or_else(|| "uploaded.toml".into());
-                match phenomena_scene::parse(&text, &name) {
-                    Ok(scene) => {
-                        self.scene_name =
-                            Path::new(&name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name);
-                        self.replace(scene)?
-                    }
-                    Err(e) => self.send(json!({
-                        "type": "error",
-                        "message": format!("{name} was not loaded: {e}"),
-                        "located": e.0.iter().map(|l| json!({"line": l.line, "column": l.column, "message": l.message})).collect::<Vec<_>>(),
-                    }))?,
-                }
+                self.load_toml(&text, name.unwrap_or_else(|| "uploaded.toml".into()))
             }
-            Incoming::Scene { phenomenon, scene } => match scene_from_json(&phenomenon, scene) {
-                Ok(s) => {
-                    let problems = studio_problems(&s);
-                    if problems.is_empty() {
-                        let same =
-                            self.scene.as_ref().is_some_and(|old| old.phenomenon().name() == phenomenon);
-                        if !same || self.scene_name.is_empty() {
-                            self.scene_name = phenomenon;
-                        }
-                        self.replace(s)?;
-                    } else {
-                        self.error(format!("scene refused: {}", joined(&problems)))?;
-                    }
-                }
-                Err(e) => self.error(format!("scene refused: {e}"))?,
-            },
-            Incoming::Set { path, value } => self.set(&path, value)?,
+            Incoming::Scene { phenomenon, scene } => self.load_json(phenomenon, scene),
+            Incoming::Set { path, value } => self.set(&path, value),
             Incoming::Play => {
                 self.playing = true;
                 self.next_due = Instant::now();
+                Ok(())
             }
-            Incoming::Pause => self.playing = false,
+            Incoming::Pause => {
+                self.playing = false;
+                Ok(())
+            }
             Incoming::Step => {
                 self.playing = false;
                 if let Some(mut record) = self.step()? {
                     self.show(&mut record)?;
                 }
+                Ok(())
             }
-            Incoming::Reset => self.rebuild()?,
+            Incoming::Reset => self.rebuild(),
             Incoming::Preview { width, height } => {
                 if !(16..=MAX_PREVIEW_SIDE).contains(&width) || !(16..=MAX_PREVIEW_SIDE).contains(&height) {
-                    self.error(format!(
+                    return self.error(format!(
                         "preview {width}x{height}: each side must be in [16, {MAX_PREVIEW_SIDE}] pixels"
-                    ))?;
-                } else {
-                    self.preview = (width, height);
-                    self.rebuild()?;
+                    ));
                 }
+                self.preview = (width, height);
+                self.rebuild()
             }
-            Incoming::Wind { force } => self.wind(force)?,
-            Incoming::Aurora(op) => self.aurora(op)?,
-            Incoming::Save => match &self.scene {
-                Some(scene) => match scene_toml(scene) {
-                    Ok(text) => {
-                        let problems = scene.validate();
-                        self.send(json!({
-                            "type": "saved",
-                            "name": format!("{}.toml", scene.phenomenon().name()),
-                            "toml": text,
-                            "valid": problems.is_empty(),
-                            "problems": problems.iter().map(ToString::to_string).collect::<Vec<_>>(),
-                        }))?
-                    }
-                    Err(e) => self.error(format!("cannot write the scene as TOML: {e}"))?,
-                },
-                None => self.error("no scene to save: load one first")?,
-            },
-            Incoming::RenderFinal { frames, format } => self.render_final(frames, format.as_deref())?,
+            Incoming::Wind { force } => self.wind(force),
+            Incoming::Aurora(op) => self.aurora(op),
+            Incoming::Save => self.save(),
+            Incoming::RenderFinal { frames, format } => self.render_final(frames, format.as_deref()),
             #[cfg(test)]
             Incoming::Panic => panic!("a test asked for a panic"),
         }
-        Ok(())
+    }
+
+    /// Open the shipped scene `name`.
+    fn load_builtin(&mut self, name: String) -> Result<(), Closed> {
+        match shipped::shipped(&name) {
+            Some(b) => match b.scene() {
+                Ok(scene) => {
+                    self.scene_name = name;
+                    self.replace(scene)
+                }
+                Err(e) => self.error(format!("shipped scene {name} is invalid: {e}")),
+            },
+            None => self.error(format!("no shipped scene `{name}`")),
+        }
+    }
+
+    /// Open a scene file's text; its problems go back with line and column.
+    fn load_toml(&mut self, text: &str, name: String) -> Result<(), Closed> {
+        match phenomena_scene::parse(text, &name) {
+            Ok(scene) => {
+                self.scene_name =
+                    Path::new(&name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name);
+                self.replace(scene)
+            }
+            Err(e) => self.send(json!({
+                "type": "error",
+                "message": format!("{name} was not loaded: {e}"),
+                "located": e.0.iter().map(|l| json!({"line": l.line, "column": l.column, "message": l.message})).collect::<Vec<_>>(),
+            })),
+        }
+    }
+
+    /// Open a scene in its JSON form (the page returning to a tab); the scene keeps its
+    /// name while it is of the same phenomenon.
+    fn load_json(&mut self, phenomenon: String, scene: Value) -> Result<(), Closed> {
+        let s = match scene_from_json(&phenomenon, scene) {
+            Ok(s) => s,
+            Err(e) => return self.error(format!("scene refused: {e}")),
+        };
+        let problems = studio_problems(&s);
+        if !problems.is_empty() {
+            return self.error(format!("scene refused: {}", joined(&problems)));
+        }
+        let same = self.scene.as_ref().is_some_and(|old| old.phenomenon().name() == phenomenon);
+        if !same || self.scene_name.is_empty() {
+            self.scene_name = phenomenon;
+        }
+        self.replace(s)
+    }
+
+    /// The scene as TOML for the page to download.
+    fn save(&mut self) -> Result<(), Closed> {
+        let Some(scene) = &self.scene else { return self.error("no scene to save: load one first") };
+        match scene_toml(scene) {
+            Ok(text) => {
+                let problems = scene.validate();
+                self.send(json!({
+                    "type": "saved",
+                    "name": format!("{}.toml", scene.phenomenon().name()),
+                    "toml": text,
+                    "valid": problems.is_empty(),
+                    "problems": problems.iter().map(ToString::to_string).collect::<Vec<_>>(),
+                }))
+            }
+            Err(e) => self.error(format!("cannot write the scene as TOML: {e}")),
+        }
     }
 
     /// Take a new scene (already valid) and start it.

@@ -171,17 +171,31 @@ fn formats_a_phenomenon_cannot_write_are_refused_first() {
     assert!(!dir.path().join("o").join("flipbook.png").exists());
 }
 
-/// Outputs count against the memory budget and are checked before the first frame:
-/// volumes of tiny voxels (the flame's 0.1 mm needed an 8 GB list and aborted; the
-/// aurora's 0.1 km, inside the documented range, tens of GB), an invalid voxel size,
-/// and a flipbook atlas over the budget are refused at once, naming the size, with no
-/// frame written.
-#[test]
-fn outputs_over_the_memory_budget_are_refused_before_the_first_frame() {
+/// Run `render` with each case's arguments, all refused before the run (not when a
+/// frame is written, "frame N: ...") with the case's words, no file written.
+fn refused_before_the_first_frame(cases: &[(&str, Vec<&str>, &str)]) {
     let dir = tempfile::tempdir().unwrap();
+    for (out, args, needle) in cases {
+        let mut all = vec!["render", "--out", out];
+        all.extend(args.iter().copied());
+        let e = fails(dir.path(), &all);
+        assert!(e.contains(needle), "{out}: {e}");
+        assert!(!e.contains("frame 30") && !e.contains("frame 40") && !e.contains("frame 0"), "{out}: {e}");
+        let written = std::fs::read_dir(dir.path().join(out)).map_or(0, |d| d.count());
+        assert_eq!(written, 0, "{out}: files written");
+    }
+}
+
+/// Volumes count against the memory budget and their voxel size is checked before the
+/// first frame: tiny voxels (the flame's 0.1 mm needed an 8 GB list and aborted; the
+/// aurora's 0.1 km, inside the documented range, tens of GB), an invalid size, and a
+/// volume over the budget are refused at once, naming the size.
+#[test]
+fn volumes_over_the_memory_budget_are_refused_before_the_first_frame() {
     let flame = shipped("flame-paper.toml");
     let aurora = shipped("aurora-scene2.toml");
-    let cases: [(&str, Vec<&str>, &str); 6] = [
+    let small = ["--width", "64", "--height", "36"];
+    refused_before_the_first_frame(&[
         (
             "tiny",
             vec![&flame, "--format", "vdb", "--voxel-m", "0.0001", "--frames", "40..41"],
@@ -195,66 +209,43 @@ fn outputs_over_the_memory_budget_are_refused_before_the_first_frame() {
         ),
         (
             "aurora",
-            vec![
-                &aurora,
-                "--format",
-                "vdb",
-                "--voxel-km",
-                "0.1",
-                "--frames",
-                "30..31",
-                "--width",
-                "64",
-                "--height",
-                "36",
-            ],
+            [&[aurora.as_str(), "--format", "vdb", "--voxel-km", "0.1", "--frames", "30..31"][..], &small]
+                .concat(),
             "use larger voxels",
         ),
         (
             "budget",
-            vec![
-                &flame,
-                "--format",
-                "vdb",
-                "--voxel-m",
-                "0.002",
-                "--frames",
-                "40..41",
-                "--width",
-                "64",
-                "--height",
-                "36",
-                "--max-memory-gib",
-                "0.05",
-            ],
+            [
+                &[flame.as_str(), "--format", "vdb", "--voxel-m", "0.002", "--frames", "40..41"][..],
+                &small,
+                &["--max-memory-gib", "0.05"],
+            ]
+            .concat(),
             "the budget",
         ),
-        (
-            "atlas",
-            vec![
-                &flame,
-                "--format",
-                "flipbook",
-                "--frames",
-                "9",
-                "--width",
-                "4096",
-                "--height",
-                "4096",
-                "--max-memory-gib",
-                "1",
-            ],
-            "more than the budget of 1.00 GiB",
-        ),
-    ];
-    for (out, args, needle) in cases {
-        let mut all = vec!["render", "--out", out];
-        all.extend(args);
-        let e = fails(dir.path(), &all);
-        assert!(e.contains(needle), "{out}: {e}");
-        // Refused before the run, not when its first frame is written ("frame N: ...").
-        assert!(!e.contains("frame 30") && !e.contains("frame 40") && !e.contains("frame 0"), "{out}: {e}");
-        let written = std::fs::read_dir(dir.path().join(out)).map_or(0, |d| d.count());
-        assert_eq!(written, 0, "{out}: files written");
-    }
+    ]);
+}
+
+/// A flipbook's atlas counts against the budget: nine 4096² frames need more than 1 GiB
+/// beside the flame, refused before the first frame.
+#[test]
+fn a_flipbook_over_the_memory_budget_is_refused_before_the_first_frame() {
+    let flame = shipped("flame-paper.toml");
+    refused_before_the_first_frame(&[(
+        "atlas",
+        vec![
+            &flame,
+            "--format",
+            "flipbook",
+            "--frames",
+            "9",
+            "--width",
+            "4096",
+            "--height",
+            "4096",
+            "--max-memory-gib",
+            "1",
+        ],
+        "more than the budget of 1.00 GiB",
+    )]);
 }
