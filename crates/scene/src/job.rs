@@ -3,6 +3,21 @@
 //! on the way, and refused before the first frame when its outputs cannot fit the
 //! memory budget. `phenomena render` and `simulate`, `demo`, the farm's tasks and the
 //! studio's final renders all run [`render`].
+//!
+//! ```
+//! use phenomena_scene::job::{self, Job};
+//! use phenomena_scene::{Assets, Format, Limits, load};
+//!
+//! let path = std::path::Path::new("../../scenes/flame-paper.toml");
+//! let out = std::env::temp_dir().join("phenomena-job-doc");
+//! let exr = Format::named("exr").expect("a registered format");
+//! let job = Job { frames: Some(2..4), ..Job::new(&out, exr) };
+//! let done = job::render(load(path)?, &Assets::beside(path), &Limits::NONE, &job, &mut ())?;
+//! assert!(done.lines[0].starts_with("wrote 2 frame(s)"));
+//! assert!(out.join("frame_00003.exr").is_file());
+//! # std::fs::remove_dir_all(&out)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};

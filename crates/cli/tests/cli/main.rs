@@ -10,6 +10,7 @@ mod export_blackbody;
 mod farm;
 mod new_and_demo;
 mod outputs;
+mod readme;
 mod render_frames;
 mod resume;
 mod shipped_scenes;
