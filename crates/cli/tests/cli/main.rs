@@ -7,6 +7,7 @@ mod bad_input;
 mod checkpoints;
 mod determinism;
 mod export_blackbody;
+mod exports;
 mod farm;
 mod new_and_demo;
 mod outputs;
