@@ -103,3 +103,26 @@ fn every_phenomenon_writes_the_same_bytes_for_any_thread_count() {
         assert_eq!(run(1), run(3), "{}: the thread count changed the EXR frames", p.name());
     }
 }
+
+/// A view's name is written where the registry lists it and where the scene file holds
+/// it: every view of every phenomenon round-trips through `set_view`, is what the
+/// scene's `[render] view` says (where it has one), and renders.
+#[test]
+fn every_view_of_every_phenomenon_round_trips_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    for &p in PHENOMENA {
+        for view in p.views() {
+            let mut scene = small(p, 1);
+            scene.set_view(view.name).unwrap();
+            assert_eq!(scene.view(), view.name, "{}", p.name());
+            if let Some(written) = scene.to_json()["render"].get("view") {
+                assert_eq!(written, view.name, "{}: [render] view", p.name());
+            }
+            let out = dir.path().join(format!("{}-{}", p.name(), view.name));
+            render(&scene, &Job::new(&out, FORMATS[0]))
+                .unwrap_or_else(|e| panic!("{} {}: {e}", p.name(), view.name));
+            assert_eq!(outputs(&out).len(), 1, "{} {}", p.name(), view.name);
+        }
+        assert!(small(p, 1).set_view("no-such-view").is_err());
+    }
+}
