@@ -16,13 +16,23 @@ use phenomena_aurora::emission::Line;
 use phenomena_aurora::fall::{PaperEmission, paper_peak_km, paper_profile};
 use phenomena_aurora::{ColourMode, SkySettings};
 use phenomena_core::color::srgb_encode_u8;
+use phenomena_core::image::Frame;
 
 /// The scenario tests' scene loading and the curtain measurement.
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-#[allow(clippy::print_stdout, reason = "a report")]
-fn main() {
+/// The command line: scene number, frame, image size, `[render.sky]` file and PPM path.
+struct Args {
+    scene: u32,
+    frame: u32,
+    size: (usize, usize),
+    sky: Option<String>,
+    out: Option<String>,
+}
+
+/// Read the command line (see the module docs).
+fn parse_args() -> Args {
     let mut args = std::env::args().skip(1);
     let (mut scene, mut frame, mut size, mut sky, mut out) = (2u32, 200u32, (640usize, 360usize), None, None);
     while let Some(a) = args.next() {
@@ -40,7 +50,13 @@ fn main() {
             other => panic!("unknown argument {other}"),
         }
     }
-    let settings: SkySettings = match &sky {
+    Args { scene, frame, size, sky, out }
+}
+
+/// The `[render.sky]` settings of the file at `path` (in `paper` mode unless it sets a
+/// mode), or the defaults in `paper` mode.
+fn sky_settings(path: Option<&str>) -> SkySettings {
+    match path {
         Some(path) => {
             let text = std::fs::read_to_string(path).expect("--sky file");
             let mut s: SkySettings = toml::from_str(&text).expect("valid [render.sky] settings");
@@ -50,7 +66,13 @@ fn main() {
             s
         }
         None => SkySettings { mode: ColourMode::Paper, ..SkySettings::default() },
-    };
+    }
+}
+
+#[allow(clippy::print_stdout, reason = "a report")]
+fn main() {
+    let Args { scene, frame, size, sky, out } = parse_args();
+    let settings = sky_settings(sky.as_deref());
     let (config, _, seed) = common::load(&format!("aurora-scene{scene}.toml"));
     let sim = common::run(config, seed, frame);
     let image = common::sky_frame(&sim, settings.clone(), size.0, size.1);
@@ -80,6 +102,16 @@ fn main() {
         100.0 * look.magenta as f64 / look.pixels.max(1) as f64,
         100.0 * look.magenta_above_lowest_tenth as f64 / look.pixels.max(1) as f64
     );
+    report_peaks(&settings);
+    if let Some(path) = out {
+        write_ppm(&path, &image, size);
+    }
+}
+
+/// Print each line's paper-mode emission peak beside the physical mode's, the emission
+/// weight and (with `PAPER_LOOK_RED` set) the 630.0 nm profile every 10 km.
+#[allow(clippy::print_stdout, reason = "a report")]
+fn report_peaks(settings: &SkySettings) {
     let air = Atmosphere::msis21();
     let emission = PaperEmission::new(air, &settings.paper, &settings.precipitation, &settings.yields);
     let (bottom_km, _) = air.range_km();
@@ -102,14 +134,16 @@ fn main() {
             println!("  {:5.1} km: 630.0 nm {:.3}", bottom_km + k as f64 + 0.5, b[red] / most);
         }
     }
-    if let Some(path) = out {
-        let mut ppm = format!("P6 {} {} 255\n", size.0, size.1).into_bytes();
-        for y in 0..size.1 {
-            for x in 0..size.0 {
-                let p = image.pixel(x, y);
-                ppm.extend([p.x, p.y, p.z].map(srgb_encode_u8));
-            }
+}
+
+/// Write `image` (`size` px) as a binary PPM, sRGB-encoded, to `path`.
+fn write_ppm(path: &str, image: &Frame, size: (usize, usize)) {
+    let mut ppm = format!("P6 {} {} 255\n", size.0, size.1).into_bytes();
+    for y in 0..size.1 {
+        for x in 0..size.0 {
+            let p = image.pixel(x, y);
+            ppm.extend([p.x, p.y, p.z].map(srgb_encode_u8));
         }
-        std::fs::write(&path, ppm).expect("write the PPM");
     }
+    std::fs::write(path, ppm).expect("write the PPM");
 }

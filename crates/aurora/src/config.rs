@@ -352,11 +352,24 @@ impl AuroraConfig {
         i.count("shape.control_points_per_sheet", u64::from(self.shape.control_points_per_sheet), 2..=4096);
         i.count("shape.renew_every_frames", u64::from(self.shape.renew_every_frames), 1..=10_000);
         i.count("shape.lookahead_frames", u64::from(self.shape.lookahead_frames), 0..=10_000);
+        self.validate_keyframe_count(&mut i);
+        self.validate_source_in_plane(&mut i);
+        i.count("splits", self.splits.len() as u64, 0..=MAX_OPERATIONS);
+        i.count("merges", self.merges.len() as u64, 0..=MAX_OPERATIONS);
+        self.validate_strokes(&mut i);
+        self.validate_field(&mut i);
+        self.validate_motion(&mut i);
+        self.validate_redistribution(&mut i);
+        i.into_result()
+    }
+
+    /// The `keyframes` list's size, into `i`: a source and at least one target, and
+    /// bounds that keep building the shapes (a crossing test of every pair of segments
+    /// per keyframe) within about a second whatever the file holds.
+    fn validate_keyframe_count(&self, i: &mut Issues) {
         if self.keyframes.len() < 2 {
             i.push("keyframes", self.keyframes.len(), "a source and at least one target keyframe");
         }
-        // Bounds that keep building the shapes (a crossing test of every pair of
-        // segments per keyframe) within about a second whatever the file holds.
         i.count("keyframes", self.keyframes.len() as u64, 0..=MAX_KEYFRAMES);
         let n = u64::from(self.shape.control_points_per_sheet);
         if let Some(kf) = self.keyframes.first()
@@ -368,8 +381,11 @@ impl AuroraConfig {
                 format!("at most {MAX_CONTROL_POINTS} control points per keyframe in all"),
             );
         }
-        // Particles are born on the source keyframe's sheets: with none of its points in
-        // the plane nothing would ever be drawn.
+    }
+
+    /// Particles are born on the source keyframe's sheets: with none of its points in the
+    /// plane nothing would ever be drawn (into `i`).
+    fn validate_source_in_plane(&self, i: &mut Issues) {
         let size = self.plane.size_km;
         let inside = |p: &[f32; 2]| {
             let p = Vec2::from(*p);
@@ -388,8 +404,11 @@ impl AuroraConfig {
                 ),
             );
         }
-        i.count("splits", self.splits.len() as u64, 0..=MAX_OPERATIONS);
-        i.count("merges", self.merges.len() as u64, 0..=MAX_OPERATIONS);
+    }
+
+    /// Every keyframe's frame and strokes, into `i`: frames exact in f32, strokes of at
+    /// most [`MAX_STROKE_SAMPLES`] samples, each within the vector bound of 1e5 km.
+    fn validate_strokes(&self, i: &mut Issues) {
         for (k, kf) in self.keyframes.iter().enumerate() {
             // Frames are interpolated in f32, exact for whole numbers up to 2²⁴.
             i.count(&format!("keyframes[{k}].frame"), u64::from(kf.frame), 0..=MAX_KEYFRAME);
@@ -406,6 +425,10 @@ impl AuroraConfig {
                 }
             }
         }
+    }
+
+    /// The `[field]` table's problems, into `i`.
+    fn validate_field(&self, i: &mut Issues) {
         let f = &self.field;
         i.range_open_low("field.reach_km", f.reach_km, 0.0, 1e4);
         i.count("field.charges", u64::from(f.charges), 1..=10_000_000);
@@ -417,6 +440,10 @@ impl AuroraConfig {
         i.range("field.noise.amplitude", f.noise.amplitude, 0.0..=10.0);
         i.range("field.noise.frequency", f.noise.frequency, 0.0..=1e3);
         i.range("field.noise_time_frequency_hz", f.noise_time_frequency_hz, 0.0..=1e3);
+    }
+
+    /// The `[motion]` table's problems, into `i`.
+    fn validate_motion(&self, i: &mut Issues) {
         let m = &self.motion;
         i.count("motion.particles", u64::from(m.particles), 0..=5_000_000);
         i.range_open_low("motion.time_step_s", m.time_step_s, 0.0, 10.0);
@@ -430,6 +457,10 @@ impl AuroraConfig {
         i.range("motion.magnetic_field_t", m.magnetic_field_t, -1.0..=1.0);
         i.range_open_low("motion.max_speed_km_s", m.max_speed_km_s, 0.0, 1e5);
         i.range("motion.damping_per_s", m.damping_per_s, 0.0..=1e3);
+    }
+
+    /// The `[redistribution]` table's problems, into `i`.
+    fn validate_redistribution(&self, i: &mut Issues) {
         let r = &self.redistribution;
         i.range("redistribution.near_count_ratio", r.near_count_ratio, 0.0..=1e3);
         i.range("redistribution.near_potential_ratio", r.near_potential_ratio, 0.0..=1e3);
@@ -442,7 +473,6 @@ impl AuroraConfig {
                 format!("at most redistribution.remove_above ({})", r.remove_above),
             );
         }
-        i.into_result()
     }
 
     /// The grid of the plane.

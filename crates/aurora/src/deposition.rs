@@ -32,7 +32,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::{Atmosphere, Sample};
 use crate::chemistry::{
-    Air as ChemistryAir, Column, IonProduction, O1dSource, o_plus_diffusion_rate_s, red_line_sources,
+    Air as ChemistryAir, Column, IonProduction, O1dSource, RedLineSources, o_plus_diffusion_rate_s,
+    red_line_sources,
 };
 use crate::emission::{Line, M3_PER_CM3};
 use crate::transport::{TransportAir, impact_rates};
@@ -259,46 +260,13 @@ impl Solved {
         let altitudes_km: Vec<f64> = samples.iter().map(|s| s.altitude_km).collect();
         let ionisation: Vec<f64> =
             samples.iter().map(|s| bins.iter().map(|&(e, q)| fang2010_ionisation(s, e, q)).sum()).collect();
-        let minor = air.minor_species();
-        let ionosphere = air.night_ionosphere();
-        let (wn2, wo2, wo) = IONISATION_WEIGHTS;
         // Per altitude: the ionisation of each species, O(¹S) and the chemistry's input.
-        let columns: Vec<Column> = samples
-            .iter()
-            .zip(&ionisation)
-            .map(|(s, &q)| {
-                let weighted = wn2 * s.n_n2_m3 + wo2 * s.n_o2_m3 + wo * s.n_o_m3;
-                let production = IonProduction {
-                    o: q * wo * s.n_o_m3 / weighted,
-                    o2: q * wo2 * s.n_o2_m3 / weighted,
-                    n2: q * wn2 * s.n_n2_m3 / weighted,
-                };
-                let o1s = yields.o1s_per_n2_ion * production.n2 + yields.o1s_per_o_ion * production.o;
-                // Every O(¹S) that emits 557.7 nm lands in O(¹D).
-                let o1s_cascade = o1s * Line::O557.radiated_fraction(s);
-                let m = minor.at(s.altitude_km);
-                let air = ChemistryAir {
-                    n_o: s.n_o_m3 * M3_PER_CM3,
-                    n_o2: s.n_o2_m3 * M3_PER_CM3,
-                    n_n2: s.n_n2_m3 * M3_PER_CM3,
-                    n_n: m.n_n_m3 * M3_PER_CM3,
-                    n_no: m.n_no_m3 * M3_PER_CM3,
-                    temperature_k: s.temperature_k,
-                    o_plus_diffusion_s: o_plus_diffusion_rate_s(
-                        s.n_o_m3 * M3_PER_CM3,
-                        s.temperature_k,
-                        gravity_m_s2(s.altitude_km),
-                    ),
-                    o_plus_background: ionosphere.o_plus_m3(s.altitude_km) * M3_PER_CM3,
-                };
-                Column { air, production, o1s_cascade, impact: None }
-            })
-            .collect();
+        let mut columns: Vec<Column> =
+            samples.iter().zip(&ionisation).map(|(s, &q)| column_at(air, s, q, yields)).collect();
         // The local balance gives a first electron density; the transport of the
         // low-energy electrons through it gives the impact rates, and the chemistry
         // with those its final electron density (another round moves the 630.0 nm
         // column by < 0.1 %: test `one_transport_round_is_enough`).
-        let mut columns = columns;
         let mut red = red_line_sources(&columns);
         for _ in 0..rounds {
             let air: Vec<TransportAir> = samples
@@ -324,33 +292,85 @@ impl Solved {
         let mut excitation: [Vec<f64>; 5] = Default::default();
         let mut lifetime: [Vec<f64>; 5] = Default::default();
         for ((s, c), r) in samples.iter().zip(&columns).zip(&red) {
-            let ne = r.electron_density_cm3;
-            let v391 = yields.n2p391_per_n2_ion * c.production.n2;
-            let o1d: f64 = r.o1d_production.iter().sum();
-            let rates = [
-                v391,
-                v391 * N2P428_PER_391,
-                c.o1s_cascade,
-                o1d * Line::O630.radiated_fraction_with_electrons(s, ne, s.temperature_k),
-                yields.n2_670_per_n2_ion * c.production.n2,
-            ];
-            let o1s = yields.o1s_per_n2_ion * c.production.n2 + yields.o1s_per_o_ion * c.production.o;
-            let made = [rates[0], rates[1], o1s, o1d, rates[4]];
-            for (k, line) in Line::ALL.iter().enumerate() {
-                ver[k].push(rates[k]);
-                excitation[k].push(made[k]);
-                let tau = match line.metastable_rates() {
-                    Some((_, total)) => {
-                        1.0 / (total
-                            + line.quenching_rate_s(s)
-                            + line.electron_quenching_rate_s(ne, s.temperature_k))
-                    }
-                    None => 0.0,
-                };
-                lifetime[k].push(tau);
+            let lines = LinesAt::of(s, c, r, yields);
+            for k in 0..Line::ALL.len() {
+                ver[k].push(lines.ver[k]);
+                excitation[k].push(lines.excitation[k]);
+                lifetime[k].push(lines.lifetime_s[k]);
             }
         }
         Self { altitudes_km, ionisation, electron_density, o1d_production, ver, excitation, lifetime }
+    }
+}
+
+/// The chemistry's input at sample `s` of `air` with total ionisation rate `q`
+/// (cm⁻³ s⁻¹): the ionisation shared among O, O2 and N2 by their relative cross
+/// sections ([`IONISATION_WEIGHTS`]), the O(¹S) of it that cascades into O(¹D) through
+/// 557.7 nm, and the air with its minor species and night O⁺.
+fn column_at(air: &Atmosphere, s: &Sample, q: f64, yields: &Yields) -> Column {
+    let (wn2, wo2, wo) = IONISATION_WEIGHTS;
+    let weighted = wn2 * s.n_n2_m3 + wo2 * s.n_o2_m3 + wo * s.n_o_m3;
+    let production = IonProduction {
+        o: q * wo * s.n_o_m3 / weighted,
+        o2: q * wo2 * s.n_o2_m3 / weighted,
+        n2: q * wn2 * s.n_n2_m3 / weighted,
+    };
+    let o1s = yields.o1s_per_n2_ion * production.n2 + yields.o1s_per_o_ion * production.o;
+    // Every O(¹S) that emits 557.7 nm lands in O(¹D).
+    let o1s_cascade = o1s * Line::O557.radiated_fraction(s);
+    let m = air.minor_species().at(s.altitude_km);
+    let chemistry_air = ChemistryAir {
+        n_o: s.n_o_m3 * M3_PER_CM3,
+        n_o2: s.n_o2_m3 * M3_PER_CM3,
+        n_n2: s.n_n2_m3 * M3_PER_CM3,
+        n_n: m.n_n_m3 * M3_PER_CM3,
+        n_no: m.n_no_m3 * M3_PER_CM3,
+        temperature_k: s.temperature_k,
+        o_plus_diffusion_s: o_plus_diffusion_rate_s(
+            s.n_o_m3 * M3_PER_CM3,
+            s.temperature_k,
+            gravity_m_s2(s.altitude_km),
+        ),
+        o_plus_background: air.night_ionosphere().o_plus_m3(s.altitude_km) * M3_PER_CM3,
+    };
+    Column { air: chemistry_air, production, o1s_cascade, impact: None }
+}
+
+/// Each line at one altitude ([`Line::ALL`] order).
+struct LinesAt {
+    /// Volume emission rate, photons cm⁻³ s⁻¹.
+    ver: [f64; 5],
+    /// Production of the upper state (for the prompt bands their photons), cm⁻³ s⁻¹.
+    excitation: [f64; 5],
+    /// Effective lifetime of the upper state (0 for the prompt bands), s.
+    lifetime_s: [f64; 5],
+}
+
+impl LinesAt {
+    /// The lines at sample `s` from its column `c` and red-line sources `r`: the N2⁺ bands
+    /// and 670 nm in proportion to the N2 ionisation, 557.7 nm from the O(¹S) cascade,
+    /// 630.0 nm the radiated share of the O(¹D) production with electron quenching; each
+    /// metastable state's lifetime against radiation and quenching.
+    fn of(s: &Sample, c: &Column, r: &RedLineSources, yields: &Yields) -> Self {
+        let ne = r.electron_density_cm3;
+        let v391 = yields.n2p391_per_n2_ion * c.production.n2;
+        let o1d: f64 = r.o1d_production.iter().sum();
+        let ver = [
+            v391,
+            v391 * N2P428_PER_391,
+            c.o1s_cascade,
+            o1d * Line::O630.radiated_fraction_with_electrons(s, ne, s.temperature_k),
+            yields.n2_670_per_n2_ion * c.production.n2,
+        ];
+        let o1s = yields.o1s_per_n2_ion * c.production.n2 + yields.o1s_per_o_ion * c.production.o;
+        let excitation = [ver[0], ver[1], o1s, o1d, ver[4]];
+        let lifetime_s = Line::ALL.map(|line| match line.metastable_rates() {
+            Some((_, total)) => {
+                1.0 / (total + line.quenching_rate_s(s) + line.electron_quenching_rate_s(ne, s.temperature_k))
+            }
+            None => 0.0,
+        });
+        Self { ver, excitation, lifetime_s }
     }
 }
 

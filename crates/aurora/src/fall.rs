@@ -470,60 +470,11 @@ impl PaperEmission {
     pub fn new(air: &Atmosphere, params: &PaperFall, precipitation: &Precipitation, yields: &Yields) -> Self {
         let (bottom_km, top_km) = air.range_km();
         let n = ((top_km - bottom_km) / AIR_STEP_KM).round() as usize + 1;
-        let altitude = |k: usize| bottom_km + k as f64 * AIR_STEP_KM;
-        // The chance that an excited upper state of `line` at `s` is not quenched.
-        let survive = |line: Line, s: &Sample| match params.quenching {
-            PaperQuenching::Measured => match line.metastable_rates() {
-                Some((a_line, total)) => line.radiated_fraction(s) * total / a_line,
-                None => 1.0,
-            },
-            PaperQuenching::HardSphere => {
-                let mass_da = if matches!(line, Line::O557 | Line::O630) { MASS_O_DA } else { MASS_N2_DA };
-                let v = mean_speed_m_s(s.temperature_k, mass_da * DALTON_KG);
-                let total = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
-                1.0 - paper_quenching_probability(total, params.collision_radius_m, v, line.lifetime_s())
-            }
-        };
+        let steps = AirSteps { bottom_km, n };
         let chances: Vec<[f64; 5]> = match params.production {
-            PaperProduction::Shares => {
-                let n2_sum: f64 = params.nitrogen_shares.iter().sum();
-                (0..n)
-                    .map(|k| {
-                        let s = air.at(altitude(k));
-                        let total = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
-                        let (p_o, p_n2) = (s.n_o_m3 / total, s.n_n2_m3 / total);
-                        Line::ALL.map(|line| {
-                            let share = match line {
-                                Line::O557 => p_o * params.oxygen_green_share,
-                                Line::O630 => p_o * (1.0 - params.oxygen_green_share),
-                                Line::N2p391 => p_n2 * params.nitrogen_shares[0] / n2_sum,
-                                Line::N2p428 => p_n2 * params.nitrogen_shares[1] / n2_sum,
-                                Line::N2_670 => p_n2 * params.nitrogen_shares[2] / n2_sum,
-                            };
-                            share * survive(line, &s)
-                        })
-                    })
-                    .collect()
-            }
+            PaperProduction::Shares => share_chances(air, params, steps),
             PaperProduction::Column => {
-                let column = ColumnModel::new(air, precipitation, yields);
-                let per_pair = Line::ALL.map(|line| column.excitation_per_ion_pair(line));
-                let table_km = column.altitudes_km();
-                let pairs_per_collision = params.energy_loss_ev / (KEV_PER_ION_PAIR * 1e3);
-                (0..n)
-                    .map(|k| {
-                        let z = altitude(k);
-                        let s = air.at(z);
-                        Line::ALL.map(|line| {
-                            let branch =
-                                line.metastable_rates().map_or(1.0, |(a_line, total)| a_line / total);
-                            pairs_per_collision
-                                * interpolate(table_km, &per_pair[line.index()], z)
-                                * branch
-                                * survive(line, &s)
-                        })
-                    })
-                    .collect()
+                column_chances(air, params, &ColumnModel::new(air, precipitation, yields), steps)
             }
         };
         // One weight for all altitudes rather than one per altitude: half the emission
@@ -543,7 +494,7 @@ impl PaperEmission {
             })
             .collect();
         let red_diffusion_km = if params.red_diffusion {
-            (0..n).map(|k| o1d_diffusion_length_km(&air.at(altitude(k)))).collect()
+            (0..n).map(|k| o1d_diffusion_length_km(&air.at(steps.altitude_km(k)))).collect()
         } else {
             Vec::new()
         };
@@ -592,6 +543,90 @@ impl PaperEmission {
         let k = Line::ALL.iter().position(|&l| l == line).unwrap_or(0);
         c[k] - if k == 0 { 0.0 } else { c[k - 1] }
     }
+}
+
+/// The altitudes the chances are tabulated at: `n` steps of [`AIR_STEP_KM`] from
+/// `bottom_km`.
+#[derive(Clone, Copy)]
+struct AirSteps {
+    bottom_km: f64,
+    n: usize,
+}
+
+impl AirSteps {
+    /// Altitude of step `k`, km.
+    fn altitude_km(&self, k: usize) -> f64 {
+        self.bottom_km + k as f64 * AIR_STEP_KM
+    }
+}
+
+/// The chance that an excited upper state of `line` at `s` is not quenched, by the
+/// quenching rule of `params`.
+fn survival(line: Line, s: &Sample, params: &PaperFall) -> f64 {
+    match params.quenching {
+        PaperQuenching::Measured => match line.metastable_rates() {
+            Some((a_line, total)) => line.radiated_fraction(s) * total / a_line,
+            None => 1.0,
+        },
+        PaperQuenching::HardSphere => {
+            let mass_da = if matches!(line, Line::O557 | Line::O630) { MASS_O_DA } else { MASS_N2_DA };
+            let v = mean_speed_m_s(s.temperature_k, mass_da * DALTON_KG);
+            let total = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
+            1.0 - paper_quenching_probability(total, params.collision_radius_m, v, line.lifetime_s())
+        }
+    }
+}
+
+/// The chances per collision with `production = "shares"`: each line's share of the
+/// collisions with its emitter (O or N2, by their share of the air), times its
+/// survival, at every step of `steps`.
+fn share_chances(air: &Atmosphere, params: &PaperFall, steps: AirSteps) -> Vec<[f64; 5]> {
+    let n2_sum: f64 = params.nitrogen_shares.iter().sum();
+    (0..steps.n)
+        .map(|k| {
+            let s = air.at(steps.altitude_km(k));
+            let total = s.n_o_m3 + s.n_n2_m3 + s.n_o2_m3;
+            let (p_o, p_n2) = (s.n_o_m3 / total, s.n_n2_m3 / total);
+            Line::ALL.map(|line| {
+                let share = match line {
+                    Line::O557 => p_o * params.oxygen_green_share,
+                    Line::O630 => p_o * (1.0 - params.oxygen_green_share),
+                    Line::N2p391 => p_n2 * params.nitrogen_shares[0] / n2_sum,
+                    Line::N2p428 => p_n2 * params.nitrogen_shares[1] / n2_sum,
+                    Line::N2_670 => p_n2 * params.nitrogen_shares[2] / n2_sum,
+                };
+                share * survival(line, &s, params)
+            })
+        })
+        .collect()
+}
+
+/// The chances per collision with `production = "column"`: the ion pairs a collision
+/// makes (its energy loss over [`KEV_PER_ION_PAIR`]) times each line's excitation per
+/// ion pair in the physical `column`, its radiative branch and its survival, at every
+/// step of `steps`.
+fn column_chances(
+    air: &Atmosphere,
+    params: &PaperFall,
+    column: &ColumnModel,
+    steps: AirSteps,
+) -> Vec<[f64; 5]> {
+    let per_pair = Line::ALL.map(|line| column.excitation_per_ion_pair(line));
+    let table_km = column.altitudes_km();
+    let pairs_per_collision = params.energy_loss_ev / (KEV_PER_ION_PAIR * 1e3);
+    (0..steps.n)
+        .map(|k| {
+            let z = steps.altitude_km(k);
+            let s = air.at(z);
+            Line::ALL.map(|line| {
+                let branch = line.metastable_rates().map_or(1.0, |(a_line, total)| a_line / total);
+                pairs_per_collision
+                    * interpolate(table_km, &per_pair[line.index()], z)
+                    * branch
+                    * survival(line, &s, params)
+            })
+        })
+        .collect()
 }
 
 /// The `paper` mode's expected emission by altitude, per electron falling from

@@ -246,29 +246,43 @@ pub fn coulomb(
     rest_density: f32,
     s: &mut MotionScratch,
 ) -> Result<(), MotionError> {
+    sort_into_cells(p, model, s)?;
+    let pos = &p.position_km;
+    // Coordinates as separate arrays, padded by one group of lanes so that the last group
+    // of a run can be read whole (the lanes past the run are masked out).
+    fill_padded(&mut s.xs, pos.par_iter().map(|x| x.x));
+    fill_padded(&mut s.zs, pos.par_iter().map(|x| x.y));
+    sph_density(s, model.density, p.len());
+    // eq (2.13) p = k(δ - δ0), and 1/(2δ) once per particle rather than a division per pair.
+    let (k, rho0) = (model.gas_constant, rest_density);
+    fill_padded(&mut s.pressure, s.density.par_iter().map(|&d| k * (d - rho0)));
+    fill_padded(&mut s.inv_2density, s.density.par_iter().map(|&d| 0.5 / d));
+    pressure_force(s, model.gradient, p.len());
+    Ok(())
+}
+
+/// Bin the particles into the cells of `s.rows` (of size h / RINGS) and reorder `p` into
+/// cell order, so that runs of cells become contiguous index ranges; refuse a cell of
+/// more than [`MAX_PER_CELL`] particles.
+fn sort_into_cells(p: &mut Particles, model: &ForceModel, s: &mut MotionScratch) -> Result<(), MotionError> {
     let h = model.support_km();
     s.rows.build(&p.position_km, h / RINGS as f32)?;
     if s.rows.max_cell_count() > MAX_PER_CELL {
         return Err(MotionError::TooDense { count: s.rows.max_cell_count() });
     }
-    // Reorder into cell order: runs of cells become contiguous index ranges.
     s.rows.gather(&p.position_km, &mut s.tmp2);
     std::mem::swap(&mut p.position_km, &mut s.tmp2);
     s.rows.gather(&p.velocity_km_s, &mut s.tmp2);
     std::mem::swap(&mut p.velocity_km_s, &mut s.tmp2);
     s.rows.gather(&p.id, &mut s.tmp_id);
     std::mem::swap(&mut p.id, &mut s.tmp_id);
+    Ok(())
+}
 
-    let n = p.len();
-    let pos = &p.position_km;
-    // Coordinates as separate arrays, padded by one group of lanes so that the last group
-    // of a run can be read whole (the lanes past the run are masked out).
-    fill_padded(&mut s.xs, pos.par_iter().map(|x| x.x));
-    fill_padded(&mut s.zs, pos.par_iter().map(|x| x.y));
+/// eq (2.11): δ_i = Σ_j m_j W(x_j - x_i) with unit mass and kernel `kd`, the self term
+/// included, for the `n` particles into `s.density` (each close pair visited once).
+fn sph_density(s: &mut MotionScratch, kd: Kernel, n: usize) {
     let (xs, zs) = (&s.xs, &s.zs);
-
-    // eq (2.11): δ_i = Σ_j m_j W(x_j - x_i) with unit mass, the self term included.
-    let kd = model.density;
     s.density.clear();
     s.density.resize(n, kd.value(0.0));
     for_each_half_pair_run(&s.rows, RINGS, &mut s.density, |acc, base, i, runs| {
@@ -286,17 +300,15 @@ pub fn coulomb(
         }
         acc[i - base] += reduce(sum);
     });
+}
 
-    // eq (2.13) p = k(δ - δ0), and 1/(2δ) once per particle rather than a division per pair.
-    let (k, rho0) = (model.gas_constant, rest_density);
-    fill_padded(&mut s.pressure, s.density.par_iter().map(|&d| k * (d - rho0)));
-    fill_padded(&mut s.inv_2density, s.density.par_iter().map(|&d| 0.5 / d));
+/// eq (2.14): F_i = Σ_j m_j (p_i + p_j)/(2 δ_j) ∇W(x_i - x_j) for the `n` particles into
+/// `s.fx` and `s.fz`, from the pressures and 1/(2δ) in `s`. With ∇W = g·(x_i - x_j)
+/// (g from kernel `kg`) and g < 0, F_i = Σ_j (p_i + p_j) g /(2 δ_j) · (x_j - x_i) repels
+/// for positive pressure, and the pair adds the mirror term with 1/(2 δ_i) to j.
+fn pressure_force(s: &mut MotionScratch, kg: Kernel, n: usize) {
+    let (xs, zs) = (&s.xs, &s.zs);
     let (inv2d, pres) = (&s.inv_2density, &s.pressure);
-
-    // eq (2.14): F_i = Σ_j m_j (p_i + p_j)/(2 δ_j) ∇W(x_i - x_j). With ∇W = g·(x_i - x_j)
-    // and g < 0, F_i = Σ_j (p_i + p_j) g /(2 δ_j) · (x_j - x_i) repels for positive
-    // pressure, and the pair adds the mirror term with 1/(2 δ_i) to j.
-    let kg = model.gradient;
     s.fx.clear();
     s.fx.resize(n, 0.0);
     s.fz.clear();
@@ -323,8 +335,6 @@ pub fn coulomb(
         acc_x[i - base] += reduce(fx);
         acc_z[i - base] += reduce(fz);
     });
-
-    Ok(())
 }
 
 #[cfg(test)]

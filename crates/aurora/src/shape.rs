@@ -373,166 +373,26 @@ impl Animation {
         if sheets == 0 && keyframes.iter().all(|k| k.sheets.is_empty()) {
             return Err(ShapeError::NoSheets);
         }
-        for (index, sp) in splits.iter().enumerate() {
-            if let Some(first) = splits[..index].iter().position(|o| o == sp) {
-                return Err(ShapeError::Repeated { op: "split", index, first });
-            }
-        }
-        for (index, mg) in merges.iter().enumerate() {
-            if mg.a == mg.b {
-                return Err(ShapeError::SelfMerge { index, sheet: mg.a.sheet, point: mg.a.point });
-            }
-            let same = |o: &Merge| {
-                o.keyframe == mg.keyframe && ((o.a, o.b) == (mg.a, mg.b) || (o.a, o.b) == (mg.b, mg.a))
-            };
-            if let Some(first) = merges[..index].iter().position(same) {
-                return Err(ShapeError::Repeated { op: "merge", index, first });
-            }
-        }
-        for (k, kf) in keyframes.iter().enumerate() {
-            if k > 0 && kf.frame <= keyframes[k - 1].frame {
-                return Err(ShapeError::KeyframeOrder {
-                    index: k,
-                    frame: kf.frame,
-                    previous: keyframes[k - 1].frame,
-                });
-            }
-            if kf.sheets.len() != sheets {
-                return Err(ShapeError::SheetCount { keyframe: k, found: kf.sheets.len(), expected: sheets });
-            }
-            for (s, stroke) in kf.sheets.iter().enumerate() {
-                if stroke.len() < 2 {
-                    return Err(ShapeError::ShortStroke { keyframe: k, sheet: s, samples: stroke.len() });
-                }
-                if let Some(sample) = stroke.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
-                    return Err(ShapeError::NonFinite { keyframe: k, sheet: s, sample });
-                }
-            }
-        }
-        // Drawn control points: id = sheet * n + i.
-        let mut positions: Vec<Vec<Vec2>> = keyframes
-            .iter()
-            .map(|kf| {
-                kf.sheets
-                    .iter()
-                    .flat_map(|stroke| {
-                        let pts: Vec<Vec2> = stroke.iter().map(|p| Vec2::from(*p)).collect();
-                        resample(&pts, n, rule)
-                    })
-                    .collect()
-            })
-            .collect();
+        check_operations(splits, merges)?;
+        check_keyframes(keyframes, sheets)?;
+        let mut positions = resample_keyframes(keyframes, n, rule);
         for (k, pos) in positions.iter().enumerate() {
             check_crossings(pos, sheets, n, k)?;
         }
-        let mut sheet: Vec<u32> = (0..sheets * n).map(|p| (p / n) as u32).collect();
-        let mut index_in_sheet: Vec<u32> = (0..sheets * n).map(|p| (p % n) as u32).collect();
-        let mut rules = vec![Rule::Drawn; sheets * n];
-        let mut next: Vec<Option<u32>> =
-            (0..sheets * n).map(|p| if p % n + 1 < n { Some(p as u32 + 1) } else { None }).collect();
-        let mut sheet_len = vec![n as u32; sheets];
+        let mut book = PointBook::drawn(sheets, n);
         let last = keyframes.len() - 1;
         let mut topology = Vec::with_capacity(last);
         for t in 1..=last {
-            let find = |op: &'static str, index: usize, r: PointRef, sheet: &[u32], idx: &[u32]| {
-                (0..sheet.len())
-                    .find(|&p| sheet[p] == r.sheet && idx[p] == r.point)
-                    .map(|p| p as u32)
-                    .ok_or(ShapeError::NoSuchPoint { op, index, sheet: r.sheet, point: r.point })
-            };
-            for (index, sp) in splits.iter().enumerate() {
-                if sp.keyframe == 0 || sp.keyframe as usize > last {
-                    return Err(ShapeError::OpKeyframe { op: "split", index, keyframe: sp.keyframe, last });
-                }
-                if sp.keyframe as usize != t {
-                    continue;
-                }
-                let a = find("split", index, sp.start, &sheet, &index_in_sheet)?;
-                let Some(b) = next[a as usize] else {
-                    return Err(ShapeError::NoSegment {
-                        index,
-                        sheet: sp.start.sheet,
-                        point: sp.start.point,
-                    });
-                };
-                let (m1, m2) = (next.len() as u32, next.len() as u32 + 1);
-                for _ in 0..2 {
-                    sheet.push(sp.start.sheet);
-                    index_in_sheet.push(sheet_len[sp.start.sheet as usize]);
-                    sheet_len[sp.start.sheet as usize] += 1;
-                }
-                rules.push(Rule::SplitEnd { from: t, a, b, anchor: a });
-                rules.push(Rule::SplitEnd { from: t, a, b, anchor: b });
-                next[a as usize] = Some(m1);
-                next.push(None);
-                next.push(Some(b));
-                let _ = m2;
-            }
-            for (index, mg) in merges.iter().enumerate() {
-                if mg.keyframe == 0 || mg.keyframe as usize > last {
-                    return Err(ShapeError::OpKeyframe { op: "merge", index, keyframe: mg.keyframe, last });
-                }
-                if mg.keyframe as usize != t {
-                    continue;
-                }
-                let a = find("merge", index, mg.a, &sheet, &index_in_sheet)?;
-                let b = find("merge", index, mg.b, &sheet, &index_in_sheet)?;
-                for (r, p) in [(mg.a, a), (mg.b, b)] {
-                    let links = usize::from(next[p as usize].is_some())
-                        + next.iter().filter(|&&x| x == Some(p)).count();
-                    if links != 1 {
-                        return Err(ShapeError::NotAnEnd { index, sheet: r.sheet, point: r.point, links });
-                    }
-                }
-                for (r, p) in [(mg.a, a), (mg.b, b)] {
-                    let id = next.len() as u32;
-                    sheet.push(r.sheet);
-                    index_in_sheet.push(sheet_len[r.sheet as usize]);
-                    sheet_len[r.sheet as usize] += 1;
-                    rules.push(Rule::MergeEnd { from: t, anchor: p, a, b });
-                    if next[p as usize].is_none() {
-                        // p ends its chain: extend it forwards.
-                        next[p as usize] = Some(id);
-                        next.push(None);
-                    } else {
-                        // p starts its chain: extend it backwards.
-                        next.push(Some(p));
-                    }
-                }
-            }
-            topology.push(next.clone());
+            book.apply_transition(t, last, splits, merges)?;
+            topology.push(book.next.clone());
         }
+        let PointBook { sheet, index_in_sheet, rules, .. } = book;
         // Points added by later transitions do not exist yet in earlier ones: unlinked
         // there, so every shape has one link entry per point.
         for links in &mut topology {
             links.resize(rules.len(), None);
         }
-        // Positions of added points in every keyframe, from their rules (anchors are
-        // always earlier points, so one pass in id order suffices).
-        for pos in positions.iter_mut() {
-            pos.resize(rules.len(), Vec2::ZERO);
-        }
-        for (k, pos) in positions.iter_mut().enumerate() {
-            for p in 0..rules.len() {
-                pos[p] = match rules[p] {
-                    Rule::Drawn => pos[p],
-                    Rule::SplitEnd { from, a, b, anchor } => {
-                        if k < from {
-                            (pos[a as usize] + pos[b as usize]) * 0.5
-                        } else {
-                            pos[anchor as usize]
-                        }
-                    }
-                    Rule::MergeEnd { from, anchor, a, b } => {
-                        if k < from {
-                            pos[anchor as usize]
-                        } else {
-                            (pos[a as usize] + pos[b as usize]) * 0.5
-                        }
-                    }
-                };
-            }
-        }
+        place_added_points(&mut positions, &rules);
         let frames: Vec<f32> = keyframes.iter().map(|k| k.frame as f32).collect();
         let slopes = (0..rules.len())
             .map(|p| {
@@ -641,6 +501,218 @@ pub fn first_crossing(a: &[Vec2], b: &[Vec2]) -> Option<(usize, usize)> {
     a.windows(2).enumerate().find_map(|(i, sa)| {
         b.windows(2).position(|sb| segments_intersect(sa[0], sa[1], sb[0], sb[1])).map(|j| (i, j))
     })
+}
+
+/// Refuse an operation listed twice (the same keyframe and points) and a merge of a
+/// point with itself.
+fn check_operations(splits: &[Split], merges: &[Merge]) -> Result<(), ShapeError> {
+    for (index, sp) in splits.iter().enumerate() {
+        if let Some(first) = splits[..index].iter().position(|o| o == sp) {
+            return Err(ShapeError::Repeated { op: "split", index, first });
+        }
+    }
+    for (index, mg) in merges.iter().enumerate() {
+        if mg.a == mg.b {
+            return Err(ShapeError::SelfMerge { index, sheet: mg.a.sheet, point: mg.a.point });
+        }
+        let same = |o: &Merge| {
+            o.keyframe == mg.keyframe && ((o.a, o.b) == (mg.a, mg.b) || (o.a, o.b) == (mg.b, mg.a))
+        };
+        if let Some(first) = merges[..index].iter().position(same) {
+            return Err(ShapeError::Repeated { op: "merge", index, first });
+        }
+    }
+    Ok(())
+}
+
+/// Refuse keyframes whose frames do not increase, whose sheet count differs from the
+/// source's `sheets`, or whose strokes have fewer than two samples or a non-finite one.
+fn check_keyframes(keyframes: &[Keyframe], sheets: usize) -> Result<(), ShapeError> {
+    for (k, kf) in keyframes.iter().enumerate() {
+        if k > 0 && kf.frame <= keyframes[k - 1].frame {
+            return Err(ShapeError::KeyframeOrder {
+                index: k,
+                frame: kf.frame,
+                previous: keyframes[k - 1].frame,
+            });
+        }
+        if kf.sheets.len() != sheets {
+            return Err(ShapeError::SheetCount { keyframe: k, found: kf.sheets.len(), expected: sheets });
+        }
+        for (s, stroke) in kf.sheets.iter().enumerate() {
+            if stroke.len() < 2 {
+                return Err(ShapeError::ShortStroke { keyframe: k, sheet: s, samples: stroke.len() });
+            }
+            if let Some(sample) = stroke.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
+                return Err(ShapeError::NonFinite { keyframe: k, sheet: s, sample });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The drawn control points of every keyframe: each stroke resampled to `n` points by
+/// eq (2.1), `positions[k][sheet * n + i]` (km).
+fn resample_keyframes(keyframes: &[Keyframe], n: usize, rule: Resample) -> Vec<Vec<Vec2>> {
+    keyframes
+        .iter()
+        .map(|kf| {
+            kf.sheets
+                .iter()
+                .flat_map(|stroke| {
+                    let pts: Vec<Vec2> = stroke.iter().map(|p| Vec2::from(*p)).collect();
+                    resample(&pts, n, rule)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The control points while the split and merge operations (Figs 2.4-2.5) are applied:
+/// sheet and number of each point, how each is placed, and the links in force.
+struct PointBook {
+    sheet: Vec<u32>,
+    index_in_sheet: Vec<u32>,
+    rules: Vec<Rule>,
+    next: Vec<Option<u32>>,
+    /// Points of each sheet so far (the number the next added point gets).
+    sheet_len: Vec<u32>,
+}
+
+impl PointBook {
+    /// The drawn control points of `sheets` sheets of `n` points (id = sheet * n + i),
+    /// each linked to the next one of its sheet.
+    fn drawn(sheets: usize, n: usize) -> Self {
+        Self {
+            sheet: (0..sheets * n).map(|p| (p / n) as u32).collect(),
+            index_in_sheet: (0..sheets * n).map(|p| (p % n) as u32).collect(),
+            rules: vec![Rule::Drawn; sheets * n],
+            next: (0..sheets * n).map(|p| if p % n + 1 < n { Some(p as u32 + 1) } else { None }).collect(),
+            sheet_len: vec![n as u32; sheets],
+        }
+    }
+
+    /// The id of the point `r` names (`op` number `index` for the error).
+    fn find(&self, op: &'static str, index: usize, r: PointRef) -> Result<u32, ShapeError> {
+        (0..self.sheet.len())
+            .find(|&p| self.sheet[p] == r.sheet && self.index_in_sheet[p] == r.point)
+            .map(|p| p as u32)
+            .ok_or(ShapeError::NoSuchPoint { op, index, sheet: r.sheet, point: r.point })
+    }
+
+    /// Number the next point of `sheet` and record how it is placed (its links are the
+    /// caller's).
+    fn add_point(&mut self, sheet: u32, rule: Rule) {
+        self.sheet.push(sheet);
+        self.index_in_sheet.push(self.sheet_len[sheet as usize]);
+        self.sheet_len[sheet as usize] += 1;
+        self.rules.push(rule);
+    }
+
+    /// Apply the operations of the transition into keyframe `t` (splits, then merges,
+    /// each in list order), refusing any that names a keyframe outside 1..=`last`.
+    fn apply_transition(
+        &mut self,
+        t: usize,
+        last: usize,
+        splits: &[Split],
+        merges: &[Merge],
+    ) -> Result<(), ShapeError> {
+        for (index, sp) in splits.iter().enumerate() {
+            if sp.keyframe == 0 || sp.keyframe as usize > last {
+                return Err(ShapeError::OpKeyframe { op: "split", index, keyframe: sp.keyframe, last });
+            }
+            if sp.keyframe as usize == t {
+                self.split(t, index, sp)?;
+            }
+        }
+        for (index, mg) in merges.iter().enumerate() {
+            if mg.keyframe == 0 || mg.keyframe as usize > last {
+                return Err(ShapeError::OpKeyframe { op: "merge", index, keyframe: mg.keyframe, last });
+            }
+            if mg.keyframe as usize == t {
+                self.merge(t, index, mg)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// A split (Fig 2.4) in the transition into keyframe `t`: the segment a→b opens into
+    /// two chain ends, one after a and one before b, that start at the segment's midpoint
+    /// and move to a and b.
+    fn split(&mut self, t: usize, index: usize, sp: &Split) -> Result<(), ShapeError> {
+        let a = self.find("split", index, sp.start)?;
+        let Some(b) = self.next[a as usize] else {
+            return Err(ShapeError::NoSegment { index, sheet: sp.start.sheet, point: sp.start.point });
+        };
+        let m1 = self.next.len() as u32;
+        self.add_point(sp.start.sheet, Rule::SplitEnd { from: t, a, b, anchor: a });
+        self.add_point(sp.start.sheet, Rule::SplitEnd { from: t, a, b, anchor: b });
+        self.next[a as usize] = Some(m1);
+        self.next.push(None);
+        self.next.push(Some(b));
+        Ok(())
+    }
+
+    /// Links of point `p`: its own and those leading into it.
+    fn links(&self, p: u32) -> usize {
+        usize::from(self.next[p as usize].is_some()) + self.next.iter().filter(|&&x| x == Some(p)).count()
+    }
+
+    /// A merge (Fig 2.5) in the transition into keyframe `t`: each of the two chain ends
+    /// grows a new point that starts on it and moves to the midpoint of the two.
+    fn merge(&mut self, t: usize, index: usize, mg: &Merge) -> Result<(), ShapeError> {
+        let a = self.find("merge", index, mg.a)?;
+        let b = self.find("merge", index, mg.b)?;
+        for (r, p) in [(mg.a, a), (mg.b, b)] {
+            let links = self.links(p);
+            if links != 1 {
+                return Err(ShapeError::NotAnEnd { index, sheet: r.sheet, point: r.point, links });
+            }
+        }
+        for (r, p) in [(mg.a, a), (mg.b, b)] {
+            let id = self.next.len() as u32;
+            self.add_point(r.sheet, Rule::MergeEnd { from: t, anchor: p, a, b });
+            if self.next[p as usize].is_none() {
+                // p ends its chain: extend it forwards.
+                self.next[p as usize] = Some(id);
+                self.next.push(None);
+            } else {
+                // p starts its chain: extend it backwards.
+                self.next.push(Some(p));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Positions of the added points in every keyframe (km), from their rules: the drawn
+/// points are kept; anchors are always earlier points, so one pass in id order suffices.
+fn place_added_points(positions: &mut [Vec<Vec2>], rules: &[Rule]) {
+    for pos in positions.iter_mut() {
+        pos.resize(rules.len(), Vec2::ZERO);
+    }
+    for (k, pos) in positions.iter_mut().enumerate() {
+        for p in 0..rules.len() {
+            pos[p] = match rules[p] {
+                Rule::Drawn => pos[p],
+                Rule::SplitEnd { from, a, b, anchor } => {
+                    if k < from {
+                        (pos[a as usize] + pos[b as usize]) * 0.5
+                    } else {
+                        pos[anchor as usize]
+                    }
+                }
+                Rule::MergeEnd { from, anchor, a, b } => {
+                    if k < from {
+                        pos[anchor as usize]
+                    } else {
+                        (pos[a as usize] + pos[b as usize]) * 0.5
+                    }
+                }
+            };
+        }
+    }
 }
 
 /// Refuse sheets that cross each other in one keyframe (§2.2.1).

@@ -381,25 +381,8 @@ impl AuroraSim {
         let cells = grid.len();
         let near = &self.near.cells;
         let within = &self.near.within;
-        // Particles per cell, in particle order.
         let p = &self.particles;
-        let mut by_cell: Vec<Vec<u32>> = vec![Vec::new(); cells];
-        let mut keep = vec![true; p.len()];
-        let mut beyond = 0usize;
-        for (i, &x) in p.position_km.iter().enumerate() {
-            match grid.cell_of(x) {
-                Some((ci, cj)) => {
-                    let c = grid.index(ci, cj);
-                    if reach_rule && near[c] && !within.covers(x) {
-                        keep[i] = false;
-                        beyond += 1;
-                    } else {
-                        by_cell[c].push(i as u32);
-                    }
-                }
-                None => keep[i] = false,
-            }
-        }
+        let (by_cell, mut keep, beyond) = particles_by_cell(p, grid, &self.near, reach_rule);
         let mut removed = beyond;
         let mut crowded = 0usize;
         let mut fullest = 0u32;
@@ -428,46 +411,21 @@ impl AuroraSim {
                 let excess = ((count - r.remove_above).min(cap)) as usize;
                 crowded += usize::from(count - excess as u32 > r.remove_above);
                 fullest = fullest.max(count - excess as u32);
-                let mut by_distance: Vec<(f32, u32)> =
-                    members.iter().map(|&i| (field.shape.distance(p.position_km[i as usize]), i)).collect();
-                // Farthest first; ties broken by index for determinism.
-                by_distance.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-                for &(_, i) in &by_distance[..excess] {
-                    keep[i as usize] = false;
-                }
+                remove_farthest(members, excess, &field.shape, &p.position_km, &mut keep);
                 removed += excess;
             } else if count < add_below {
                 let add = (add_below - count).min(r.add_max);
-                let mut mean_v = Vec2::ZERO;
-                let mut neighbours = 0usize;
-                for nj in cj.saturating_sub(1)..=(cj + 1).min(grid.nz - 1) {
-                    for ni in ci.saturating_sub(1)..=(ci + 1).min(grid.nx - 1) {
-                        for &i in &by_cell[grid.index(ni, nj)] {
-                            mean_v += p.velocity_km_s[i as usize];
-                            neighbours += 1;
-                        }
-                    }
-                }
-                if neighbours > 0 {
-                    mean_v /= neighbours as f32;
-                }
+                let mean_v = neighbourhood_mean_velocity(&by_cell, p, grid, (ci, cj));
                 let mut rng = Stream::new(self.seed, REDISTRIBUTE, field.renewal * cells as u64 + c as u64);
-                let mut placed = 0u32;
-                for _ in 0..add {
-                    let mut x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
-                    if reach_rule {
-                        let mut draws = 1;
-                        while !within.covers(x) && draws < ADD_DRAWS {
-                            x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * grid.cell_km;
-                            draws += 1;
-                        }
-                        if !within.covers(x) {
-                            continue;
-                        }
-                    }
-                    additions.push((0, x, mean_v));
-                    placed += 1;
-                }
+                let cell = (corner, grid.cell_km);
+                let placed = place_additions(
+                    &mut rng,
+                    cell,
+                    add,
+                    reach_rule.then_some(within),
+                    mean_v,
+                    &mut additions,
+                );
                 fullest = fullest.max(count + placed);
             } else {
                 fullest = fullest.max(count);
@@ -481,6 +439,102 @@ impl AuroraSim {
         }
         (removed, added, crowded, fullest)
     }
+}
+
+/// The particles of every cell of `grid`, in particle order; which particles stay (not
+/// those outside the grid, nor under rule `"reach"` those in near cells beyond L_thr);
+/// and how many of the latter went.
+fn particles_by_cell(
+    p: &Particles,
+    grid: &Grid,
+    near: &Near,
+    reach_rule: bool,
+) -> (Vec<Vec<u32>>, Vec<bool>, usize) {
+    let mut by_cell: Vec<Vec<u32>> = vec![Vec::new(); grid.len()];
+    let mut keep = vec![true; p.len()];
+    let mut beyond = 0usize;
+    for (i, &x) in p.position_km.iter().enumerate() {
+        match grid.cell_of(x) {
+            Some((ci, cj)) => {
+                let c = grid.index(ci, cj);
+                if reach_rule && near.cells[c] && !near.within.covers(x) {
+                    keep[i] = false;
+                    beyond += 1;
+                } else {
+                    by_cell[c].push(i as u32);
+                }
+            }
+            None => keep[i] = false,
+        }
+    }
+    (by_cell, keep, beyond)
+}
+
+/// Thin a crowded cell (§2.3.4): the `excess` particles of `members` farthest from the
+/// shape go (`keep` cleared); ties broken by index for determinism.
+fn remove_farthest(members: &[u32], excess: usize, shape: &Shape, position_km: &[Vec2], keep: &mut [bool]) {
+    let mut by_distance: Vec<(f32, u32)> =
+        members.iter().map(|&i| (shape.distance(position_km[i as usize]), i)).collect();
+    // Farthest first; ties broken by index for determinism.
+    by_distance.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    for &(_, i) in &by_distance[..excess] {
+        keep[i as usize] = false;
+    }
+}
+
+/// Mean velocity (km/s) of the particles in cell `(ci, cj)` and its neighbours (zero
+/// when there are none): what particles added to a sparse cell move with (§2.3.4).
+fn neighbourhood_mean_velocity(
+    by_cell: &[Vec<u32>],
+    p: &Particles,
+    grid: &Grid,
+    (ci, cj): (usize, usize),
+) -> Vec2 {
+    let mut mean_v = Vec2::ZERO;
+    let mut neighbours = 0usize;
+    for nj in cj.saturating_sub(1)..=(cj + 1).min(grid.nz - 1) {
+        for ni in ci.saturating_sub(1)..=(ci + 1).min(grid.nx - 1) {
+            for &i in &by_cell[grid.index(ni, nj)] {
+                mean_v += p.velocity_km_s[i as usize];
+                neighbours += 1;
+            }
+        }
+    }
+    if neighbours > 0 {
+        mean_v /= neighbours as f32;
+    }
+    mean_v
+}
+
+/// Top up a sparse cell (§2.3.4): `add` particles at uniform random positions in the
+/// cell (`corner`, edge `cell_km`), moving at `mean_v`, into `additions`. With `within`
+/// (rule `"reach"`) a position is drawn up to [`ADD_DRAWS`] times to lie within L_thr,
+/// and the particle is left out if none does. Returns how many were placed.
+fn place_additions(
+    rng: &mut Stream,
+    (corner, cell_km): (Vec2, f32),
+    add: u32,
+    within: Option<&Nearness>,
+    mean_v: Vec2,
+    additions: &mut Vec<(u64, Vec2, Vec2)>,
+) -> u32 {
+    let mut placed = 0u32;
+    for _ in 0..add {
+        let mut x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * cell_km;
+        if let Some(within) = within {
+            let mut draws = 1;
+            while !within.covers(x) && draws < ADD_DRAWS {
+                x = corner + Vec2::new(rng.next_f32(), rng.next_f32()) * cell_km;
+                draws += 1;
+            }
+            if !within.covers(x) {
+                continue;
+            }
+        }
+        additions.push((0, x, mean_v));
+        placed += 1;
+    }
+    placed
 }
 
 /// Draws per added particle to find a position within L_thr (rule `"reach"`).

@@ -664,36 +664,7 @@ impl SkyRenderer {
         let frame_key = sim.seed() ^ sim.frame().wrapping_mul(0x9e37_79b9_7f4a_7c15);
         let mut rng = Stream::new(frame_key, EMIT, particles.id[i]);
         match &self.model {
-            Model::Paper { air, emission } => {
-                let params = &self.settings.paper;
-                let r = params.jitter;
-                fall(
-                    foot,
-                    down,
-                    params,
-                    air,
-                    &mut rng,
-                    |s| jitter_in_ball(s, r),
-                    |q, s| {
-                        let u = s.next_f64();
-                        let line = emission.choose(q.y, u);
-                        let weight = emission.weight();
-                        let q =
-                            if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
-                        if let Some(line) = line
-                            && let Some(pr) = self.view.project(q.as_vec3())
-                        {
-                            let c = attenuation(params.attenuation_per_km, f64::from(pr.depth)) * weight;
-                            out.push(Splat {
-                                x: pr.x_px,
-                                y: pr.y_px,
-                                weight: c as f32,
-                                line: line.index() as u8,
-                            });
-                        }
-                    },
-                );
-            }
+            Model::Paper { air, emission } => self.emit_fall(foot, down, air, emission, &mut rng, out),
             Model::Physical { sampler, points, photons, .. } => {
                 // Footprint of one particle at the rest density, km². A point carrying P
                 // photons/s seen from d cm through a pixel of solid angle Ω adds a
@@ -701,59 +672,90 @@ impl SkyRenderer {
                 // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
                 // column · area / (points · 1e6) / (d_km² Ω).
                 let area_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
-                let (top, drift) = (top as f32, drift.as_vec3());
-                let foot = foot.as_vec3();
-                let perspective = self.view.is_perspective();
+                let column = ParticleColumn {
+                    sampler,
+                    points,
+                    photons,
+                    area_km2,
+                    foot: foot.as_vec3(),
+                    top_km: top as f32,
+                    drift: drift.as_vec3(),
+                };
                 if let Some(ph) = self.view.pinhole().filter(|ph| ph.perspective && self.lanes) {
                     // The altitudes first, with the scalar path's draws in its order; then
                     // the projection in lanes ([`project_in_lanes`]): the same points.
-                    let lanes = &mut out.lanes;
-                    lanes.clear();
-                    for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
-                        if m == 0 {
-                            continue;
-                        }
-                        let per_point = (column_rate * area_km2 * 1e-6 / f64::from(m)) as f32;
-                        let inv_m = 1.0 / m as f32;
-                        let xi = rng.next_f32();
-                        for j in 0..m {
-                            let u = (j as f32 + xi) * inv_m;
-                            let altitude = sampler.altitude_km(Line::ALL[k], u).min(top);
-                            lanes.push((altitude, per_point, k as u8));
-                        }
-                    }
-                    project_in_lanes(&ph, foot, top, drift, out);
-                    return;
+                    column.altitudes(&mut rng, &mut out.lanes);
+                    project_in_lanes(&ph, column.foot, column.top_km, column.drift, out);
+                } else {
+                    self.emit_column(&column, &mut rng, out);
                 }
-                for (k, (&m, &column_rate)) in points.iter().zip(photons).enumerate() {
-                    if m == 0 {
-                        continue;
-                    }
-                    let per_point = (column_rate * area_km2 * 1e-6 / f64::from(m)) as f32;
-                    let line = Line::ALL[k];
-                    let inv_m = 1.0 / m as f32;
-                    let xi = rng.next_f32();
-                    for j in 0..m {
-                        let u = (j as f32 + xi) * inv_m;
-                        let altitude = sampler.altitude_km(line, u).min(top);
-                        let q = Vec3::new(foot.x, altitude, foot.z) + drift * (top - altitude);
-                        if let Some(pr) = self.view.project(q) {
-                            // 1/(d² Ω): for a perspective camera Ω = cos³θ/f², so
-                            // 1/(d² Ω) = (f/depth)² · d/depth (one square root).
-                            let d2 = (q - self.eye).length_squared();
-                            let inverse = if perspective {
-                                pr.px_per_m * pr.px_per_m * d2.sqrt() / pr.depth
-                            } else {
-                                1.0 / (d2 * self.view.pixel_solid_angle(q))
-                            };
-                            out.push(Splat {
-                                x: pr.x_px,
-                                y: pr.y_px,
-                                weight: per_point * inverse,
-                                line: k as u8,
-                            });
-                        }
-                    }
+            }
+        }
+    }
+
+    /// The paper's model: the particle falls from `foot` along `down` (eq 2.21-2.22) and
+    /// each collision emits a line by `emission` (the red line displaced by its
+    /// diffusion), projected with the attenuation to the eye.
+    fn emit_fall(
+        &self,
+        foot: DVec3,
+        down: DVec3,
+        air: &AirTable,
+        emission: &PaperEmission,
+        rng: &mut Stream,
+        out: &mut BandedPoints,
+    ) {
+        let params = &self.settings.paper;
+        let r = params.jitter;
+        fall(
+            foot,
+            down,
+            params,
+            air,
+            rng,
+            |s| jitter_in_ball(s, r),
+            |q, s| {
+                let u = s.next_f64();
+                let line = emission.choose(q.y, u);
+                let weight = emission.weight();
+                let q = if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
+                if let Some(line) = line
+                    && let Some(pr) = self.view.project(q.as_vec3())
+                {
+                    let c = attenuation(params.attenuation_per_km, f64::from(pr.depth)) * weight;
+                    out.push(Splat { x: pr.x_px, y: pr.y_px, weight: c as f32, line: line.index() as u8 });
+                }
+            },
+        );
+    }
+
+    /// The physical model's points of `column`, projected one at a time: each adds its
+    /// photons times 1/(d² Ω) for the pixel's solid angle Ω.
+    fn emit_column(&self, column: &ParticleColumn<'_>, rng: &mut Stream, out: &mut BandedPoints) {
+        let perspective = self.view.is_perspective();
+        let (foot, top, drift) = (column.foot, column.top_km, column.drift);
+        for (k, (&m, &column_rate)) in column.points.iter().zip(column.photons).enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let per_point = column.per_point(column_rate, m);
+            let line = Line::ALL[k];
+            let inv_m = 1.0 / m as f32;
+            let xi = rng.next_f32();
+            for j in 0..m {
+                let u = (j as f32 + xi) * inv_m;
+                let altitude = column.sampler.altitude_km(line, u).min(top);
+                let q = Vec3::new(foot.x, altitude, foot.z) + drift * (top - altitude);
+                if let Some(pr) = self.view.project(q) {
+                    // 1/(d² Ω): for a perspective camera Ω = cos³θ/f², so
+                    // 1/(d² Ω) = (f/depth)² · d/depth (one square root).
+                    let d2 = (q - self.eye).length_squared();
+                    let inverse = if perspective {
+                        pr.px_per_m * pr.px_per_m * d2.sqrt() / pr.depth
+                    } else {
+                        1.0 / (d2 * self.view.pixel_solid_angle(q))
+                    };
+                    out.push(Splat { x: pr.x_px, y: pr.y_px, weight: per_point * inverse, line: k as u8 });
                 }
             }
         }
@@ -872,6 +874,48 @@ impl SkyRenderer {
                     b[x] = rgb.z;
                 }
             });
+    }
+}
+
+/// One particle's emission column in the physical model: `points[k]` points for line k,
+/// spread over the altitudes by `sampler`, sharing the column's photon rate
+/// `photons[k]` over the particle's footprint `area_km2`; the column stands on `foot`
+/// (km, at `top_km`) and leans along the field by `drift` per km of descent.
+struct ParticleColumn<'a> {
+    sampler: &'a AltitudeSampler,
+    points: &'a [u32; 5],
+    photons: &'a [f64; 5],
+    area_km2: f64,
+    foot: Vec3,
+    top_km: f32,
+    drift: Vec3,
+}
+
+impl ParticleColumn<'_> {
+    /// What each of `m` points of a line of column rate `column_rate` carries (see
+    /// [`SkyRenderer::emit_particle`]).
+    #[inline]
+    fn per_point(&self, column_rate: f64, m: u32) -> f32 {
+        (column_rate * self.area_km2 * 1e-6 / f64::from(m)) as f32
+    }
+
+    /// The points' (altitude km, per-point weight, line) into `lanes`, with the scalar
+    /// path's draws in its order: line by line, point j at u = (j + ξ)/m.
+    fn altitudes(&self, rng: &mut Stream, lanes: &mut Vec<(f32, f32, u8)>) {
+        lanes.clear();
+        for (k, (&m, &column_rate)) in self.points.iter().zip(self.photons).enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let per_point = self.per_point(column_rate, m);
+            let inv_m = 1.0 / m as f32;
+            let xi = rng.next_f32();
+            for j in 0..m {
+                let u = (j as f32 + xi) * inv_m;
+                let altitude = self.sampler.altitude_km(Line::ALL[k], u).min(self.top_km);
+                lanes.push((altitude, per_point, k as u8));
+            }
+        }
     }
 }
 

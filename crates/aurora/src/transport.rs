@@ -137,7 +137,6 @@ pub fn impact_rates(column: &[TransportAir], local_only: bool) -> Vec<ImpactRate
 /// [`impact_rates`] with the transport starting at `top_ev`.
 fn impact_rates_from(column: &[TransportAir], local_only: bool, top_ev: f64) -> Vec<ImpactRates> {
     let deg = Degradation::shared();
-    let n = column.len();
     let e = deg.energies_ev();
     let top = e.partition_point(|&c| c <= crate::degradation::INJECTION_EV).clamp(21, e.len()) - 1;
     let jc = deg.bin_at_or_above(top_ev).min(top);
@@ -145,11 +144,33 @@ fn impact_rates_from(column: &[TransportAir], local_only: bool, top_ev: f64) -> 
         .iter()
         .map(|c| LocalAir::new(c.densities_cm3, c.electron_density_cm3, c.electron_temperature_k))
         .collect();
-    // The local balance above jc, per injected electron, scaled to the ionisation: the
-    // source of the transported bins (rows of jc, one per altitude) and the tallies.
+    let (mut source, mut tally) = local_balance(deg, column, &airs, top, jc);
+    transport_bins(deg, column, &airs, jc, local_only, &mut source, &mut tally);
+    tally
+        .iter()
+        .map(|t| ImpactRates {
+            o1d: t.o1d,
+            o2_dissociation: t.o2_dissociation,
+            n2_dissociation: t.n2_dissociation,
+            ionisation: t.ions.iter().sum(),
+        })
+        .collect()
+}
+
+/// The local balance of the bins above `jc` at every altitude, per injected electron
+/// (in bin `top`), scaled to the altitude's ionisation: the source of the transported
+/// bins (rows of `jc`, one per altitude) and the tallies of the bins above them.
+fn local_balance(
+    deg: &Degradation,
+    column: &[TransportAir],
+    airs: &[LocalAir],
+    top: usize,
+    jc: usize,
+) -> (Vec<f64>, Vec<Tally>) {
+    let n = column.len();
     let mut source = vec![0.0; n * jc];
     let mut tally = vec![Tally::default(); n];
-    for (i, (c, air)) in column.iter().zip(&airs).enumerate() {
+    for (i, (c, air)) in column.iter().zip(airs).enumerate() {
         let mut inflow = vec![0.0; top + 1];
         inflow[top] = 1.0;
         let mut high = Tally::default();
@@ -175,7 +196,23 @@ fn impact_rates_from(column: &[TransportAir], local_only: bool, top_ev: f64) -> 
         }
         tally[i].add_scaled(&high, scale);
     }
-    // The transported bins, top down.
+    (source, tally)
+}
+
+/// The transported bins below `jc`, top down: each bin's flux u over the column from the
+/// two-stream equation (or, `local_only`, each altitude alone) with its `source`, then
+/// its collisions tallied into `tally` and cascading into the source of the lower bins.
+fn transport_bins(
+    deg: &Degradation,
+    column: &[TransportAir],
+    airs: &[LocalAir],
+    jc: usize,
+    local_only: bool,
+    source: &mut [f64],
+    tally: &mut [Tally],
+) {
+    let n = column.len();
+    let e = deg.energies_ev();
     let mut u = vec![0.0; n];
     let mut a = vec![0.0; n];
     let mut thermal = vec![0.0; n];
@@ -208,15 +245,6 @@ fn impact_rates_from(column: &[TransportAir], local_only: bool, top_ev: f64) -> 
             }
         }
     }
-    tally
-        .iter()
-        .map(|t| ImpactRates {
-            o1d: t.o1d,
-            o2_dissociation: t.o2_dissociation,
-            n2_dissociation: t.n2_dissociation,
-            ionisation: t.ions.iter().sum(),
-        })
-        .collect()
 }
 
 /// Finite volumes for `-μ̄² d/dz (1/ext du/dz) + a u = s` on the column's altitudes, with

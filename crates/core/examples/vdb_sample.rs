@@ -159,15 +159,33 @@ fn main() {
     let none = Metadata::new();
     let mut file_meta = Metadata::new();
     file_meta.insert("creator", "phenomena vdb_sample").expect("metadata");
+    let single = write_single(dir, &none);
+    write_sphere(dir, &file_meta);
+    write_negative(dir, &file_meta);
+    write_spread(dir, &none);
+    write_flame(dir, &file_meta);
+    write_random(dir, &file_meta);
+    // An empty grid beside a one-voxel one.
+    let unit = Transform::new(1.0, [0.0; 3]).expect("transform");
+    let empty = Grid::<f32>::new("empty", unit, GridClass::FogVolume);
+    let e1 = expect(&empty, &[[0, 0, 0]], [1, 1, 1], None);
+    let e2 = expect(&single, &[[1, 2, 3]], [0, 0, 0], None);
+    write(dir, "empty", &[AnyGrid::from(&empty), AnyGrid::from(&single)], &none, vec![e1, e2]);
+}
 
-    // One voxel, a centimetre grid offset from the world origin.
+/// `single`: one voxel, a centimetre grid offset from the world origin; returns the grid.
+fn write_single(dir: &Path, none: &Metadata) -> Grid<f32> {
     let cm = Transform::new(0.01, [0.1, 0.2, 0.3]).expect("transform");
     let mut single = Grid::<f32>::new("density", cm, GridClass::FogVolume);
     single.set([1, 2, 3], 5.0);
     let e = expect(&single, &[[1, 2, 3], [1, 2, 4], [0, 0, 0]], [1, 2, 3], None);
-    write(dir, "single", &[AnyGrid::from(&single)], &none, vec![e]);
+    write(dir, "single", &[AnyGrid::from(&single)], none, vec![e]);
+    single
+}
 
-    // A sphere of radius 20 voxels across the origin: density falls linearly to 0.
+/// `sphere`: a sphere of radius 20 voxels across the origin, density falling linearly
+/// to 0.
+fn write_sphere(dir: &Path, file_meta: &Metadata) {
     let mm = Transform::new(0.005, [-0.25, 0.0, 1.5]).expect("transform");
     let mut sphere = Grid::<f32>::new("density", mm, GridClass::FogVolume);
     sphere.insert_metadata("units", "kg/m^3").expect("metadata");
@@ -184,9 +202,11 @@ fn main() {
     }
     let probes = [[6, -5, 2], [16, -5, 2], [6, 14, 2], [6, -5, -17], [26, -5, 2], [-13, -5, 2]];
     let e = expect(&sphere, &probes, [-14, 0, 7], Some((dir, "sphere.bin")));
-    write(dir, "sphere", &[AnyGrid::from(&sphere)], &file_meta, vec![e]);
+    write(dir, "sphere", &[AnyGrid::from(&sphere)], file_meta, vec![e]);
+}
 
-    // A vector grid at negative coordinates, with a float grid beside it in the file.
+/// `negative`: a vector grid at negative coordinates, with a float grid beside it.
+fn write_negative(dir: &Path, file_meta: &Metadata) {
     let unit = Transform::new(1.0, [0.0; 3]).expect("transform");
     let mut emission = Grid::<[f32; 3]>::new("emission", unit, GridClass::Unknown);
     emission.insert_metadata("units", "W/m^3/sr").expect("metadata");
@@ -201,15 +221,13 @@ fn main() {
     let probes = [[-1, -3, -1], [-40, -81, -4], [-1, -1, -1], [-2, -2, -2], [0, 0, 0]];
     let e1 = expect(&emission, &probes, [-40, -81, -4], Some((dir, "negative_emission.bin")));
     let e2 = expect(&temperature, &probes, [-1, -3, -1], Some((dir, "negative_temperature.bin")));
-    write(
-        dir,
-        "negative",
-        &[AnyGrid::from(&emission), AnyGrid::from(&temperature)],
-        &file_meta,
-        vec![e1, e2],
-    );
+    let grids = [AnyGrid::from(&emission), AnyGrid::from(&temperature)];
+    write(dir, "negative", &grids, file_meta, vec![e1, e2]);
+}
 
-    // Voxels ±5000 apart: several root children, internal nodes and leaves.
+/// `spread`: voxels ±5000 apart, in several root children, internal nodes and leaves.
+fn write_spread(dir: &Path, none: &Metadata) {
+    let unit = Transform::new(1.0, [0.0; 3]).expect("transform");
     let mut spread = Grid::<f32>::new("spread", unit, GridClass::FogVolume);
     let corners = [
         [5000, 5000, 5000],
@@ -227,9 +245,12 @@ fn main() {
     }
     let probes: Vec<[i32; 3]> = corners.iter().copied().chain([[5000, 5000, 5001], [1, 0, 0]]).collect();
     let e = expect(&spread, &probes, [-5000, 5000, -5000], Some((dir, "spread.bin")));
-    write(dir, "spread", &[AnyGrid::from(&spread)], &none, vec![e]);
+    write(dir, "spread", &[AnyGrid::from(&spread)], none, vec![e]);
+}
 
-    // A flame-like frame: density, temperature and vector emission from the same splats.
+/// `flame`: a flame-like frame, density, temperature and vector emission from the same
+/// splats.
+fn write_flame(dir: &Path, file_meta: &Metadata) {
     let flame_t = Transform::new(0.01, [-0.2, 0.0, -0.2]).expect("transform");
     let mut density = Grid::<f32>::new("density", flame_t, GridClass::FogVolume);
     let mut heat = Grid::<f32>::new("temperature", flame_t, GridClass::Unknown);
@@ -251,9 +272,12 @@ fn main() {
     let e2 = expect(&heat, &probes, [0, 0, 0], Some((dir, "flame_temperature.bin")));
     let e3 = expect(&light, &probes, [0, 0, 0], Some((dir, "flame_emission.bin")));
     let grids = [AnyGrid::from(&density), AnyGrid::from(&heat), AnyGrid::from(&light)];
-    write(dir, "flame", &grids, &file_meta, vec![e1, e2, e3]);
+    write(dir, "flame", &grids, file_meta, vec![e1, e2, e3]);
+}
 
-    // 100,000 random voxels in a 2000³ box, every one compared after reading.
+/// `random`: 100,000 random voxels in a 2000³ box, every one compared after reading.
+fn write_random(dir: &Path, file_meta: &Metadata) {
+    let unit = Transform::new(1.0, [0.0; 3]).expect("transform");
     let mut random = Grid::<f32>::new("random", unit, GridClass::Unknown);
     let mut random3 = Grid::<[f32; 3]>::new("random3", unit, GridClass::Unknown);
     let mut s = Stream::new(5, Purpose::named("vdb_sample.random"), 0);
@@ -268,11 +292,5 @@ fn main() {
     let probes = [[0, 0, 0], [999, 999, 999], [-1000, -1000, -1000]];
     let e1 = expect(&random, &probes, [-1000, 0, 999], Some((dir, "random.bin")));
     let e2 = expect(&random3, &probes, [0, 0, 0], Some((dir, "random3.bin")));
-    write(dir, "random", &[AnyGrid::from(&random), AnyGrid::from(&random3)], &file_meta, vec![e1, e2]);
-
-    // An empty grid beside a one-voxel one.
-    let empty = Grid::<f32>::new("empty", unit, GridClass::FogVolume);
-    let e1 = expect(&empty, &[[0, 0, 0]], [1, 1, 1], None);
-    let e2 = expect(&single, &[[1, 2, 3]], [0, 0, 0], None);
-    write(dir, "empty", &[AnyGrid::from(&empty), AnyGrid::from(&single)], &none, vec![e1, e2]);
+    write(dir, "random", &[AnyGrid::from(&random), AnyGrid::from(&random3)], file_meta, vec![e1, e2]);
 }

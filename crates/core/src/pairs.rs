@@ -260,8 +260,6 @@ pub fn for_each_half_pair_run2<A, B, F>(
     let rows_per = STRIPE_ROWS * rings;
     let stripes = nz.div_ceil(rows_per);
     let stripe_rows = |s: usize| s * rows_per..((s + 1) * rows_per).min(nz);
-    let column = &rows.column;
-    let reach = rings as u32;
 
     for phase in 0..2 {
         // Stripe s writes its own rows and the `rings` rows after it, which belong to
@@ -277,54 +275,103 @@ pub fn for_each_half_pair_run2<A, B, F>(
         let mut windows: Vec<_> =
             disjoint_windows(acc, &ranges).into_iter().zip(disjoint_windows(acc2, &ranges)).collect();
         windows.par_iter_mut().zip(&stripes_now).zip(&ranges).for_each(|(((window, window2), &s), range)| {
-            let base = range.start;
-            let mut runs: [Range<usize>; MAX_RUNS] = Default::default();
-            for row in stripe_rows(s) {
-                let own = rows.row(row);
-                // Per row above: the candidates' range [lo, hi), advanced monotonically
-                // as the cell column grows along this row.
-                let mut above: [Range<usize>; MAX_RINGS] = Default::default();
-                let ups = (row + 1..=row + rings).take_while(|&u| u < nz).count();
-                for (u, a) in above.iter_mut().enumerate().take(ups) {
-                    let r = rows.row(row + 1 + u);
-                    *a = r.start..r.start;
-                }
-                let mut own_end = own.start;
-                let mut cell = u32::MAX;
-                let mut count = 0;
-                for i in own.clone() {
-                    let kx = column[i];
-                    if kx != cell {
-                        // A new cell: its runs, shared by all its points.
-                        cell = kx;
-                        let (left, right) = (kx.saturating_sub(reach), kx + reach);
-                        while own_end < own.end && column[own_end] <= right {
-                            own_end += 1;
-                        }
-                        count = 1;
-                        for (u, a) in above.iter_mut().enumerate().take(ups) {
-                            let end = rows.row(row + 1 + u).end;
-                            while a.start < end && column[a.start] < left {
-                                a.start += 1;
-                            }
-                            a.end = a.end.max(a.start);
-                            while a.end < end && column[a.end] <= right {
-                                a.end += 1;
-                            }
-                            if a.start < a.end {
-                                runs[count] = a.clone();
-                                count += 1;
-                            }
-                        }
-                    }
-                    runs[0] = i + 1..own_end;
-                    let first = usize::from(runs[0].is_empty());
-                    if first < count {
-                        visit(window, window2, base, i, &runs[first..count]);
-                    }
-                }
-            }
+            sweep_stripe(rows, rings, stripe_rows(s), (window, window2, range.start), &visit);
         });
+    }
+}
+
+/// Visit every point of the rows `stripe` with its half-stencil runs, as
+/// [`for_each_half_pair_run2`] describes; `windows` are the parts of the two accumulator
+/// arrays starting at point `base` that the stripe writes.
+#[inline]
+fn sweep_stripe<A, B, F>(
+    rows: &CellRows,
+    rings: usize,
+    stripe: Range<usize>,
+    (window, window2, base): (&mut [A], &mut [B], usize),
+    visit: &F,
+) where
+    F: Fn(&mut [A], &mut [B], usize, usize, &[Range<usize>]),
+{
+    let column = &rows.column;
+    let reach = rings as u32;
+    let mut runs: [Range<usize>; MAX_RUNS] = Default::default();
+    for row in stripe {
+        let own = rows.row(row);
+        let mut above = Above::of(rows, row, rings);
+        let mut own_end = own.start;
+        let mut cell = u32::MAX;
+        let mut count = 0;
+        for i in own.clone() {
+            let kx = column[i];
+            if kx != cell {
+                // A new cell: its runs, shared by all its points.
+                cell = kx;
+                let (left, right) = (kx.saturating_sub(reach), kx + reach);
+                while own_end < own.end && column[own_end] <= right {
+                    own_end += 1;
+                }
+                count = 1 + above.advance(rows, row, (left, right), &mut runs[1..]);
+            }
+            runs[0] = i + 1..own_end;
+            let first = usize::from(runs[0].is_empty());
+            if first < count {
+                visit(window, window2, base, i, &runs[first..count]);
+            }
+        }
+    }
+}
+
+/// Per row above a row (up to `rings` of them): the candidates' range [lo, hi) of the
+/// cells within reach of the current cell, advanced monotonically as the cell column
+/// grows along the row.
+struct Above {
+    ranges: [Range<usize>; MAX_RINGS],
+    /// Rows above that exist.
+    ups: usize,
+}
+
+impl Above {
+    /// Empty ranges at the start of each of the `rings` rows above `row`.
+    #[inline]
+    fn of(rows: &CellRows, row: usize, rings: usize) -> Self {
+        let nz = rows.rows();
+        let mut ranges: [Range<usize>; MAX_RINGS] = Default::default();
+        let ups = (row + 1..=row + rings).take_while(|&u| u < nz).count();
+        for (u, a) in ranges.iter_mut().enumerate().take(ups) {
+            let r = rows.row(row + 1 + u);
+            *a = r.start..r.start;
+        }
+        Self { ranges, ups }
+    }
+
+    /// Advance each range to the cells of columns `left..=right` of its row (above `row`)
+    /// and write the non-empty ones to `runs` in row order; returns how many.
+    #[inline]
+    fn advance(
+        &mut self,
+        rows: &CellRows,
+        row: usize,
+        (left, right): (u32, u32),
+        runs: &mut [Range<usize>],
+    ) -> usize {
+        let column = &rows.column;
+        let mut count = 0;
+        for (u, a) in self.ranges.iter_mut().enumerate().take(self.ups) {
+            let end = rows.row(row + 1 + u).end;
+            while a.start < end && column[a.start] < left {
+                a.start += 1;
+            }
+            a.end = a.end.max(a.start);
+            while a.end < end && column[a.end] <= right {
+                a.end += 1;
+            }
+            if a.start < a.end {
+                runs[count] = a.clone();
+                count += 1;
+            }
+        }
+        count
     }
 }
 

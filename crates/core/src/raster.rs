@@ -221,71 +221,22 @@ impl Rasterizer {
             return Err(RasterError::IdCount { ids: ids.len(), triangles: triangles.len() });
         }
         let (w, h) = view.size();
-        let perspective = view.is_perspective();
-        let projector = Projector::new(view);
-        let threads = if self.serial { 1 } else { rayon::current_num_threads() };
-        // A part per thread, but no more than there are runs of triangles to share, nor
-        // more than 64 MB of buffers (8 bytes a pixel): a 4K frame gets one part.
-        let budget = (PARTS_BYTES / (w * h * 8).max(1)).max(1);
-        let parts = threads.min(triangles.len().div_ceil(RUN)).min(budget).clamp(1, 16);
-        self.parts.truncate(parts);
-        while self.parts.len() < parts {
-            self.parts.push(DepthBuffer { width: 0, height: 0, depth: Vec::new(), id: Vec::new() });
-        }
+        let job = Job {
+            projector: Projector::new(view),
+            triangles,
+            ids,
+            cull,
+            perspective: view.is_perspective(),
+            w,
+            h,
+        };
+        let parts = self.prepare_parts(w, h, triangles.len());
         let runs = triangles.len().div_ceil(RUN);
         let results: Vec<(RasterStats, Vec<Setup>)> = self
             .parts
             .par_iter_mut()
             .enumerate()
-            .map(|(part, buf)| {
-                buf.width = w;
-                buf.height = h;
-                buf.depth.clear();
-                buf.depth.resize(w * h, f32::INFINITY);
-                buf.id.clear();
-                buf.id.resize(w * h, NO_ID);
-                let mut stats = RasterStats::default();
-                let mut large = Vec::new();
-                for run in (part..runs).step_by(parts) {
-                    let first = run * RUN;
-                    for (t, tri) in triangles[first..(first + RUN).min(triangles.len())].iter().enumerate() {
-                        let t = first + t;
-                        let id = ids.map_or(t as u32, |ids| ids[t]);
-                        let cull = match cull {
-                            Cull::BackAmongFirst(n) if t < n => Cull::Back,
-                            Cull::BackAmongFirst(_) => Cull::None,
-                            c => c,
-                        };
-                        if projector.surely_culled(tri, cull) {
-                            stats.culled += 1;
-                            continue;
-                        }
-                        match setup(&projector, tri, id, perspective, cull, w, h) {
-                            Ok(Some(s)) => {
-                                stats.drawn += 1;
-                                if s.box_px() > LARGE_PX {
-                                    large.push(s);
-                                } else {
-                                    draw(
-                                        &s,
-                                        s.rows.0..s.rows.1 + 1,
-                                        0,
-                                        w,
-                                        perspective,
-                                        &mut buf.depth,
-                                        &mut buf.id,
-                                    );
-                                }
-                            }
-                            Ok(None) => stats.drawn += 1, // wholly off-screen: nothing to draw
-                            Err(Skip::Culled) => stats.culled += 1,
-                            Err(Skip::Degenerate) => stats.degenerate += 1,
-                            Err(Skip::Clipped) => stats.clipped += 1,
-                        }
-                    }
-                }
-                (stats, large)
-            })
+            .map(|(part, buf)| job.draw_runs(buf, (part..runs).step_by(parts)))
             .collect();
         let mut stats = RasterStats::default();
         let mut large = Vec::new();
@@ -296,28 +247,96 @@ impl Rasterizer {
             stats.clipped += s.clipped;
             large.extend(l);
         }
-        // Merge the parts into the first.
         let (first, rest) = self.parts.split_first_mut().expect("at least one part");
-        if !rest.is_empty() {
-            const CHUNK: usize = 4096;
-            first.depth.par_chunks_mut(CHUNK).zip(first.id.par_chunks_mut(CHUNK)).enumerate().for_each(
-                |(c, (depth, id))| {
-                    let at = c * CHUNK;
-                    for other in rest.iter() {
-                        let (od, oi) = (&other.depth[at..at + depth.len()], &other.id[at..at + id.len()]);
-                        for (((d, i), &od), &oi) in depth.iter_mut().zip(id.iter_mut()).zip(od).zip(oi) {
-                            if od < *d || (od == *d && oi < *i) {
-                                *d = od;
-                                *i = oi;
-                            }
+        merge_parts(first, rest);
+        job.draw_large(first, &large, self.serial);
+        Ok((&self.parts[0], stats))
+    }
+
+    /// Keep one buffer per part and return the number of parts: one per thread, but no
+    /// more than there are runs of `triangles` triangles to share, nor more than 64 MB of
+    /// `w × h` buffers (8 bytes a pixel): a 4K frame gets one part.
+    fn prepare_parts(&mut self, w: usize, h: usize, triangles: usize) -> usize {
+        let threads = if self.serial { 1 } else { rayon::current_num_threads() };
+        let budget = (PARTS_BYTES / (w * h * 8).max(1)).max(1);
+        let parts = threads.min(triangles.div_ceil(RUN)).min(budget).clamp(1, 16);
+        self.parts.truncate(parts);
+        while self.parts.len() < parts {
+            self.parts.push(DepthBuffer { width: 0, height: 0, depth: Vec::new(), id: Vec::new() });
+        }
+        parts
+    }
+}
+
+/// One rasterisation: the triangles, how they are projected and culled, and the size of
+/// the buffer (`w × h` px).
+struct Job<'a> {
+    projector: Projector<'a>,
+    triangles: &'a [[Vec3; 3]],
+    ids: Option<&'a [u32]>,
+    cull: Cull,
+    perspective: bool,
+    w: usize,
+    h: usize,
+}
+
+impl Job<'_> {
+    /// Clear `buf` to the buffer's size and draw the triangles of `runs` (runs of `RUN`
+    /// consecutive triangles) into it, except the large ones, which are returned (in
+    /// triangle order) with the counts.
+    fn draw_runs(
+        &self,
+        buf: &mut DepthBuffer,
+        runs: impl Iterator<Item = usize>,
+    ) -> (RasterStats, Vec<Setup>) {
+        let (w, h, perspective, triangles) = (self.w, self.h, self.perspective, self.triangles);
+        buf.width = w;
+        buf.height = h;
+        buf.depth.clear();
+        buf.depth.resize(w * h, f32::INFINITY);
+        buf.id.clear();
+        buf.id.resize(w * h, NO_ID);
+        let mut stats = RasterStats::default();
+        let mut large = Vec::new();
+        for run in runs {
+            let first = run * RUN;
+            for (t, tri) in triangles[first..(first + RUN).min(triangles.len())].iter().enumerate() {
+                let t = first + t;
+                let id = self.ids.map_or(t as u32, |ids| ids[t]);
+                let cull = match self.cull {
+                    Cull::BackAmongFirst(n) if t < n => Cull::Back,
+                    Cull::BackAmongFirst(_) => Cull::None,
+                    c => c,
+                };
+                if self.projector.surely_culled(tri, cull) {
+                    stats.culled += 1;
+                    continue;
+                }
+                match setup(&self.projector, tri, id, perspective, cull, w, h) {
+                    Ok(Some(s)) => {
+                        stats.drawn += 1;
+                        if s.box_px() > LARGE_PX {
+                            large.push(s);
+                        } else {
+                            draw(&s, s.rows.0..s.rows.1 + 1, 0, w, perspective, &mut buf.depth, &mut buf.id);
                         }
                     }
-                },
-            );
+                    Ok(None) => stats.drawn += 1, // wholly off-screen: nothing to draw
+                    Err(Skip::Culled) => stats.culled += 1,
+                    Err(Skip::Degenerate) => stats.degenerate += 1,
+                    Err(Skip::Clipped) => stats.clipped += 1,
+                }
+            }
         }
-        // Large triangles: bin by bands of rows, then draw the bands in parallel.
-        if self.serial {
-            for s in &large {
+        (stats, large)
+    }
+
+    /// Draw the `large` triangles into the merged buffer `first`: on this thread when
+    /// `serial`, else binned by bands of `BAND_ROWS` rows and the bands drawn in parallel.
+    fn draw_large(&self, first: &mut DepthBuffer, large: &[Setup], serial: bool) {
+        let (w, h, perspective) = (self.w, self.h, self.perspective);
+        if serial {
+            for s in large {
                 draw(s, s.rows.0..s.rows.1 + 1, 0, w, perspective, &mut first.depth, &mut first.id);
             }
         } else if !large.is_empty() {
@@ -343,7 +362,28 @@ impl Rasterizer {
                     }
                 });
         }
-        Ok((&self.parts[0], stats))
+    }
+}
+
+/// Merge the parts' buffers `rest` into `first`, pixel by pixel, keeping the smallest
+/// (depth, id) pair.
+fn merge_parts(first: &mut DepthBuffer, rest: &[DepthBuffer]) {
+    if !rest.is_empty() {
+        const CHUNK: usize = 4096;
+        first.depth.par_chunks_mut(CHUNK).zip(first.id.par_chunks_mut(CHUNK)).enumerate().for_each(
+            |(c, (depth, id))| {
+                let at = c * CHUNK;
+                for other in rest.iter() {
+                    let (od, oi) = (&other.depth[at..at + depth.len()], &other.id[at..at + id.len()]);
+                    for (((d, i), &od), &oi) in depth.iter_mut().zip(id.iter_mut()).zip(od).zip(oi) {
+                        if od < *d || (od == *d && oi < *i) {
+                            *d = od;
+                            *i = oi;
+                        }
+                    }
+                }
+            },
+        );
     }
 }
 

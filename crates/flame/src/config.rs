@@ -273,6 +273,22 @@ impl FlameConfig {
             i.push("sph.pressure_kernel", "\"cubic-spline\"", "\"poly6\" or \"spiky\"");
         }
 
+        self.validate_emitter(&mut i);
+        self.validate_wind(&mut i);
+
+        let x = &self.extended;
+        i.range("extended.ambient_temperature_k", x.ambient_temperature_k, 0.0..=40_000.0);
+        i.range_open_low("extended.cooling_time_s", x.cooling_time_s, 0.0, 1e6);
+        i.range("extended.temperature_jitter_k", x.temperature_jitter_k, 0.0..=10_000.0);
+        i.range("extended.buoyancy_m_s2_per_k", x.buoyancy_m_s2_per_k, -1.0..=1.0);
+
+        self.validate_domain(&mut i);
+        i.into_result()
+    }
+
+    /// The `[emitter]` table's problems, into `i`: its fields, and its rate against the
+    /// particles one frame may add and against the burner's crowding limit.
+    fn validate_emitter(&self, i: &mut Issues) {
         let e = &self.emitter;
         i.vector("emitter.position_m", &e.position_m.to_array(), 1e6);
         i.range("emitter.radius_m", e.radius_m, 0.0..=100.0);
@@ -307,7 +323,10 @@ impl FlameConfig {
                 ),
             );
         }
+    }
 
+    /// The `[wind]` table's problems, into `i`: a constant force or keys in time order.
+    fn validate_wind(&self, i: &mut Issues) {
         i.vector("wind.force_n_m3", &self.wind.force_n_m3.to_array(), 1e6);
         for (k, key) in self.wind.keys.iter().enumerate() {
             i.range(&format!("wind.keys[{k}].time_s"), key.time_s, 0.0..=1e7);
@@ -327,14 +346,12 @@ impl FlameConfig {
                 "either a constant force or keys, not both",
             );
         }
+    }
 
-        let x = &self.extended;
-        i.range("extended.ambient_temperature_k", x.ambient_temperature_k, 0.0..=40_000.0);
-        i.range_open_low("extended.cooling_time_s", x.cooling_time_s, 0.0, 1e6);
-        i.range("extended.temperature_jitter_k", x.temperature_jitter_k, 0.0..=10_000.0);
-        i.range("extended.buoyancy_m_s2_per_k", x.buoyancy_m_s2_per_k, -1.0..=1.0);
-
-        let d = &self.domain;
+    /// The `[domain]` table's problems, into `i`: a box with the burner inside, of at most
+    /// [`MAX_CELLS`] grid cells of size `sph.support_radius_m`.
+    fn validate_domain(&self, i: &mut Issues) {
+        let (d, e, s) = (&self.domain, &self.emitter, &self.sph);
         i.vector("domain.min_m", &d.min_m.to_array(), 1e6);
         i.vector("domain.max_m", &d.max_m.to_array(), 1e6);
         if !d.max_m.cmpgt(d.min_m).all() {
@@ -363,7 +380,6 @@ impl FlameConfig {
                 );
             }
         }
-        i.into_result()
     }
 }
 

@@ -502,18 +502,9 @@ impl FlameRenderer {
     /// columns no splat touched are a plain copy of the background (written only where
     /// the previous frame had something else there).
     fn composite(&mut self) {
-        let (w, h) = (self.width, self.height);
-        let (sw, sh) = (self.splat_w, self.splat_h);
-        let same = sw == w && sh == h;
-        let (kx, ky) = (sw as f32 / w as f32, sh as f32 / h as f32);
-        // Bilinear upsampling taps per output column: (x0, x1, weight of x1).
-        let taps: Vec<(u32, u32, f32)> = (0..if same { 0 } else { w })
-            .map(|x| {
-                let fx = ((x as f32 + 0.5) * kx - 0.5).clamp(0.0, (sw - 1) as f32);
-                let x0 = fx as usize;
-                (x0 as u32, (x0 + 1).min(sw - 1) as u32, fx - x0 as f32)
-            })
-            .collect();
+        let w = self.width;
+        let up = Upsampling::new((w, self.height), (self.splat_w, self.splat_h));
+        let sw = up.sw;
         let planes = &self.planes;
         let spans = &self.spans;
         let bg = &self.background;
@@ -536,42 +527,16 @@ impl FlameRenderer {
                         c2[d_lo..d_hi].copy_from_slice(&bg.c2.data()[row]);
                     }
                     *dirty = (0, 0);
-                    // Source rows and blend weight (bilinear in y, clamped at the edges).
-                    let (y0, y1, ty) = if same {
-                        (y, y, 0.0)
-                    } else {
-                        let fy = ((y as f32 + 0.5) * ky - 0.5).clamp(0.0, (sh - 1) as f32);
-                        let y0 = fy as usize;
-                        (y0, (y0 + 1).min(sh - 1), fy - y0 as f32)
-                    };
-                    let (a, b) = (spans[y0], spans[y1]);
-                    let (lo, hi) = match (a.0 < a.1, b.0 < b.1) {
-                        (true, true) => (a.0.min(b.0), a.1.max(b.1)),
-                        (true, false) => a,
-                        (false, true) => b,
-                        (false, false) => return,
-                    };
-                    let (lo, hi) = (lo as usize, hi as usize);
-                    // Output columns whose bilinear footprint meets the touched span.
-                    let (x_lo, x_hi) = if same {
-                        (lo, hi)
-                    } else {
-                        (
-                            ((lo as f32 - 1.0) / kx).max(0.0) as usize,
-                            (((hi as f32 + 1.0) / kx) as usize + 1).min(w),
-                        )
-                    };
+                    let (y0, y1, ty) = up.source_rows(y);
+                    let Some((lo, hi)) = touched(spans[y0], spans[y1]) else { return };
+                    let (x_lo, x_hi) = up.columns_reading(lo, hi);
                     *dirty = (x_lo as u32, x_hi as u32);
                     if x_lo >= x_hi {
                         return;
                     }
                     // Vertical pass over every source column those outputs read (the
                     // splat planes are zero outside the touched span).
-                    let (s_lo, s_hi) = if same {
-                        (x_lo, x_hi)
-                    } else {
-                        (taps[x_lo].0 as usize, taps[x_hi - 1].1 as usize + 1)
-                    };
+                    let (s_lo, s_hi) = up.columns_read(x_lo, x_hi);
                     for (p, t) in tmp.iter_mut().enumerate() {
                         let r0 = &planes[p].data()[y0 * sw + s_lo..y0 * sw + s_hi];
                         let r1 = &planes[p].data()[y1 * sw + s_lo..y1 * sw + s_hi];
@@ -580,13 +545,7 @@ impl FlameRenderer {
                         }
                     }
                     for x in x_lo..x_hi {
-                        let v: [f32; 5] = if same {
-                            std::array::from_fn(|p| tmp[p][x])
-                        } else {
-                            let (x0, x1, tx) = taps[x];
-                            let (x0, x1) = (x0 as usize, x1 as usize);
-                            std::array::from_fn(|p| tmp[p][x0] + (tmp[p][x1] - tmp[p][x0]) * tx)
-                        };
+                        let v = up.at(tmp, x);
                         if v[3] != 0.0 || v[4] != 0.0 {
                             let c = bg.sample_bilinear(x as f32 + 0.5 + v[3], y as f32 + 0.5 + v[4]);
                             (c0[x], c1[x], c2[x]) = (c.x, c.y, c.z);
@@ -629,6 +588,98 @@ impl FlameRenderer {
                     out.set_pixel(x, y, color);
                 }
             }
+        }
+    }
+}
+
+/// The columns two source rows' splats touched, `a` and `b` (start, end; empty when
+/// start ≥ end): the span covering both, or `None` when neither touched any.
+#[inline]
+fn touched(a: (u32, u32), b: (u32, u32)) -> Option<(usize, usize)> {
+    let (lo, hi) = match (a.0 < a.1, b.0 < b.1) {
+        (true, true) => (a.0.min(b.0), a.1.max(b.1)),
+        (true, false) => a,
+        (false, true) => b,
+        (false, false) => return None,
+    };
+    Some((lo as usize, hi as usize))
+}
+
+/// How the splat planes (`sw × sh` px) map onto the `w`-wide frame: bilinear
+/// upsampling with the taps clamped at the edges, or one to one when the sizes match.
+struct Upsampling {
+    w: usize,
+    sw: usize,
+    sh: usize,
+    same: bool,
+    /// Source pixels per output pixel along x and y.
+    kx: f32,
+    ky: f32,
+    /// Bilinear taps per output column: (x0, x1, weight of x1); none when `same`.
+    taps: Vec<(u32, u32, f32)>,
+}
+
+impl Upsampling {
+    /// From splat planes of `(sw, sh)` px to a frame of `(w, h)` px.
+    fn new((w, h): (usize, usize), (sw, sh): (usize, usize)) -> Self {
+        let same = sw == w && sh == h;
+        let (kx, ky) = (sw as f32 / w as f32, sh as f32 / h as f32);
+        let taps = (0..if same { 0 } else { w })
+            .map(|x| {
+                let fx = ((x as f32 + 0.5) * kx - 0.5).clamp(0.0, (sw - 1) as f32);
+                let x0 = fx as usize;
+                (x0 as u32, (x0 + 1).min(sw - 1) as u32, fx - x0 as f32)
+            })
+            .collect();
+        Self { w, sw, sh, same, kx, ky, taps }
+    }
+
+    /// Source rows of output row `y` and the weight of the second (bilinear in y,
+    /// clamped at the edges).
+    #[inline]
+    fn source_rows(&self, y: usize) -> (usize, usize, f32) {
+        if self.same {
+            (y, y, 0.0)
+        } else {
+            let fy = ((y as f32 + 0.5) * self.ky - 0.5).clamp(0.0, (self.sh - 1) as f32);
+            let y0 = fy as usize;
+            (y0, (y0 + 1).min(self.sh - 1), fy - y0 as f32)
+        }
+    }
+
+    /// Output columns whose bilinear footprint meets the source columns `lo..hi`.
+    #[inline]
+    fn columns_reading(&self, lo: usize, hi: usize) -> (usize, usize) {
+        if self.same {
+            (lo, hi)
+        } else {
+            (
+                ((lo as f32 - 1.0) / self.kx).max(0.0) as usize,
+                (((hi as f32 + 1.0) / self.kx) as usize + 1).min(self.w),
+            )
+        }
+    }
+
+    /// Source columns the output columns `x_lo..x_hi` (not empty) read.
+    #[inline]
+    fn columns_read(&self, x_lo: usize, x_hi: usize) -> (usize, usize) {
+        if self.same {
+            (x_lo, x_hi)
+        } else {
+            (self.taps[x_lo].0 as usize, self.taps[x_hi - 1].1 as usize + 1)
+        }
+    }
+
+    /// The five planes at output column `x`, from the source row blended vertically
+    /// into `tmp`.
+    #[inline]
+    fn at(&self, tmp: &[Vec<f32>; 5], x: usize) -> [f32; 5] {
+        if self.same {
+            std::array::from_fn(|p| tmp[p][x])
+        } else {
+            let (x0, x1, tx) = self.taps[x];
+            let (x0, x1) = (x0 as usize, x1 as usize);
+            std::array::from_fn(|p| tmp[p][x0] + (tmp[p][x1] - tmp[p][x0]) * tx)
         }
     }
 }

@@ -430,18 +430,46 @@ impl FlameSim {
     fn compute_density_pressure(&mut self) -> Result<(), FlameError> {
         let d = self.config.sph.support_radius_m;
         let d2 = d * d;
-        let k = self.config.sph.gas_constant_m2_s2;
-        let rho0 = self.config.sph.rest_density_kg_m3;
         let clamp = self.config.mode == Mode::Extended && self.config.extended.clamp_negative_pressure;
-        let kernel = self.density_kernel;
         let n = self.particles.len();
         let chunks = n.div_ceil(CHUNK);
         self.scratch.neighbors.resize_with(chunks, NeighborChunk::default);
-        // Coordinates and masses as separate arrays, padded by one vector, so that eight
-        // candidates load as three coordinate vectors and one of masses.
-        let lanes = &mut self.scratch.lanes;
+        self.fill_lanes();
+        let [xs, ys, zs, ms] = &self.scratch.lanes;
+        let too_dense = std::sync::atomic::AtomicBool::new(false);
+        let pass = DensityPass {
+            xs,
+            ys,
+            zs,
+            ms,
+            pos: &self.particles.position_m,
+            grid: &self.grid,
+            d2: f32x8::splat(d2),
+            inv_d2: f32x8::splat(1.0 / d2),
+            scale: self.density_kernel.value_sq(0.0),
+            gas_constant_m2_s2: self.config.sph.gas_constant_m2_s2,
+            rest_density_kg_m3: self.config.sph.rest_density_kg_m3,
+            clamp,
+            too_dense: &too_dense,
+        };
+        self.particles
+            .density_kg_m3
+            .par_chunks_mut(CHUNK)
+            .zip(self.particles.pressure_pa.par_chunks_mut(CHUNK))
+            .zip(self.scratch.neighbors.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((rho, p), nb))| pass.chunk(c, rho, p, nb));
+        if too_dense.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(FlameError::TooDense { limit: MAX_NEIGHBORS });
+        }
+        Ok(())
+    }
+
+    /// The particles' coordinates and masses as separate arrays, padded by one vector,
+    /// so that eight candidates load as three coordinate vectors and one of masses.
+    fn fill_lanes(&mut self) {
         let p = &self.particles;
-        for (a, v) in lanes.iter_mut().enumerate() {
+        for (a, v) in self.scratch.lanes.iter_mut().enumerate() {
             v.clear();
             if a < 3 {
                 v.extend(p.position_m.iter().map(|x| x[a]));
@@ -450,91 +478,6 @@ impl FlameSim {
             }
             v.extend([0.0; LANES]);
         }
-        let [xs, ys, zs, ms] = &self.scratch.lanes;
-        let (pos, grid) = (&self.particles.position_m, &self.grid);
-        // Each particle's cell (the particles are in cell order, `evaluate_at`).
-        let cells = grid.point_cells();
-        let too_dense = std::sync::atomic::AtomicBool::new(false);
-        let d2v = f32x8::splat(d2);
-        let (one, inv_d2, scale) = (f32x8::splat(1.0), f32x8::splat(1.0 / d2), kernel.value_sq(0.0));
-        self.particles
-            .density_kg_m3
-            .par_chunks_mut(CHUNK)
-            .zip(self.particles.pressure_pa.par_chunks_mut(CHUNK))
-            .zip(self.scratch.neighbors.par_iter_mut())
-            .enumerate()
-            .for_each(|(c, ((rho, p), nb))| {
-                nb.start.clear();
-                nb.index.clear();
-                let (mut runs, mut count, mut run_cell) = ([(0usize, 0usize); RUNS], 0, u32::MAX);
-                for o in 0..rho.len() {
-                    let own = nb.index.len();
-                    nb.start.push(own as u32);
-                    let i = c * CHUNK + o;
-                    let xi = pos[i];
-                    let (qx, qy, qz) = (f32x8::splat(xi.x), f32x8::splat(xi.y), f32x8::splat(xi.z));
-                    let mut sum = f32x8::ZERO;
-                    // Particles are in cell order, so each run of cells is a contiguous
-                    // range of particle indices, scanned eight at a time. W is exactly 0
-                    // outside the support, so only the lanes past the run's end are
-                    // masked; the candidates inside the support go to the list.
-                    // The runs are collected first so that the sums stay in registers
-                    // (accumulated inside the callback they lived on the stack: 30 %
-                    // slower). They depend only on the particle's cell, so consecutive
-                    // particles of one cell share them.
-                    if cells[i] != run_cell {
-                        run_cell = cells[i];
-                        count = 0;
-                        grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
-                            runs[count] = (run.start, run.end);
-                            count += 1;
-                        });
-                    }
-                    'runs: for &(start, end) in &runs[..count] {
-                        // Room for the run's candidates in the list, trimmed after it (no
-                        // allocation, which is a call that spills the vectors, inside the
-                        // scan). The neighbour limit is checked after every eight, so a
-                        // pile-up stops early and a run never needs more than the limit
-                        // plus one vector of room.
-                        let mut kept = nb.index.len();
-                        nb.index.resize(kept + (end - start).min(MAX_NEIGHBORS + LANES), 0);
-                        let mut k = start;
-                        while k < end {
-                            let (dx, dy, dz) =
-                                (load(&xs[k..]) - qx, load(&ys[k..]) - qy, load(&zs[k..]) - qz);
-                            let r2 = dx * dx + dy * dy + dz * dz;
-                            let live = in_run(end - k);
-                            // Poly6, eq (2): σ/d³ (1 - r²/d²)³, clamped at 0 outside d.
-                            let t = (one - r2 * inv_d2).fast_max(f32x8::ZERO);
-                            sum += live.select(load(&ms[k..]) * (t * t * t), f32x8::ZERO);
-                            let mut inside = (live & r2.simd_lt(d2v)).to_bitmask();
-                            while inside != 0 {
-                                nb.index[kept] = (k + inside.trailing_zeros() as usize) as u32;
-                                kept += 1;
-                                inside &= inside - 1;
-                            }
-                            if kept - own > MAX_NEIGHBORS {
-                                too_dense.store(true, std::sync::atomic::Ordering::Relaxed);
-                                nb.index.truncate(kept);
-                                break 'runs;
-                            }
-                            k += LANES;
-                        }
-                        nb.index.truncate(kept);
-                    }
-                    // The lanes summed in a fixed order (not the target's reduce_add,
-                    // which differs between SSE2 and AVX builds).
-                    let sum = scale * sum.to_array().iter().fold(0.0f32, |a, &b| a + b);
-                    rho[o] = sum;
-                    let pi = k * (sum - rho0);
-                    p[o] = if clamp { pi.max(0.0) } else { pi };
-                }
-                nb.start.push(nb.index.len() as u32);
-            });
-        if too_dense.load(std::sync::atomic::Ordering::Relaxed) {
-            return Err(FlameError::TooDense { limit: MAX_NEIGHBORS });
-        }
-        Ok(())
     }
 
     /// Step (4)-(5a): the symmetrised pressure force of eq (12),
@@ -632,6 +575,112 @@ impl FlameSim {
             self.scratch.keep = keep;
         }
         (expired, outside)
+    }
+}
+
+/// One density pass (steps (2)-(3)): the particles as lanes, the grid, the poly6 kernel
+/// and the equation of state.
+struct DensityPass<'a> {
+    /// Coordinates and masses, padded by one vector ([`FlameSim::fill_lanes`]).
+    xs: &'a [f32],
+    ys: &'a [f32],
+    zs: &'a [f32],
+    ms: &'a [f32],
+    pos: &'a [Vec3],
+    grid: &'a NeighborGrid,
+    /// d² and 1/d² in every lane, m² and m⁻².
+    d2: f32x8,
+    inv_d2: f32x8,
+    /// σ/d³: W_poly6 at r = 0.
+    scale: f32,
+    /// k and ρ0 of eq (11).
+    gas_constant_m2_s2: f32,
+    rest_density_kg_m3: f32,
+    /// Negative pressures clamped to 0 (extended mode).
+    clamp: bool,
+    /// Set when a particle has more than [`MAX_NEIGHBORS`] neighbours.
+    too_dense: &'a std::sync::atomic::AtomicBool,
+}
+
+impl DensityPass<'_> {
+    /// ρ_i and p_i (eq 2, 3, 11) of chunk `c`'s particles into `rho` and `p`, and their
+    /// neighbour lists into `nb`.
+    #[inline]
+    fn chunk(&self, c: usize, rho: &mut [f32], p: &mut [f32], nb: &mut NeighborChunk) {
+        nb.start.clear();
+        nb.index.clear();
+        // Each particle's cell (the particles are in cell order, `evaluate_at`).
+        let cells = self.grid.point_cells();
+        let (mut runs, mut count, mut run_cell) = ([(0usize, 0usize); RUNS], 0, u32::MAX);
+        for o in 0..rho.len() {
+            nb.start.push(nb.index.len() as u32);
+            let i = c * CHUNK + o;
+            let xi = self.pos[i];
+            // The runs are collected first so that the sums stay in registers
+            // (accumulated inside the callback they lived on the stack: 30 % slower).
+            // They depend only on the particle's cell, so consecutive particles of one
+            // cell share them.
+            if cells[i] != run_cell {
+                run_cell = cells[i];
+                count = 0;
+                self.grid.for_each_candidate_run(xi, GRID_RINGS, |run| {
+                    runs[count] = (run.start, run.end);
+                    count += 1;
+                });
+            }
+            let sum = self.density_at(xi, &runs[..count], nb);
+            rho[o] = sum;
+            let pi = self.gas_constant_m2_s2 * (sum - self.rest_density_kg_m3);
+            p[o] = if self.clamp { pi.max(0.0) } else { pi };
+        }
+        nb.start.push(nb.index.len() as u32);
+    }
+
+    /// ρ at `xi` (eq 2, 3), kg/m³, from the candidates in `runs` (ranges of particle
+    /// indices), appending those inside the support to `nb`'s list. Particles are in
+    /// cell order, so each run of cells is a contiguous range of particle indices, scanned
+    /// eight at a time. W is exactly 0 outside the support, so only the lanes past the
+    /// run's end are masked.
+    #[inline(always)]
+    fn density_at(&self, xi: Vec3, runs: &[(usize, usize)], nb: &mut NeighborChunk) -> f32 {
+        let (xs, ys, zs, ms) = (self.xs, self.ys, self.zs, self.ms);
+        let own = nb.index.len();
+        let (qx, qy, qz) = (f32x8::splat(xi.x), f32x8::splat(xi.y), f32x8::splat(xi.z));
+        let one = f32x8::splat(1.0);
+        let mut sum = f32x8::ZERO;
+        'runs: for &(start, end) in runs {
+            // Room for the run's candidates in the list, trimmed after it (no allocation,
+            // which is a call that spills the vectors, inside the scan). The neighbour
+            // limit is checked after every eight, so a pile-up stops early and a run never
+            // needs more than the limit plus one vector of room.
+            let mut kept = nb.index.len();
+            nb.index.resize(kept + (end - start).min(MAX_NEIGHBORS + LANES), 0);
+            let mut k = start;
+            while k < end {
+                let (dx, dy, dz) = (load(&xs[k..]) - qx, load(&ys[k..]) - qy, load(&zs[k..]) - qz);
+                let r2 = dx * dx + dy * dy + dz * dz;
+                let live = in_run(end - k);
+                // Poly6, eq (2): σ/d³ (1 - r²/d²)³, clamped at 0 outside d.
+                let t = (one - r2 * self.inv_d2).fast_max(f32x8::ZERO);
+                sum += live.select(load(&ms[k..]) * (t * t * t), f32x8::ZERO);
+                let mut inside = (live & r2.simd_lt(self.d2)).to_bitmask();
+                while inside != 0 {
+                    nb.index[kept] = (k + inside.trailing_zeros() as usize) as u32;
+                    kept += 1;
+                    inside &= inside - 1;
+                }
+                if kept - own > MAX_NEIGHBORS {
+                    self.too_dense.store(true, std::sync::atomic::Ordering::Relaxed);
+                    nb.index.truncate(kept);
+                    break 'runs;
+                }
+                k += LANES;
+            }
+            nb.index.truncate(kept);
+        }
+        // The lanes summed in a fixed order (not the target's reduce_add, which differs
+        // between SSE2 and AVX builds).
+        self.scale * sum.to_array().iter().fold(0.0f32, |a, &b| a + b)
     }
 }
 

@@ -197,8 +197,6 @@ fn fill(
     voxel_m: f64,
 ) -> Result<(), VolumeError> {
     let support = config.sph.support_radius_m;
-    let kernel = Kernel::new(KernelKind::Poly6, Dim::Three, support);
-    let full_alpha = config.sph.rest_density_kg_m3 * settings.full_alpha_density_ratio;
     let h = voxel_m as f32;
     let reach = i64::from((support / h).ceil() as i32);
     // Refused before the list is made when it would be too long: one particle's leaves
@@ -208,34 +206,23 @@ fn fill(
     if entries > MAX_VOXELS {
         return Err(VolumeError::TooLarge { voxels: entries.saturating_mul(512), voxel_m });
     }
-    // Every (leaf, particle) pair where the particle reaches into the leaf, sorted by
-    // leaf and then particle: each leaf sums its particles in particle order.
-    pairs.clear();
-    for (i, x) in particles.position_m.iter().enumerate() {
-        if !x.is_finite() {
-            continue;
-        }
-        let c = x.to_array().map(|v| (v / h).round() as i64);
-        if c.iter().any(|v| v.abs() > MAX_INDEX - reach - 8) {
-            return Err(VolumeError::Extent { position_m: x.to_array(), voxel_m });
-        }
-        let range = |a: usize| ((c[a] - reach) >> 3)..=((c[a] + reach) >> 3);
-        for lx in range(0) {
-            for ly in range(1) {
-                for lz in range(2) {
-                    pairs.push((leaf_key([lx, ly, lz]), i as u32));
-                }
-            }
-        }
-    }
-    pairs.par_sort_unstable();
+    list_leaf_pairs(pairs, particles, voxel_m, reach)?;
     let groups: Vec<&[(u64, u32)]> = pairs.chunk_by(|a, b| a.0 == b.0).collect();
     let voxels = groups.len() as u64 * 512;
     if voxels > MAX_VOXELS {
         return Err(VolumeError::TooLarge { voxels, voxel_m });
     }
     let lane = f32x8::from([0.0f32, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
-    let support_sq = support * support;
+    let sums = LeafSums {
+        particles,
+        kernel: Kernel::new(KernelKind::Poly6, Dim::Three, support),
+        voxel_m: h,
+        reach,
+        support_sq: support * support,
+        full_alpha: config.sph.rest_density_kg_m3 * settings.full_alpha_density_ratio,
+        intensity: settings.intensity,
+        lut,
+    };
     // One leaf per group in each grid, in group order, then filled in place.
     let origins: Vec<[i32; 3]> = groups.iter().map(|g| leaf_origin(g[0].0)).collect();
     let clash = || VolumeError::TooLarge { voxels, voxel_m };
@@ -256,47 +243,107 @@ fn fill(
             };
             let z = (f32x8::splat(origin[2] as f32) + lane) * f32x8::splat(h);
             for &(_, i) in group.iter() {
-                let i = i as usize;
-                let p = particles.position_m[i];
-                let rho = particles.density_kg_m3[i];
-                let m = particles.mass_kg[i];
-                let vol = if rho > 0.0 { m / rho } else { 0.0 };
-                let t = particles.temperature_k[i];
-                let alpha = (rho / full_alpha).clamp(0.0, 1.0);
-                let c = lut.lookup(t) * (settings.intensity * alpha);
-                let dz = z - f32x8::splat(p.z);
-                let dz2 = dz * dz;
-                let span = |a: usize, v: f32| {
-                    let centre = (v / h).round() as i64;
-                    let lo = (centre - reach).max(i64::from(origin[a])) - i64::from(origin[a]);
-                    let hi = (centre + reach).min(i64::from(origin[a]) + 7) - i64::from(origin[a]);
-                    lo as usize..=hi.max(lo - 1) as usize
-                };
-                let (vm, vt, vv) = (f32x8::splat(m), f32x8::splat(vol * t), f32x8::splat(vol));
-                let vc = [f32x8::splat(vol * c.x), f32x8::splat(vol * c.y), f32x8::splat(vol * c.z)];
-                for x in span(0, p.x) {
-                    let dx = (origin[0] + x as i32) as f32 * h - p.x;
-                    for y in span(1, p.y) {
-                        let dy = (origin[1] + y as i32) as f32 * h - p.y;
-                        let dxy2 = dx * dx + dy * dy;
-                        // Rows outside the support's circle get nothing (W = 0 there).
-                        if dxy2 >= support_sq {
-                            continue;
-                        }
-                        let w = kernel.value_sq_x8(dz2 + f32x8::splat(dxy2));
-                        let row = x * 8 + y;
-                        b.density[row] += vm * w;
-                        b.vt[row] += vt * w;
-                        b.v[row] += vv * w;
-                        for (k, ck) in vc.iter().enumerate() {
-                            b.rgb[k][row] += *ck * w;
-                        }
-                    }
-                }
+                sums.add_particle(&mut b, origin, z, i as usize);
             }
             finish_leaf(&b, density, temperature, emission);
         });
     Ok(())
+}
+
+/// Every (leaf, particle) pair where a finite particle reaches (`reach` voxels of
+/// `voxel_m`) into the leaf, into `pairs`, sorted by leaf and then particle: each leaf
+/// sums its particles in particle order. A particle too far out for the grid's indices
+/// is refused.
+fn list_leaf_pairs(
+    pairs: &mut Vec<(u64, u32)>,
+    particles: &Particles,
+    voxel_m: f64,
+    reach: i64,
+) -> Result<(), VolumeError> {
+    let h = voxel_m as f32;
+    pairs.clear();
+    for (i, x) in particles.position_m.iter().enumerate() {
+        if !x.is_finite() {
+            continue;
+        }
+        let c = x.to_array().map(|v| (v / h).round() as i64);
+        if c.iter().any(|v| v.abs() > MAX_INDEX - reach - 8) {
+            return Err(VolumeError::Extent { position_m: x.to_array(), voxel_m });
+        }
+        let range = |a: usize| ((c[a] - reach) >> 3)..=((c[a] + reach) >> 3);
+        for lx in range(0) {
+            for ly in range(1) {
+                for lz in range(2) {
+                    pairs.push((leaf_key([lx, ly, lz]), i as u32));
+                }
+            }
+        }
+    }
+    pairs.par_sort_unstable();
+    Ok(())
+}
+
+/// What a leaf's sums are made of (see the module docs): the particles, the poly6 kernel
+/// W of support d, and the renderer's particle colour.
+struct LeafSums<'a> {
+    particles: &'a Particles,
+    kernel: Kernel,
+    /// Voxel size, m.
+    voxel_m: f32,
+    /// Voxels from a particle's voxel to the edge of its support.
+    reach: i64,
+    /// d², m².
+    support_sq: f32,
+    /// Density of full alpha, kg/m³.
+    full_alpha: f32,
+    intensity: f32,
+    lut: &'a BlackbodyLut,
+}
+
+impl LeafSums<'_> {
+    /// Add particle `i` to the sums `b` of the leaf at `origin` (voxels), whose voxel
+    /// centres along z are `z` (m): m_j W, V_j T_j W, V_j W and V_j c_j W at every voxel of
+    /// its support, eight voxels of a row along z at a time.
+    #[inline]
+    fn add_particle(&self, b: &mut Brick, origin: [i32; 3], z: f32x8, i: usize) {
+        let (particles, h, reach) = (self.particles, self.voxel_m, self.reach);
+        let p = particles.position_m[i];
+        let rho = particles.density_kg_m3[i];
+        let m = particles.mass_kg[i];
+        let vol = if rho > 0.0 { m / rho } else { 0.0 };
+        let t = particles.temperature_k[i];
+        let alpha = (rho / self.full_alpha).clamp(0.0, 1.0);
+        let c = self.lut.lookup(t) * (self.intensity * alpha);
+        let dz = z - f32x8::splat(p.z);
+        let dz2 = dz * dz;
+        let span = |a: usize, v: f32| {
+            let centre = (v / h).round() as i64;
+            let lo = (centre - reach).max(i64::from(origin[a])) - i64::from(origin[a]);
+            let hi = (centre + reach).min(i64::from(origin[a]) + 7) - i64::from(origin[a]);
+            lo as usize..=hi.max(lo - 1) as usize
+        };
+        let (vm, vt, vv) = (f32x8::splat(m), f32x8::splat(vol * t), f32x8::splat(vol));
+        let vc = [f32x8::splat(vol * c.x), f32x8::splat(vol * c.y), f32x8::splat(vol * c.z)];
+        for x in span(0, p.x) {
+            let dx = (origin[0] + x as i32) as f32 * h - p.x;
+            for y in span(1, p.y) {
+                let dy = (origin[1] + y as i32) as f32 * h - p.y;
+                let dxy2 = dx * dx + dy * dy;
+                // Rows outside the support's circle get nothing (W = 0 there).
+                if dxy2 >= self.support_sq {
+                    continue;
+                }
+                let w = self.kernel.value_sq_x8(dz2 + f32x8::splat(dxy2));
+                let row = x * 8 + y;
+                b.density[row] += vm * w;
+                b.vt[row] += vt * w;
+                b.v[row] += vv * w;
+                for (k, ck) in vc.iter().enumerate() {
+                    b.rgb[k][row] += *ck * w;
+                }
+            }
+        }
+    }
 }
 
 /// A leaf's sums as grid values; voxels under [`MIN_FRACTION`] stay empty (a leaf left

@@ -11,7 +11,7 @@
 
 use glam::Vec3;
 
-use crate::sim::SnowSim;
+use crate::sim::{Footprint, SnowMap, SnowSim};
 
 /// Snow thinner than this is no snow for the mesh, m.
 pub const MIN_DEPTH_M: f32 = 1e-4;
@@ -47,91 +47,123 @@ impl TriMesh {
 /// The snow of every map of `sim` as one mesh.
 pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     let fp = sim.footprint();
-    let n = fp.n;
-    let t = fp.texel_m;
     let mut mesh = TriMesh::default();
     for map in sim.maps() {
-        let snowy = |i: i64, j: i64| {
-            i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n && {
-                let k = j as usize * n + i as usize;
-                map.possible(k) && map.snow_m[k] > MIN_DEPTH_M
-            }
-        };
-        // Corner (ci, cj) of the (n+1)² lattice: mean top and ground of its snowy texels.
-        let corner = |ci: usize, cj: usize| -> Option<(f32, f32)> {
-            let (mut top, mut ground, mut c) = (0.0f32, 0.0f32, 0);
-            for (di, dj) in [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)] {
-                let (i, j) = (ci as i64 + di, cj as i64 + dj);
-                if snowy(i, j) {
-                    let k = j as usize * n + i as usize;
-                    top += map.surface(k);
-                    ground += map.ground_m[k];
-                    c += 1;
-                }
-            }
-            (c > 0).then(|| (top / c as f32, ground / c as f32))
-        };
-        let xz = |ci: usize, cj: usize| fp.origin + glam::Vec2::new(ci as f32, cj as f32) * t;
-        // Shared top vertices with normals from central differences of the corner heights.
-        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
-        let height = |ci: usize, cj: usize| corner(ci, cj).map(|c| c.0);
-        for cj in 0..=n {
-            for ci in 0..=n {
-                let Some((h, _)) = corner(ci, cj) else { continue };
-                let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
-                let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
-                let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
-                let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
-                let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
-                let p = xz(ci, cj);
-                top_index[cj * (n + 1) + ci] = mesh.vertex(Vec3::new(p.x, h, p.y), normal);
-            }
-        }
-        for j in 0..n {
-            for i in 0..n {
-                if !snowy(i as i64, j as i64) {
-                    continue;
-                }
-                let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
-                // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
-                // (x+1,z+1) → (x+1,z), as for the ground quads.
-                mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
-                let bottom: Vec<Vec3> = corners
-                    .iter()
-                    .map(|&(ci, cj)| {
-                        let p = xz(ci, cj);
-                        Vec3::new(p.x, corner(ci, cj).map_or(0.0, |c| c.1), p.y)
-                    })
-                    .collect();
-                let b: Vec<u32> = bottom.iter().map(|&p| mesh.vertex(p, Vec3::NEG_Y)).collect();
-                mesh.quad([b[0], b[3], b[2], b[1]]);
-                // Sides where the neighbour has no snow: (corner a, corner b, outward).
-                let sides = [
-                    ((i, j), (i + 1, j), (0i64, -1i64), Vec3::NEG_Z),
-                    ((i + 1, j), (i + 1, j + 1), (1, 0), Vec3::X),
-                    ((i + 1, j + 1), (i, j + 1), (0, 1), Vec3::Z),
-                    ((i, j + 1), (i, j), (-1, 0), Vec3::NEG_X),
-                ];
-                for (a, bb, (di, dj), normal) in sides {
-                    if snowy(i as i64 + di, j as i64 + dj) {
-                        continue;
-                    }
-                    let (ca, cb) =
-                        (corner(a.0, a.1).unwrap_or_default(), corner(bb.0, bb.1).unwrap_or_default());
-                    let (pa, pb) = (xz(a.0, a.1), xz(bb.0, bb.1));
-                    // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside.
-                    let v = [
-                        mesh.vertex(Vec3::new(pa.x, ca.1, pa.y), normal),
-                        mesh.vertex(Vec3::new(pa.x, ca.0, pa.y), normal),
-                        mesh.vertex(Vec3::new(pb.x, cb.0, pb.y), normal),
-                        mesh.vertex(Vec3::new(pb.x, cb.1, pb.y), normal),
-                    ];
-                    mesh.quad(v);
+        let lattice = Lattice { map, fp: &fp };
+        let top_index = lattice.top_vertices(&mut mesh);
+        for j in 0..fp.n {
+            for i in 0..fp.n {
+                if lattice.snowy(i as i64, j as i64) {
+                    lattice.texel_solid(&mut mesh, &top_index, (i, j));
                 }
             }
         }
     }
     mesh
+}
+
+/// One snow map's texels and the (n+1)² lattice of their corners, through which the
+/// mesh's top and bottom pass.
+struct Lattice<'a> {
+    map: &'a SnowMap,
+    fp: &'a Footprint,
+}
+
+impl Lattice<'_> {
+    /// Whether texel (i, j) lies in the map, can hold snow and holds more than
+    /// [`MIN_DEPTH_M`].
+    fn snowy(&self, i: i64, j: i64) -> bool {
+        let n = self.fp.n;
+        i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n && {
+            let k = j as usize * n + i as usize;
+            self.map.possible(k) && self.map.snow_m[k] > MIN_DEPTH_M
+        }
+    }
+
+    /// Corner (ci, cj): mean top and ground (m) of its snowy texels, if any.
+    fn corner(&self, ci: usize, cj: usize) -> Option<(f32, f32)> {
+        let n = self.fp.n;
+        let (mut top, mut ground, mut c) = (0.0f32, 0.0f32, 0);
+        for (di, dj) in [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)] {
+            let (i, j) = (ci as i64 + di, cj as i64 + dj);
+            if self.snowy(i, j) {
+                let k = j as usize * n + i as usize;
+                top += self.map.surface(k);
+                ground += self.map.ground_m[k];
+                c += 1;
+            }
+        }
+        (c > 0).then(|| (top / c as f32, ground / c as f32))
+    }
+
+    /// Position (x, z) of corner (ci, cj), m.
+    fn xz(&self, ci: usize, cj: usize) -> glam::Vec2 {
+        self.fp.origin + glam::Vec2::new(ci as f32, cj as f32) * self.fp.texel_m
+    }
+
+    /// The shared top vertices, one per corner with snow, with normals from central
+    /// differences of the corner heights; returns each corner's vertex (`u32::MAX`
+    /// where there is none).
+    fn top_vertices(&self, mesh: &mut TriMesh) -> Vec<u32> {
+        let (n, t) = (self.fp.n, self.fp.texel_m);
+        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
+        let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.0);
+        for cj in 0..=n {
+            for ci in 0..=n {
+                let Some((h, _)) = self.corner(ci, cj) else { continue };
+                let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
+                let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
+                let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
+                let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
+                let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
+                let p = self.xz(ci, cj);
+                top_index[cj * (n + 1) + ci] = mesh.vertex(Vec3::new(p.x, h, p.y), normal);
+            }
+        }
+        top_index
+    }
+
+    /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
+    /// its bottom on the ground, and a side towards each neighbour without snow.
+    fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize)) {
+        let n = self.fp.n;
+        let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
+        // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
+        // (x+1,z+1) → (x+1,z), as for the ground quads.
+        mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
+        let bottom: Vec<Vec3> = corners
+            .iter()
+            .map(|&(ci, cj)| {
+                let p = self.xz(ci, cj);
+                Vec3::new(p.x, self.corner(ci, cj).map_or(0.0, |c| c.1), p.y)
+            })
+            .collect();
+        let b: Vec<u32> = bottom.iter().map(|&p| mesh.vertex(p, Vec3::NEG_Y)).collect();
+        mesh.quad([b[0], b[3], b[2], b[1]]);
+        // Sides where the neighbour has no snow: (corner a, corner b, outward).
+        let sides = [
+            ((i, j), (i + 1, j), (0i64, -1i64), Vec3::NEG_Z),
+            ((i + 1, j), (i + 1, j + 1), (1, 0), Vec3::X),
+            ((i + 1, j + 1), (i, j + 1), (0, 1), Vec3::Z),
+            ((i, j + 1), (i, j), (-1, 0), Vec3::NEG_X),
+        ];
+        for (a, bb, (di, dj), normal) in sides {
+            if self.snowy(i as i64 + di, j as i64 + dj) {
+                continue;
+            }
+            let (ca, cb) =
+                (self.corner(a.0, a.1).unwrap_or_default(), self.corner(bb.0, bb.1).unwrap_or_default());
+            let (pa, pb) = (self.xz(a.0, a.1), self.xz(bb.0, bb.1));
+            // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside.
+            let v = [
+                mesh.vertex(Vec3::new(pa.x, ca.1, pa.y), normal),
+                mesh.vertex(Vec3::new(pa.x, ca.0, pa.y), normal),
+                mesh.vertex(Vec3::new(pb.x, cb.0, pb.y), normal),
+                mesh.vertex(Vec3::new(pb.x, cb.1, pb.y), normal),
+            ];
+            mesh.quad(v);
+        }
+    }
 }
 
 /// Wavefront OBJ text (`v`, `vn`, `f v//vn`).

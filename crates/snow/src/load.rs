@@ -127,51 +127,100 @@ pub fn obj(bytes: &[u8], scale: f32) -> Result<Loaded, LoadError> {
 /// Triangle-list primitives of every node of the default scene, with node transforms.
 pub fn gltf(
     bytes: &[u8],
-    mut buffer: impl FnMut(&str) -> Result<Vec<u8>, String>,
+    buffer: impl FnMut(&str) -> Result<Vec<u8>, String>,
     scale: f32,
 ) -> Result<Loaded, LoadError> {
-    let parse = |e: gltf::Error| LoadError::Parse { format: "glTF", message: e.to_string() };
-    // glTF 2.0 §4.4.2: a GLB header's length counts the whole file, header included;
-    // gltf 1.4.1 subtracts the header's 12 bytes from it unchecked (found by the fuzzer).
+    let parse = |e: gltf::Error| gltf_error(e.to_string());
+    check_glb_length(bytes)?;
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
+    check_position_accessors(unchecked.document.as_json())?;
+    let blob = unchecked.blob;
+    let doc = gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    let buffers = gltf_buffers(&doc, blob, buffer)?;
+    let mut mesh = Mesh::default();
+    let mut objects = Vec::new();
+    let scene = doc.default_scene().or_else(|| doc.scenes().next());
+    let mut stack: Vec<(gltf::Node, Mat4)> =
+        scene.iter().flat_map(|s| s.nodes()).map(|n| (n, Mat4::IDENTITY)).collect();
+    // glTF 2.0 §3.5.3: the nodes form disjoint trees, so each is reached once. A node
+    // reached twice is a cycle (which would never end) or a shared subtree (which could
+    // multiply the triangles exponentially): refused.
+    let mut reached = vec![false; doc.nodes().len()];
+    let mut triangles = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut reached[node.index()], true) {
+            return Err(gltf_error(format!(
+                "node {} is reached twice: glTF nodes form disjoint trees (no cycles, no shared children)",
+                node.index()
+            )));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(m) = node.mesh() {
+            let tris = mesh_triangles(&m, world, &buffers)?;
+            triangles += tris.len();
+            if triangles > MAX_TRIANGLES {
+                return Err(gltf_error(format!("more than {MAX_TRIANGLES} triangles")));
+            }
+            mesh.push_object(&tris, objects.len() as u32);
+            objects.push(node.name().or(m.name()).unwrap_or("mesh").to_string());
+        }
+        stack.extend(node.children().map(|c| (c, world)));
+    }
+    finish(mesh, objects, scale)
+}
+
+/// A glTF file that cannot be read, with the reason.
+fn gltf_error(message: String) -> LoadError {
+    LoadError::Parse { format: "glTF", message }
+}
+
+/// Refuse a GLB header whose length is less than the header itself. glTF 2.0 §4.4.2: the
+/// length counts the whole file, header included; gltf 1.4.1 subtracts the header's 12
+/// bytes from it unchecked (found by the fuzzer).
+fn check_glb_length(bytes: &[u8]) -> Result<(), LoadError> {
     if let Some(length) = bytes.strip_prefix(b"glTF").and_then(|rest| rest.get(4..8)) {
         let length = u32::from_le_bytes(length.try_into().expect("four bytes"));
         if length < 12 {
-            return Err(LoadError::Parse {
-                format: "glTF",
-                message: format!(
-                    "the GLB header gives a length of {length} bytes, less than the header itself (12)"
-                ),
-            });
+            return Err(gltf_error(format!(
+                "the GLB header gives a length of {length} bytes, less than the header itself (12)"
+            )));
         }
     }
-    let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
-    // gltf-json 1.4.1's validation (mesh.rs, primitive_validate_hook) indexes the
-    // accessors with a primitive's POSITION index before checking it, and panics on
-    // one past the end (found by the glTF fuzzer): that index is checked here first.
-    let json = unchecked.document.as_json();
+    Ok(())
+}
+
+/// Refuse a primitive whose POSITION names an accessor past the end: gltf-json 1.4.1's
+/// validation (mesh.rs, primitive_validate_hook) indexes the accessors with it before
+/// checking it, and panics on one past the end (found by the glTF fuzzer).
+fn check_position_accessors(json: &gltf::json::Root) -> Result<(), LoadError> {
     let positions = gltf::Semantic::Positions;
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (p, prim) in mesh.primitives.iter().enumerate() {
             let position = prim.attributes.get(&gltf::json::validation::Checked::Valid(positions.clone()));
             if let Some(a) = position.filter(|a| a.value() >= json.accessors.len()) {
-                return Err(LoadError::Parse {
-                    format: "glTF",
-                    message: format!(
-                        "meshes[{m}].primitives[{p}].attributes.POSITION names accessor {}, but the file has {}",
-                        a.value(),
-                        json.accessors.len()
-                    ),
-                });
+                return Err(gltf_error(format!(
+                    "meshes[{m}].primitives[{p}].attributes.POSITION names accessor {}, but the file has {}",
+                    a.value(),
+                    json.accessors.len()
+                )));
             }
         }
     }
-    let blob = unchecked.blob;
-    let doc = gltf::Document::from_json(unchecked.document.into_json()).map_err(parse)?;
+    Ok(())
+}
+
+/// The bytes of every buffer of `doc` (at most [`MAX_BUFFERS`]): the GLB's BIN chunk
+/// `blob`, or what `buffer(uri)` supplies; each at least as long as the file says.
+fn gltf_buffers(
+    doc: &gltf::Document,
+    blob: Option<Vec<u8>>,
+    mut buffer: impl FnMut(&str) -> Result<Vec<u8>, String>,
+) -> Result<Vec<Vec<u8>>, LoadError> {
     if doc.buffers().len() > MAX_BUFFERS {
-        return Err(LoadError::Parse {
-            format: "glTF",
-            message: format!("{} buffers, more than the {MAX_BUFFERS} allowed", doc.buffers().len()),
-        });
+        return Err(gltf_error(format!(
+            "{} buffers, more than the {MAX_BUFFERS} allowed",
+            doc.buffers().len()
+        )));
     }
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
@@ -185,95 +234,58 @@ pub fn gltf(
             }
         };
         if data.len() < b.length() {
-            return Err(LoadError::Parse {
-                format: "glTF",
-                message: format!(
-                    "buffer {} holds {} bytes, the file says {}",
-                    b.index(),
-                    data.len(),
-                    b.length()
-                ),
-            });
+            return Err(gltf_error(format!(
+                "buffer {} holds {} bytes, the file says {}",
+                b.index(),
+                data.len(),
+                b.length()
+            )));
         }
         buffers.push(data);
     }
-    let mut mesh = Mesh::default();
-    let mut objects = Vec::new();
-    let scene = doc.default_scene().or_else(|| doc.scenes().next());
-    let mut stack: Vec<(gltf::Node, Mat4)> =
-        scene.iter().flat_map(|s| s.nodes()).map(|n| (n, Mat4::IDENTITY)).collect();
-    // glTF 2.0 §3.5.3: the nodes form disjoint trees, so each is reached once. A node
-    // reached twice is a cycle (which would never end) or a shared subtree (which could
-    // multiply the triangles exponentially): refused.
-    let mut reached = vec![false; doc.nodes().len()];
-    let mut triangles = 0usize;
-    while let Some((node, parent)) = stack.pop() {
-        if std::mem::replace(&mut reached[node.index()], true) {
-            return Err(LoadError::Parse {
-                format: "glTF",
-                message: format!(
-                    "node {} is reached twice: glTF nodes form disjoint trees (no cycles, no shared children)",
-                    node.index()
-                ),
-            });
+    Ok(buffers)
+}
+
+/// The triangles of the triangle-list primitives of mesh `m`, placed by the node's
+/// `world` transform; other primitive modes are skipped. Accessors are checked by
+/// [`readable`] before they are read.
+fn mesh_triangles(m: &gltf::Mesh, world: Mat4, buffers: &[Vec<u8>]) -> Result<Vec<[Vec3; 3]>, LoadError> {
+    let mut tris = Vec::new();
+    for prim in m.primitives() {
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            continue;
         }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if let Some(m) = node.mesh() {
-            let mut tris = Vec::new();
-            for prim in m.primitives() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    continue;
-                }
-                let bad = |reason: String| LoadError::Parse {
-                    format: "glTF",
-                    message: format!("mesh `{}`: {reason}", m.name().unwrap_or("?")),
-                };
-                if let Some(a) = prim.get(&gltf::Semantic::Positions) {
-                    let vec3_f32 = a.dimensions() == Dimensions::Vec3 && a.data_type() == DataType::F32;
-                    readable(&a, "POSITION", vec3_f32, "VEC3 of FLOAT").map_err(bad)?;
-                }
-                if let Some(a) = prim.indices() {
-                    let unsigned = matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32);
-                    let scalar = a.dimensions() == Dimensions::Scalar && unsigned;
-                    readable(&a, "indices", scalar, "SCALAR of UNSIGNED_BYTE, _SHORT or _INT")
-                        .map_err(bad)?;
-                }
-                let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-                let Some(positions) = reader.read_positions() else { continue };
-                let pos: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
-                let idx: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..pos.len() as u32).collect(),
-                };
-                for t in idx.chunks_exact(3) {
-                    let get = |i: u32| pos.get(i as usize).copied();
-                    match (get(t[0]), get(t[1]), get(t[2])) {
-                        (Some(a), Some(b), Some(c)) => tris.push([a, b, c]),
-                        _ => {
-                            return Err(LoadError::Parse {
-                                format: "glTF",
-                                message: format!(
-                                    "mesh `{}` has an index past its vertices",
-                                    m.name().unwrap_or("?")
-                                ),
-                            });
-                        }
-                    }
+        let bad = |reason: String| gltf_error(format!("mesh `{}`: {reason}", m.name().unwrap_or("?")));
+        if let Some(a) = prim.get(&gltf::Semantic::Positions) {
+            let vec3_f32 = a.dimensions() == Dimensions::Vec3 && a.data_type() == DataType::F32;
+            readable(&a, "POSITION", vec3_f32, "VEC3 of FLOAT").map_err(bad)?;
+        }
+        if let Some(a) = prim.indices() {
+            let unsigned = matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32);
+            let scalar = a.dimensions() == Dimensions::Scalar && unsigned;
+            readable(&a, "indices", scalar, "SCALAR of UNSIGNED_BYTE, _SHORT or _INT").map_err(bad)?;
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+        let Some(positions) = reader.read_positions() else { continue };
+        let pos: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
+        let idx: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..pos.len() as u32).collect(),
+        };
+        for t in idx.chunks_exact(3) {
+            let get = |i: u32| pos.get(i as usize).copied();
+            match (get(t[0]), get(t[1]), get(t[2])) {
+                (Some(a), Some(b), Some(c)) => tris.push([a, b, c]),
+                _ => {
+                    return Err(gltf_error(format!(
+                        "mesh `{}` has an index past its vertices",
+                        m.name().unwrap_or("?")
+                    )));
                 }
             }
-            triangles += tris.len();
-            if triangles > MAX_TRIANGLES {
-                return Err(LoadError::Parse {
-                    format: "glTF",
-                    message: format!("more than {MAX_TRIANGLES} triangles"),
-                });
-            }
-            mesh.push_object(&tris, objects.len() as u32);
-            objects.push(node.name().or(m.name()).unwrap_or("mesh").to_string());
         }
-        stack.extend(node.children().map(|c| (c, world)));
     }
-    finish(mesh, objects, scale)
+    Ok(tris)
 }
 
 /// Whether the `gltf` crate's accessor reader can read `a`: it trusts the element type,

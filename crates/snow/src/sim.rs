@@ -5,7 +5,7 @@
 
 use glam::{Vec2, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
-use phenomena_core::raster::{Cull, RasterError, Rasterizer, rasterize};
+use phenomena_core::raster::{Cull, DepthBuffer, RasterError, Rasterizer, rasterize};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
@@ -590,72 +590,14 @@ impl SnowSim {
             active.iter_mut().for_each(|b| b.fill(texels));
         }
         let mut next: Vec<Bits> = (0..maps).map(|_| Bits::new(texels)).collect();
-        let inner = &regions.inner;
-        let rise = tan * t;
+        let repose = Repose { rise_m: tan * t, tolerance_m: tol };
         for pass in 0..self.params.max_passes {
             let mut moved = false;
             for b in &mut next {
                 b.clear();
             }
             for mi in 0..maps {
-                let forward = pass % 2 == 0;
-                let mut cursor = if forward { 0 } else { texels };
-                loop {
-                    // The next marked texel in sweep order (marks made while visiting are
-                    // seen: a Gauss-Seidel sweep).
-                    let found =
-                        if forward { active[mi].next_from(cursor) } else { active[mi].prev_before(cursor) };
-                    let Some(k) = found else { break };
-                    cursor = if forward { k + 1 } else { k };
-                    let s = self.maps[mi].snow_m[k];
-                    if !(s > 0.0) {
-                        continue;
-                    }
-                    let h = self.maps[mi].surface(k);
-                    let mut steep = [(Target::Off, 0.0f32); 4];
-                    let mut count = 0usize;
-                    let mut largest = 0.0f32;
-                    let mut consider = |target: Target, h_n: f32| {
-                        let excess = h - h_n - rise;
-                        if excess > tol {
-                            steep[count] = (target, excess);
-                            count += 1;
-                            largest = largest.max(excess);
-                        }
-                    };
-                    if inner[mi].get(k) {
-                        // All four neighbours in this map's region: the common case,
-                        // in `neighbours`' order without its edge cases.
-                        let map = &self.maps[mi];
-                        for nk in [k - n, k + 1, k + n, k - 1] {
-                            consider(Target::Map(mi as u32, nk as u32), map.surface(nk));
-                        }
-                    } else {
-                        for (target, h_n) in self.neighbours(mi, k, rise) {
-                            consider(target, h_n);
-                        }
-                    }
-                    if count == 0 {
-                        continue;
-                    }
-                    moved = true;
-                    let share = (OVER_RELAXATION * 0.5 * largest).min(s) / count as f32;
-                    for &(target, _) in &steep[..count] {
-                        match target {
-                            Target::Map(o, nk) => {
-                                self.maps[o as usize].snow_m[nk as usize] += share;
-                                // Later texels of this pass and all of the next see it.
-                                mark(regions, n, &mut active, &mut next, o as usize, nk as usize, false);
-                            }
-                            Target::Off => {
-                                self.fallen_off_m3 += f64::from(share) * f64::from(t) * f64::from(t)
-                            }
-                        }
-                    }
-                    let left = &mut self.maps[mi].snow_m[k];
-                    *left = (*left - share * count as f32).max(0.0);
-                    mark(regions, n, &mut active, &mut next, mi, k, true);
-                }
+                moved |= self.sweep(regions, &mut active, &mut next, mi, pass % 2 == 0, repose);
             }
             if !moved {
                 return (pass, true);
@@ -666,6 +608,79 @@ impl SnowSim {
             }
         }
         (self.params.max_passes, false)
+    }
+
+    /// One pass of the local rule (§2.4.1) over the marked texels of map `mi`, `forward`
+    /// or backwards: each snow-covered texel with steep neighbours gives them equal shares
+    /// of half the largest excess times `OVER_RELAXATION` (at most all its snow); snow
+    /// past the scene's edge is counted as fallen off. The texels a change may have made
+    /// steep are marked in `active` (seen later in this pass: a Gauss-Seidel sweep) and
+    /// `next`. Returns whether any snow moved.
+    fn sweep(
+        &mut self,
+        regions: &Regions,
+        active: &mut [Bits],
+        next: &mut [Bits],
+        mi: usize,
+        forward: bool,
+        repose: Repose,
+    ) -> bool {
+        let n = self.footprint.n;
+        let t = self.footprint.texel_m;
+        let mut moved = false;
+        let mut cursor = if forward { 0 } else { n * n };
+        loop {
+            // The next marked texel in sweep order (marks made while visiting are seen).
+            let found = if forward { active[mi].next_from(cursor) } else { active[mi].prev_before(cursor) };
+            let Some(k) = found else { break };
+            cursor = if forward { k + 1 } else { k };
+            let s = self.maps[mi].snow_m[k];
+            if !(s > 0.0) {
+                continue;
+            }
+            let steep = self.steep_neighbours(regions, mi, k, repose);
+            if steep.count == 0 {
+                continue;
+            }
+            moved = true;
+            let share = (OVER_RELAXATION * 0.5 * steep.largest_m).min(s) / steep.count as f32;
+            for &(target, _) in &steep.to[..steep.count] {
+                match target {
+                    Target::Map(o, nk) => {
+                        self.maps[o as usize].snow_m[nk as usize] += share;
+                        // Later texels of this pass and all of the next see it.
+                        mark(regions, n, active, next, o as usize, nk as usize, false);
+                    }
+                    Target::Off => self.fallen_off_m3 += f64::from(share) * f64::from(t) * f64::from(t),
+                }
+            }
+            let left = &mut self.maps[mi].snow_m[k];
+            *left = (*left - share * steep.count as f32).max(0.0);
+            mark(regions, n, active, next, mi, k, true);
+        }
+        moved
+    }
+
+    /// The neighbours of texel `k` of map `mi` that lie lower than the repose allows, in
+    /// [`neighbours`]' order, with the excess of each drop over the repose.
+    #[inline]
+    fn steep_neighbours(&self, regions: &Regions, mi: usize, k: usize, repose: Repose) -> Steep {
+        let n = self.footprint.n;
+        let map = &self.maps[mi];
+        let h = map.surface(k);
+        let mut steep = Steep { to: [(Target::Off, 0.0f32); 4], count: 0, largest_m: 0.0 };
+        if regions.inner[mi].get(k) {
+            // All four neighbours in this map's region: the common case, in `neighbours`'
+            // order without its edge cases.
+            for nk in [k - n, k + 1, k + n, k - 1] {
+                steep.consider(Target::Map(mi as u32, nk as u32), h, map.surface(nk), repose);
+            }
+        } else {
+            for (target, h_n) in self.neighbours(mi, k, repose.rise_m) {
+                steep.consider(target, h, h_n, repose);
+            }
+        }
+        steep
     }
 
     /// Highest point of the scene plus a metre: where the top-down camera sits.
@@ -914,6 +929,37 @@ impl Bits {
     }
 }
 
+/// The angle of repose as the local rule tests it (§2.4.1): a drop to a neighbour is
+/// too steep when it exceeds `rise_m` (tan(repose) × texel width) by more than
+/// `tolerance_m`.
+#[derive(Clone, Copy, Debug)]
+struct Repose {
+    rise_m: f32,
+    tolerance_m: f32,
+}
+
+/// A texel's steep neighbours: where snow goes and by how much each drop exceeds the
+/// repose (m), the first `count` of `to`, and the largest excess.
+struct Steep {
+    to: [(Target, f32); 4],
+    count: usize,
+    largest_m: f32,
+}
+
+impl Steep {
+    /// Keep `target`, whose height `h_n` lies below the texel's `h`, if the drop exceeds
+    /// the repose.
+    #[inline]
+    fn consider(&mut self, target: Target, h: f32, h_n: f32, repose: Repose) {
+        let excess = h - h_n - repose.rise_m;
+        if excess > repose.tolerance_m {
+            self.to[self.count] = (target, excess);
+            self.count += 1;
+            self.largest_m = self.largest_m.max(excess);
+        }
+    }
+}
+
 /// Where moved snow goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Target {
@@ -988,41 +1034,60 @@ impl Exposure {
         params: &SnowConfig,
         silhouettes: bool,
     ) -> Result<(), SnowError> {
-        let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
-        let centre = 0.5 * (lo + hi);
-        let radius = 0.5 * (hi - lo).length() + 1.0;
-        let res = params.shadow_resolution as usize;
-        let px_m = 2.0 * radius / res as f32;
-        let bias = 2.0 * px_m;
-        let n = fp.n;
+        let depth_maps = DepthMaps::around(mesh, params)?;
         if !self.laid_out {
-            // Counted first, then written in place; the heights follow below.
-            self.counts.clear();
-            self.counts.extend(maps.iter().map(|m| m.ground_m.iter().filter(|g| !g.is_nan()).count()));
-            let total: usize = self.counts.iter().sum();
-            self.texel.resize(total, 0);
-            self.points.clear();
-            self.points.resize(total.div_ceil(8), [f32x8::splat(f32::NAN); 3]);
-            let mut i = 0;
-            for map in maps {
-                for (j, ground) in map.ground_m.chunks_exact(n).enumerate() {
-                    for (t, g) in ground.iter().enumerate() {
-                        if !g.is_nan() {
-                            let xz = fp.centre(t, j);
-                            self.texel[i] = (j * n + t) as u32;
-                            let [x, _, z] = &mut self.points[i / 8];
-                            x.as_mut_array()[i % 8] = xz.x;
-                            z.as_mut_array()[i % 8] = xz.y;
-                            i += 1;
-                        }
+            self.lay_out(maps, fp);
+        }
+        self.set_heights(maps);
+        let share = self.share_directions(directions.len(), silhouettes);
+        let points = &self.points;
+        self.workers.par_iter_mut().zip(directions.par_chunks(share)).try_for_each(
+            |(worker, directions)| {
+                let Worker { raster, exposed, near_outline } = worker;
+                for d in directions {
+                    let view = depth_maps.view(*d);
+                    let (buf, _) = raster.draw(&view, &mesh.triangles, None, cull)?;
+                    depth_maps.count_exposed(exposed, points, &view, buf.depth());
+                    depth_maps.count_near_outline(near_outline, points, &view, buf);
+                }
+                Ok::<(), SnowError>(())
+            },
+        )?;
+        self.sum_workers();
+        Ok(())
+    }
+
+    /// Number the snow-possible texels of `maps` (those with a ground) in map order and
+    /// write their x and z into the points; the heights are [`Exposure::set_heights`]'s.
+    fn lay_out(&mut self, maps: &[SnowMap], fp: &Footprint) {
+        let n = fp.n;
+        // Counted first, then written in place.
+        self.counts.clear();
+        self.counts.extend(maps.iter().map(|m| m.ground_m.iter().filter(|g| !g.is_nan()).count()));
+        let total: usize = self.counts.iter().sum();
+        self.texel.resize(total, 0);
+        self.points.clear();
+        self.points.resize(total.div_ceil(8), [f32x8::splat(f32::NAN); 3]);
+        let mut i = 0;
+        for map in maps {
+            for (j, ground) in map.ground_m.chunks_exact(n).enumerate() {
+                for (t, g) in ground.iter().enumerate() {
+                    if !g.is_nan() {
+                        let xz = fp.centre(t, j);
+                        self.texel[i] = (j * n + t) as u32;
+                        let [x, _, z] = &mut self.points[i / 8];
+                        x.as_mut_array()[i % 8] = xz.x;
+                        z.as_mut_array()[i % 8] = xz.y;
+                        i += 1;
                     }
                 }
             }
-            self.laid_out = true;
         }
-        let total = self.texel.len();
-        let groups = self.points.len();
-        // Surface heights, ground + snow.
+        self.laid_out = true;
+    }
+
+    /// The points' heights: the surface, ground + snow, m.
+    fn set_heights(&mut self, maps: &[SnowMap]) {
         let mut at = 0;
         for (map, &count) in maps.iter().zip(&self.counts) {
             for (i, &t) in (at..at + count).zip(&self.texel[at..at + count]) {
@@ -1031,14 +1096,18 @@ impl Exposure {
             }
             at += count;
         }
-        let (zero, limit, last) = (f32x8::ZERO, f32x8::splat(res as f32), f32x8::splat(res as f32 - 1.0));
-        // The directions in contiguous shares, one per thread, each drawn and tested on
-        // its thread into its own counts; the counts are whole numbers, so their sum does
-        // not depend on how the directions were shared.
-        let threads = rayon::current_num_threads().clamp(1, directions.len().max(1));
-        let share = directions.len().div_ceil(threads).max(1);
-        // As many workers as shares (which can be fewer than threads), every one cleared.
-        let workers = directions.len().div_ceil(share).max(1);
+    }
+
+    /// Share `directions` directions among the threads in contiguous shares, one worker
+    /// per share, every one cleared (with silhouette counts when `silhouettes`); returns
+    /// the share. Each share is drawn and tested on its thread into its own counts: the
+    /// counts are whole numbers, so their sum does not depend on how they were shared.
+    fn share_directions(&mut self, directions: usize, silhouettes: bool) -> usize {
+        let (total, groups) = (self.texel.len(), self.points.len());
+        let threads = rayon::current_num_threads().clamp(1, directions.max(1));
+        let share = directions.div_ceil(threads).max(1);
+        // As many workers as shares (which can be fewer than threads).
+        let workers = directions.div_ceil(share).max(1);
         self.workers.truncate(workers);
         self.workers.resize_with(workers, || Worker { raster: Rasterizer::serial(), ..Worker::default() });
         for Worker { exposed, near_outline, .. } in &mut self.workers {
@@ -1047,65 +1116,11 @@ impl Exposure {
             near_outline.clear();
             near_outline.resize(if silhouettes { total } else { 0 }, 0);
         }
-        let points = &self.points;
-        self.workers.par_iter_mut().zip(directions.par_chunks(share)).try_for_each(
-            |(worker, directions)| {
-                let Worker { raster, exposed, near_outline } = worker;
-                for d in directions {
-                    // Looking down the snowfall direction from above the scene.
-                    let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
-                    let view = Camera {
-                        position: centre - *d * (2.0 * radius),
-                        look_at: centre,
-                        up,
-                        projection: Projection::Orthographic { height_m: 2.0 * radius },
-                    }
-                    .view(res, res)
-                    .expect("a valid direction camera");
-                    let [ax, ay, az] = view
-                        .orthographic_affine()
-                        .expect("an orthographic view")
-                        .map(|r| r.to_array().map(f32x8::splat));
-                    let (buf, _) = raster.draw(&view, &mesh.triangles, None, cull)?;
-                    let depth = buf.depth();
-                    let width = i32x8::splat(res as i32);
-                    // Eight points at a time.
-                    for (c, &[x, y, z]) in exposed.iter_mut().zip(points) {
-                        let qx = x * ax[0] + y * ax[1] + z * ax[2] + ax[3];
-                        let qy = x * ay[0] + y * ay[1] + z * ay[2] + ay[3];
-                        let qd = x * az[0] + y * az[1] + z * az[2] + az[3];
-                        // Outside the scene's depth map nothing is in the way.
-                        let inside =
-                            qx.simd_ge(zero) & qy.simd_ge(zero) & qx.simd_lt(limit) & qy.simd_lt(limit);
-                        // Pixel indices, clamped (NaN → 0) so that every lane reads a real
-                        // pixel; for coordinates in [0, res) truncation is the floor.
-                        let ix = qx.max(zero).min(last).trunc_int();
-                        let iy = qy.max(zero).min(last).trunc_int();
-                        let d = f32x8::from((iy * width + ix).to_array().map(|k| depth[k as usize]));
-                        *c += (!inside | qd.simd_le(d + bias)) & f32x8::ONE;
-                    }
-                    for (i, e) in near_outline.iter_mut().enumerate() {
-                        let p = Vec3::from_array(points[i / 8].map(|l| l.as_array()[i % 8]));
-                        let Some(q) = view.project(p) else { continue };
-                        let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                        for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
-                            let (px, py) = (x + dx, y + dy);
-                            if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
-                                let d = buf.depth_at(px as usize, py as usize);
-                                // Empty pixels (no surface) count as very far.
-                                let d = if d.is_finite() { d } else { 1e9 };
-                                lo = lo.min(d);
-                                hi = hi.max(d);
-                            }
-                        }
-                        *e += u16::from(hi - lo > 10.0 * px_m);
-                    }
-                }
-                Ok::<(), SnowError>(())
-            },
-        )?;
-        // Sum the shares into the first worker's counts.
+        share
+    }
+
+    /// Sum the workers' counts into the first worker's.
+    fn sum_workers(&mut self) {
         let (first, rest) = self.workers.split_first_mut().expect("a worker");
         if !rest.is_empty() {
             const CHUNK: usize = 1024;
@@ -1122,7 +1137,6 @@ impl Exposure {
                 }
             }
         }
-        Ok(())
     }
 
     /// Write `f(point)` into each map's texels (`out[m][texel]`); other texels keep
@@ -1140,6 +1154,103 @@ impl Exposure {
     /// Exposed directions of point `i`.
     fn exposed(&self, i: usize) -> f32 {
         self.workers[0].exposed[i / 8].as_array()[i % 8]
+    }
+}
+
+/// The depth maps of the exposure test (§2.2.3): orthographic views of `res` × `res`
+/// pixels covering the scene's bounding sphere, one along each snowfall direction.
+struct DepthMaps {
+    /// Centre of the scene's bounds, m.
+    centre: Vec3,
+    /// Radius of the sphere the views cover (half the bounds' diagonal plus a metre), m.
+    radius_m: f32,
+    /// Pixels per side.
+    res: usize,
+    /// Width of a pixel, m.
+    px_m: f32,
+    /// How far behind the depth map a point may lie and still be exposed (two pixel
+    /// widths), m.
+    bias_m: f32,
+}
+
+impl DepthMaps {
+    /// The depth maps around `mesh` at the configured shadow resolution.
+    fn around(mesh: &Mesh, params: &SnowConfig) -> Result<Self, SnowError> {
+        let (lo, hi) = mesh.bounds().ok_or(SnowError::NoSnowSurface)?;
+        let centre = 0.5 * (lo + hi);
+        let radius_m = 0.5 * (hi - lo).length() + 1.0;
+        let res = params.shadow_resolution as usize;
+        let px_m = 2.0 * radius_m / res as f32;
+        Ok(Self { centre, radius_m, res, px_m, bias_m: 2.0 * px_m })
+    }
+
+    /// The view down the snowfall direction `d`, from above the scene.
+    fn view(&self, d: Vec3) -> CameraView {
+        let up = if d.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
+        Camera {
+            position: self.centre - d * (2.0 * self.radius_m),
+            look_at: self.centre,
+            up,
+            projection: Projection::Orthographic { height_m: 2.0 * self.radius_m },
+        }
+        .view(self.res, self.res)
+        .expect("a valid direction camera")
+    }
+
+    /// Add 1 to `exposed` for every point (eight at a time) that `view`'s depth map
+    /// `depth` does not hide: outside the map, or not behind its depth by more than the
+    /// bias.
+    #[inline]
+    fn count_exposed(&self, exposed: &mut [f32x8], points: &[[f32x8; 3]], view: &CameraView, depth: &[f32]) {
+        let res = self.res;
+        let (zero, limit, last) = (f32x8::ZERO, f32x8::splat(res as f32), f32x8::splat(res as f32 - 1.0));
+        let bias = self.bias_m;
+        let [ax, ay, az] =
+            view.orthographic_affine().expect("an orthographic view").map(|r| r.to_array().map(f32x8::splat));
+        let width = i32x8::splat(res as i32);
+        for (c, &[x, y, z]) in exposed.iter_mut().zip(points) {
+            let qx = x * ax[0] + y * ax[1] + z * ax[2] + ax[3];
+            let qy = x * ay[0] + y * ay[1] + z * ay[2] + ay[3];
+            let qd = x * az[0] + y * az[1] + z * az[2] + az[3];
+            // Outside the scene's depth map nothing is in the way.
+            let inside = qx.simd_ge(zero) & qy.simd_ge(zero) & qx.simd_lt(limit) & qy.simd_lt(limit);
+            // Pixel indices, clamped (NaN → 0) so that every lane reads a real pixel; for
+            // coordinates in [0, res) truncation is the floor.
+            let ix = qx.max(zero).min(last).trunc_int();
+            let iy = qy.max(zero).min(last).trunc_int();
+            let d = f32x8::from((iy * width + ix).to_array().map(|k| depth[k as usize]));
+            *c += (!inside | qd.simd_le(d + bias)) & f32x8::ONE;
+        }
+    }
+
+    /// Add 1 to `near_outline` for every point whose sample in `view`'s depth map `buf`
+    /// lies next to a silhouette: over its pixel and the 4 neighbours the depth spans more
+    /// than 10 pixel widths (empty pixels count as very far).
+    fn count_near_outline(
+        &self,
+        near_outline: &mut [u16],
+        points: &[[f32x8; 3]],
+        view: &CameraView,
+        buf: &DepthBuffer,
+    ) {
+        let res = self.res;
+        for (i, e) in near_outline.iter_mut().enumerate() {
+            let p = Vec3::from_array(points[i / 8].map(|l| l.as_array()[i % 8]));
+            let Some(q) = view.project(p) else { continue };
+            let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for (dx, dy) in [(0i64, 0i64), (1, 0), (-1, 0), (0, 1), (0, -1)] {
+                let (px, py) = (x + dx, y + dy);
+                if px >= 0 && py >= 0 && (px as usize) < res && (py as usize) < res {
+                    let d = buf.depth_at(px as usize, py as usize);
+                    // Empty pixels (no surface) count as very far.
+                    let d = if d.is_finite() { d } else { 1e9 };
+                    lo = lo.min(d);
+                    hi = hi.max(d);
+                }
+            }
+            *e += u16::from(hi - lo > 10.0 * self.px_m);
+        }
     }
 }
 

@@ -103,6 +103,19 @@ pub enum Light {
 }
 
 impl Light {
+    /// The `[light]` table's problems, into `i`.
+    fn validate(&self, i: &mut Issues) {
+        match *self {
+            Light::Sun { azimuth_deg, elevation_deg, azimuth_rate_deg_per_s, elevation_rate_deg_per_s } => {
+                i.range("light.azimuth_deg", azimuth_deg, -3600.0..=3600.0);
+                i.range("light.elevation_deg", elevation_deg, -90.0..=90.0);
+                i.range("light.azimuth_rate_deg_per_s", azimuth_rate_deg_per_s, -360.0..=360.0);
+                i.range("light.elevation_rate_deg_per_s", elevation_rate_deg_per_s, -90.0..=90.0);
+            }
+            Light::Point { position_m } => i.vector("light.position_m", &position_m.to_array(), 1e7),
+        }
+    }
+
     /// Where the light is at time `t_s`.
     pub fn at(&self, t_s: f32) -> LightAt {
         match *self {
@@ -303,64 +316,12 @@ impl SparkleConfig {
         i.range_open_low("phong.light_intensity", p.light_intensity, 0.0, 1e9);
         i.range("phong.threshold_i_e", p.threshold_i_e, 0.0..=1e9);
         i.range_open_low("phong.exponent_n", p.exponent_n, 0.0, 1e8);
-        match self.light {
-            Light::Sun { azimuth_deg, elevation_deg, azimuth_rate_deg_per_s, elevation_rate_deg_per_s } => {
-                i.range("light.azimuth_deg", azimuth_deg, -3600.0..=3600.0);
-                i.range("light.elevation_deg", elevation_deg, -90.0..=90.0);
-                i.range("light.azimuth_rate_deg_per_s", azimuth_rate_deg_per_s, -360.0..=360.0);
-                i.range("light.elevation_rate_deg_per_s", elevation_rate_deg_per_s, -90.0..=90.0);
-            }
-            Light::Point { position_m } => i.vector("light.position_m", &position_m.to_array(), 1e7),
-        }
+        self.light.validate(&mut i);
         self.camera.validate_planar(&mut i, "camera");
         let n = self.virtual_count();
         match self.population {
-            Population::DiamondDust(d) => {
-                let f = "population";
-                i.vector(&format!("{f}.box_min_m"), &d.box_min_m.to_array(), 1e6);
-                i.vector(&format!("{f}.box_max_m"), &d.box_max_m.to_array(), 1e6);
-                if d.box_min_m.is_finite() && d.box_max_m.is_finite() && !d.box_min_m.cmplt(d.box_max_m).all()
-                {
-                    i.push(
-                        format!("{f}.box_max_m"),
-                        format!("{:?}", d.box_max_m.to_array()),
-                        format!("every component above box_min_m {:?}", d.box_min_m.to_array()),
-                    );
-                }
-                if !(d.density_per_m3 > 0.0 && d.density_per_m3 <= 1e12) {
-                    i.push(
-                        format!("{f}.density_per_m3"),
-                        d.density_per_m3,
-                        "a value in (0, 1e12] crystals per m³",
-                    );
-                }
-                i.range(&format!("{f}.fall_speed_m_per_s"), d.fall_speed_m_per_s, -100.0..=100.0);
-                i.vector(&format!("{f}.wind_m_per_s"), &d.wind_m_per_s.to_array(), 100.0);
-                i.range(&format!("{f}.gust_m_per_s"), d.gust_m_per_s, 0.0..=100.0);
-                i.range(&format!("{f}.turbulence_m_per_s"), d.turbulence_m_per_s, 0.0..=100.0);
-                i.range(&format!("{f}.rotation_deg_per_frame"), d.rotation_deg_per_frame, 0.0..=90.0);
-                if let Normals::Plates { tilt_deg } = d.normals {
-                    i.range_open_low(&format!("{f}.normals.tilt_deg"), tilt_deg, 0.0, 90.0);
-                }
-                if d.box_min_m.is_finite() && d.box_max_m.is_finite() {
-                    let v = (d.box_max_m - d.box_min_m).as_dvec3();
-                    let count = d.density_per_m3 * v.x.max(0.0) * v.y.max(0.0) * v.z.max(0.0);
-                    if count > MAX_VIRTUAL {
-                        i.push(
-                            format!("{f}.density_per_m3"),
-                            d.density_per_m3,
-                            format!("at most {MAX_VIRTUAL:e} crystals in the box (this gives {count:.3e})"),
-                        );
-                    }
-                }
-            }
-            Population::LeafGlitter(l) => {
-                let f = "population";
-                i.vector(&format!("{f}.centre_m"), &l.centre_m.to_array(), 1e6);
-                i.range_open_low(&format!("{f}.radius_m"), l.radius_m, 0.0, 1e5);
-                i.count(&format!("{f}.count"), l.count, 1..=MAX_VIRTUAL as u64);
-                i.range_open_low(&format!("{f}.spread_deg"), l.spread_deg, 0.0, 180.0);
-            }
+            Population::DiamondDust(d) => d.validate(&mut i),
+            Population::LeafGlitter(l) => l.validate(&mut i),
         }
         if self.method == Method::BruteForce && n > MAX_BRUTE_FORCE {
             i.push(
@@ -370,60 +331,67 @@ impl SparkleConfig {
             );
         }
         if i.is_empty() {
-            let margin = self.step_rotation_rad();
-            if let Some(c) = p.cos_theta() {
-                let theta = c.acos();
-                if p.two_sided && theta + margin >= std::f64::consts::FRAC_PI_2 - 1e-3 {
-                    i.push(
-                        "phong.threshold_i_e",
-                        p.threshold_i_e,
-                        format!(
-                            "a cone narrower than 90° for two-sided facets (θ = {:.1}° plus the rotation per frame): raise the threshold or the exponent",
-                            theta.to_degrees()
-                        ),
-                    );
-                }
-                if theta.to_degrees() < MIN_CONE_DEG {
-                    i.push(
-                        "phong.exponent_n",
-                        p.exponent_n,
-                        format!(
-                            "a visible cone of at least {MIN_CONE_DEG}° (this one is {:.4}°): lower the exponent or the threshold",
-                            theta.to_degrees()
-                        ),
-                    );
-                }
-                if self.method == Method::Stochastic {
-                    let sides = if p.two_sided { 2.0 } else { 1.0 };
-                    let cap = 0.5 * sides * (1.0 - (theta + margin + 1e-4).min(std::f64::consts::PI).cos());
-                    let uniform = matches!(
-                        self.population,
-                        Population::DiamondDust(Dust { normals: Normals::Uniform, .. })
-                    );
-                    if uniform && n as f64 * cap > MAX_CANDIDATES {
-                        i.push(
-                            "phong.threshold_i_e",
-                            p.threshold_i_e,
-                            format!(
-                                "fewer than {MAX_CANDIDATES:e} candidate facets per frame: the cone plus a frame's rotation gives {:.3e}; raise the threshold or the exponent, lower the rotation or the count",
-                                n as f64 * cap
-                            ),
-                        );
-                    }
-                }
-                let expected = n as f64 * self.upper_fraction();
-                if expected > MAX_EXPECTED_VISIBLE {
-                    i.push(
-                        "phong.threshold_i_e",
-                        p.threshold_i_e,
-                        format!(
-                            "fewer than {MAX_EXPECTED_VISIBLE:e} visible particles: this cone would show about {expected:.3e}; raise the threshold, the exponent or lower the count"
-                        ),
-                    );
-                }
-            }
+            self.validate_cone(n, &mut i);
         }
         i.into_result()
+    }
+
+    /// The `[phong]` cone (§2: the facets whose N·H reaches the threshold's cos θ) in a
+    /// configuration otherwise valid, for a population of `n`: narrower than 90° (with a
+    /// frame's rotation) for two-sided facets, at least [`MIN_CONE_DEG`] wide, and giving
+    /// at most [`MAX_CANDIDATES`] candidates (stochastic, uniform normals) and
+    /// [`MAX_EXPECTED_VISIBLE`] visible particles per frame.
+    fn validate_cone(&self, n: u64, i: &mut Issues) {
+        let p = &self.phong;
+        let margin = self.step_rotation_rad();
+        let Some(c) = p.cos_theta() else { return };
+        let theta = c.acos();
+        if p.two_sided && theta + margin >= std::f64::consts::FRAC_PI_2 - 1e-3 {
+            i.push(
+                "phong.threshold_i_e",
+                p.threshold_i_e,
+                format!(
+                    "a cone narrower than 90° for two-sided facets (θ = {:.1}° plus the rotation per frame): raise the threshold or the exponent",
+                    theta.to_degrees()
+                ),
+            );
+        }
+        if theta.to_degrees() < MIN_CONE_DEG {
+            i.push(
+                "phong.exponent_n",
+                p.exponent_n,
+                format!(
+                    "a visible cone of at least {MIN_CONE_DEG}° (this one is {:.4}°): lower the exponent or the threshold",
+                    theta.to_degrees()
+                ),
+            );
+        }
+        if self.method == Method::Stochastic {
+            let sides = if p.two_sided { 2.0 } else { 1.0 };
+            let cap = 0.5 * sides * (1.0 - (theta + margin + 1e-4).min(std::f64::consts::PI).cos());
+            let uniform =
+                matches!(self.population, Population::DiamondDust(Dust { normals: Normals::Uniform, .. }));
+            if uniform && n as f64 * cap > MAX_CANDIDATES {
+                i.push(
+                    "phong.threshold_i_e",
+                    p.threshold_i_e,
+                    format!(
+                        "fewer than {MAX_CANDIDATES:e} candidate facets per frame: the cone plus a frame's rotation gives {:.3e}; raise the threshold or the exponent, lower the rotation or the count",
+                        n as f64 * cap
+                    ),
+                );
+            }
+        }
+        let expected = n as f64 * self.upper_fraction();
+        if expected > MAX_EXPECTED_VISIBLE {
+            i.push(
+                "phong.threshold_i_e",
+                p.threshold_i_e,
+                format!(
+                    "fewer than {MAX_EXPECTED_VISIBLE:e} visible particles: this cone would show about {expected:.3e}; raise the threshold, the exponent or lower the count"
+                ),
+            );
+        }
     }
 
     /// Largest rotation of a normal in one frame, radians (0 for static leaves).
@@ -449,6 +417,56 @@ impl SparkleConfig {
             Population::DiamondDust(Dust { normals: Normals::Uniform, .. }) => self.phong.uniform_fraction(),
             _ => 0.0,
         }
+    }
+}
+
+impl Dust {
+    /// The `[population]` table's problems for diamond dust, into `i`: the box, the
+    /// density (with at most [`MAX_VIRTUAL`] crystals in the box) and the motion.
+    fn validate(&self, i: &mut Issues) {
+        let (d, f) = (self, "population");
+        i.vector(&format!("{f}.box_min_m"), &d.box_min_m.to_array(), 1e6);
+        i.vector(&format!("{f}.box_max_m"), &d.box_max_m.to_array(), 1e6);
+        if d.box_min_m.is_finite() && d.box_max_m.is_finite() && !d.box_min_m.cmplt(d.box_max_m).all() {
+            i.push(
+                format!("{f}.box_max_m"),
+                format!("{:?}", d.box_max_m.to_array()),
+                format!("every component above box_min_m {:?}", d.box_min_m.to_array()),
+            );
+        }
+        if !(d.density_per_m3 > 0.0 && d.density_per_m3 <= 1e12) {
+            i.push(format!("{f}.density_per_m3"), d.density_per_m3, "a value in (0, 1e12] crystals per m³");
+        }
+        i.range(&format!("{f}.fall_speed_m_per_s"), d.fall_speed_m_per_s, -100.0..=100.0);
+        i.vector(&format!("{f}.wind_m_per_s"), &d.wind_m_per_s.to_array(), 100.0);
+        i.range(&format!("{f}.gust_m_per_s"), d.gust_m_per_s, 0.0..=100.0);
+        i.range(&format!("{f}.turbulence_m_per_s"), d.turbulence_m_per_s, 0.0..=100.0);
+        i.range(&format!("{f}.rotation_deg_per_frame"), d.rotation_deg_per_frame, 0.0..=90.0);
+        if let Normals::Plates { tilt_deg } = d.normals {
+            i.range_open_low(&format!("{f}.normals.tilt_deg"), tilt_deg, 0.0, 90.0);
+        }
+        if d.box_min_m.is_finite() && d.box_max_m.is_finite() {
+            let v = (d.box_max_m - d.box_min_m).as_dvec3();
+            let count = d.density_per_m3 * v.x.max(0.0) * v.y.max(0.0) * v.z.max(0.0);
+            if count > MAX_VIRTUAL {
+                i.push(
+                    format!("{f}.density_per_m3"),
+                    d.density_per_m3,
+                    format!("at most {MAX_VIRTUAL:e} crystals in the box (this gives {count:.3e})"),
+                );
+            }
+        }
+    }
+}
+
+impl Leaves {
+    /// The `[population]` table's problems for leaf glitter, into `i`.
+    fn validate(&self, i: &mut Issues) {
+        let (l, f) = (self, "population");
+        i.vector(&format!("{f}.centre_m"), &l.centre_m.to_array(), 1e6);
+        i.range_open_low(&format!("{f}.radius_m"), l.radius_m, 0.0, 1e5);
+        i.count(&format!("{f}.count"), l.count, 1..=MAX_VIRTUAL as u64);
+        i.range_open_low(&format!("{f}.spread_deg"), l.spread_deg, 0.0, 180.0);
     }
 }
 

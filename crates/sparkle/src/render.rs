@@ -228,47 +228,11 @@ impl phenomena_core::phenomenon::Renderer<SparkleSim> for SparkleRenderer {
 /// each band adds its glints in glint order: every pixel sums in the same order for any
 /// thread count. Each band writes its rows of the frame once (background + glints).
 fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, view: &CameraView) {
-    let g = sim.glints();
-    let peak = sim.config().phong.specular_k_s * sim.config().phong.light_intensity;
     let colour = Vec3::from(s.light_rgb) * s.glint_gain;
-    let rays = s.glare.rays();
     let (wu, hu) = (frame.width(), frame.height());
-    let (w, h) = (wu as f32, hu as f32);
-    let (glare_length, glare_threshold) = (s.glare_length_px, s.glare_threshold);
-    let glare = !rays.is_empty();
-    let eye = sim.config().camera.position;
-    let falloff2 = s.falloff_from_m * s.falloff_from_m;
-    // Glints are projected chunk by chunk in parallel; each chunk files its dots on
-    // screen by band (a dot whose footprint spans two bands in both), keeping glint
-    // order. A band then reads its run from every chunk in chunk order: glint order.
     let bands = hu.div_ceil(BAND_ROWS);
-    let screen = Screen {
-        pinhole: view.pinhole(),
-        eye,
-        falloff2,
-        peak,
-        glare_length: if glare { glare_length } else { 0.0 },
-        glare_threshold,
-        size: (w, h),
-        last_band: bands as u32 - 1,
-    };
-    let chunks: Vec<Filed<Dot>> = g
-        .position_m
-        .par_chunks(PROJECT_CHUNK)
-        .zip(g.intensity.par_chunks(PROJECT_CHUNK))
-        .map(|(xs, is)| {
-            let mut dots = Vec::with_capacity(xs.len());
-            for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
-                screen.place(view, xc, ic, |d, lo, hi| dots.push((d, lo, hi)));
-            }
-            Filed::file(bands, dots.len(), |i| Some((dots[i].1, dots[i].2)), |i| dots[i].0)
-        })
-        .collect();
-    let glare_strength = s.glare_strength;
-    let axis_rays = rays.iter().all(|&(dx, dy)| dx.fract() == 0.0 && dy.fract() == 0.0);
-    let whole_rays: Vec<(i64, i64)> = rays.iter().map(|&(dx, dy)| (dx as i64, dy as i64)).collect();
-    let glare8 = f32x8::splat(glare_strength);
-    let first_steps = f32x8::from([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
+    let chunks = project_glints(s, sim, view, (wu, hu), bands);
+    let glare = Glare::of(s);
     let [c0, c1, c2] = frame.planes_mut();
     let stride = BAND_ROWS * wu;
     let (b0, b1, b2) = (bg.c0.data(), bg.c1.data(), bg.c2.data());
@@ -280,94 +244,9 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
         .for_each(|(b, ((r, gr), bl))| {
             // Every glint has the light's colour: the band sums brightness in one
             // plane, coloured once at the end.
-            let row0 = (b * BAND_ROWS) as i64;
-            let rows = (r.len() / wu) as i64;
+            let band = BandRows { width: wu, row0: (b * BAND_ROWS) as i64, rows: (r.len() / wu) as i64 };
             let mut sum = vec![0.0f32; r.len()];
-            let mut fall = [0.0f32; MAX_RAY_PX.next_multiple_of(LANES)];
-            let add = |sum: &mut [f32], i: i64, j: i64, v: f32| {
-                let jj = j - row0;
-                if i >= 0 && (i as usize) < wu && jj >= 0 && jj < rows {
-                    sum[jj as usize * wu + i as usize] += v;
-                }
-            };
-            for filed in &chunks {
-                for group in filed.band(b).chunks(LANES) {
-                    let four = Bilinear::of(group);
-                    for (k, d) in group.iter().enumerate() {
-                        let (x, y, v, len) = (d.x, d.y, d.value, d.len);
-                        if four.inside & (1 << k) != 0 {
-                            let (i0, j0) = (i64::from(four.i0[k]), i64::from(four.j0[k]));
-                            let shares =
-                                [four.share[0][k], four.share[1][k], four.share[2][k], four.share[3][k]];
-                            if i0 >= 0 && i0 + 1 < wu as i64 && j0 >= row0 && j0 + 1 < row0 + rows {
-                                // All four pixels in the band (most dots).
-                                let at = (j0 - row0) as usize * wu + i0 as usize;
-                                sum[at] += shares[0];
-                                sum[at + 1] += shares[1];
-                                sum[at + wu] += shares[2];
-                                sum[at + wu + 1] += shares[3];
-                            } else {
-                                add(&mut sum, i0, j0, shares[0]);
-                                add(&mut sum, i0 + 1, j0, shares[1]);
-                                add(&mut sum, i0, j0 + 1, shares[2]);
-                                add(&mut sum, i0 + 1, j0 + 1, shares[3]);
-                            }
-                        }
-                        if len == 0.0 {
-                            continue;
-                        }
-                        // Ray pixels at `step` px along each ray, step = 1..=len, falling
-                        // off as (1 - step/len)²; the weights are the same on every ray.
-                        // Eight steps at a time; the steps past t = 1 are not used.
-                        let steps = (len.ceil() as usize).min(MAX_RAY_PX);
-                        let inv = 1.0 / len;
-                        let (inv8, v8) = (f32x8::splat(inv), f32x8::splat(v));
-                        let mut n = 0;
-                        for (base, f) in (0..steps).step_by(LANES).zip(fall.chunks_exact_mut(LANES)) {
-                            let t = (first_steps + f32x8::splat(base as f32)) * inv8;
-                            let near = f32x8::ONE - t;
-                            f.copy_from_slice(&(v8 * near * near * glare8 * inv8).to_array());
-                            let within = (steps - base).min(LANES);
-                            n += (t.simd_le(f32x8::ONE).to_bitmask() & ((1u32 << within) - 1)).count_ones()
-                                as usize;
-                        }
-                        if axis_rays {
-                            // Whole-pixel offsets from the glint's own pixel, clipped to
-                            // the band and the image once per ray.
-                            let (xi, yi) = (floor_i64(x), floor_i64(y));
-                            for &(dx, dy) in &whole_rays {
-                                let (mut lo, mut hi) = (1i64, n as i64);
-                                for (p, d, limit_lo, limit_hi) in
-                                    [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)]
-                                {
-                                    // limit_lo ≤ p + d·step ≤ limit_hi
-                                    match d {
-                                        0 if p < limit_lo || p > limit_hi => hi = 0,
-                                        1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
-                                        -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
-                                        _ => {}
-                                    }
-                                }
-                                for step in lo..=hi {
-                                    let at =
-                                        (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
-                                    sum[at] += fall[step as usize - 1];
-                                }
-                            }
-                        } else {
-                            for &(dx, dy) in rays {
-                                for (step, f) in fall.iter().enumerate().take(n) {
-                                    let step = (step + 1) as f32;
-                                    let (qx, qy) = (x + dx * step, y + dy * step);
-                                    if qx >= 0.0 && qy >= 0.0 {
-                                        add(&mut sum, qx as i64, qy as i64, *f);
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-            }
+            band.add_glints(&chunks, b, &glare, &mut sum);
             let at = b * stride;
             let (b0, b1, b2) = (&b0[at..at + r.len()], &b1[at..at + r.len()], &b2[at..at + r.len()]);
             for (k, v) in sum.iter().enumerate() {
@@ -376,6 +255,202 @@ fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, vi
                 bl[k] = b2[k] + colour.z * v;
             }
         });
+}
+
+/// Every glint projected to a dot on screen (brightness with the distance falloff and
+/// glare length of [`RenderSettings`]) and filed by the `bands` of [`BAND_ROWS`] rows its
+/// footprint touches (a dot spanning two bands in both). Chunks of [`PROJECT_CHUNK`]
+/// glints are projected in parallel, each keeping glint order: a band reading its run
+/// from every chunk in chunk order reads its dots in glint order.
+fn project_glints(
+    s: &RenderSettings,
+    sim: &SparkleSim,
+    view: &CameraView,
+    (width_px, height_px): (usize, usize),
+    bands: usize,
+) -> Vec<Filed<Dot>> {
+    let g = sim.glints();
+    let glare = !s.glare.rays().is_empty();
+    let screen = Screen {
+        pinhole: view.pinhole(),
+        eye: sim.config().camera.position,
+        falloff2: s.falloff_from_m * s.falloff_from_m,
+        peak: sim.config().phong.specular_k_s * sim.config().phong.light_intensity,
+        glare_length: if glare { s.glare_length_px } else { 0.0 },
+        glare_threshold: s.glare_threshold,
+        size: (width_px as f32, height_px as f32),
+        last_band: bands as u32 - 1,
+    };
+    g.position_m
+        .par_chunks(PROJECT_CHUNK)
+        .zip(g.intensity.par_chunks(PROJECT_CHUNK))
+        .map(|(xs, is)| {
+            let mut dots = Vec::with_capacity(xs.len());
+            for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
+                screen.place(view, xc, ic, |d, lo, hi| dots.push((d, lo, hi)));
+            }
+            Filed::file(bands, dots.len(), |i| Some((dots[i].1, dots[i].2)), |i| dots[i].0)
+        })
+        .collect()
+}
+
+/// Length of the per-ray glare weights: [`MAX_RAY_PX`] steps in whole lanes.
+const FALL_LEN: usize = MAX_RAY_PX.next_multiple_of(LANES);
+
+/// The glare rays drawn around bright glints.
+struct Glare<'a> {
+    /// Unit directions of the rays, px (y down).
+    rays: &'a [(f32, f32)],
+    /// Whether every ray runs along a pixel axis (whole-pixel steps).
+    axis_rays: bool,
+    /// The directions as whole-pixel offsets (used when `axis_rays`).
+    whole_rays: Vec<(i64, i64)>,
+    /// Glare brightness relative to the glint's, in every lane.
+    strength: f32x8,
+    /// Steps 1..=8 along a ray, px.
+    first_steps: f32x8,
+}
+
+impl<'a> Glare<'a> {
+    /// The glare `s` asks for.
+    fn of(s: &'a RenderSettings) -> Self {
+        let rays = s.glare.rays();
+        Self {
+            rays,
+            axis_rays: rays.iter().all(|&(dx, dy)| dx.fract() == 0.0 && dy.fract() == 0.0),
+            whole_rays: rays.iter().map(|&(dx, dy)| (dx as i64, dy as i64)).collect(),
+            strength: f32x8::splat(s.glare_strength),
+            first_steps: f32x8::from([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]),
+        }
+    }
+
+    /// The brightness of the ray pixels of a glint of brightness `v` and glare length
+    /// `len` px, into `fall[step - 1]`: at `step` px along each ray, step = 1..=len,
+    /// falling off as (1 - step/len)² (the same on every ray). Eight steps at a time;
+    /// returns the number of steps within the ray (t ≤ 1), the later ones are not used.
+    #[inline]
+    fn falloff(&self, len: f32, v: f32, fall: &mut [f32; FALL_LEN]) -> usize {
+        let steps = (len.ceil() as usize).min(MAX_RAY_PX);
+        let inv = 1.0 / len;
+        let (inv8, v8) = (f32x8::splat(inv), f32x8::splat(v));
+        let mut n = 0;
+        for (base, f) in (0..steps).step_by(LANES).zip(fall.chunks_exact_mut(LANES)) {
+            let t = (self.first_steps + f32x8::splat(base as f32)) * inv8;
+            let near = f32x8::ONE - t;
+            f.copy_from_slice(&(v8 * near * near * self.strength * inv8).to_array());
+            let within = (steps - base).min(LANES);
+            n += (t.simd_le(f32x8::ONE).to_bitmask() & ((1u32 << within) - 1)).count_ones() as usize;
+        }
+        n
+    }
+}
+
+/// The rows of the image one band of the splat covers.
+#[derive(Clone, Copy)]
+struct BandRows {
+    /// Image width, px.
+    width: usize,
+    /// The band's first row.
+    row0: i64,
+    /// Rows in the band.
+    rows: i64,
+}
+
+impl BandRows {
+    /// Add `v` to pixel (i, j) of the band's sums if it lies in the band and the image.
+    #[inline]
+    fn add(&self, sum: &mut [f32], i: i64, j: i64, v: f32) {
+        let jj = j - self.row0;
+        if i >= 0 && (i as usize) < self.width && jj >= 0 && jj < self.rows {
+            sum[jj as usize * self.width + i as usize] += v;
+        }
+    }
+
+    /// The brightness of the dots of band `b` from every chunk (in glint order) and their
+    /// glare, added to the band's pixels `sum`.
+    #[inline]
+    fn add_glints(&self, chunks: &[Filed<Dot>], b: usize, glare: &Glare<'_>, sum: &mut [f32]) {
+        let mut fall = [0.0f32; FALL_LEN];
+        for filed in chunks {
+            for group in filed.band(b).chunks(LANES) {
+                let four = Bilinear::of(group);
+                for (k, d) in group.iter().enumerate() {
+                    if four.inside & (1 << k) != 0 {
+                        self.deposit(sum, &four, k);
+                    }
+                    if d.len == 0.0 {
+                        continue;
+                    }
+                    let n = glare.falloff(d.len, d.value, &mut fall);
+                    if glare.axis_rays {
+                        self.add_axis_rays(sum, d, &glare.whole_rays, &fall[..n]);
+                    } else {
+                        self.add_rays(sum, d, glare.rays, &fall[..n]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Dot `k` of `four` deposited bilinearly on its four pixels.
+    #[inline]
+    fn deposit(&self, sum: &mut [f32], four: &Bilinear, k: usize) {
+        let (i0, j0) = (i64::from(four.i0[k]), i64::from(four.j0[k]));
+        let shares = [four.share[0][k], four.share[1][k], four.share[2][k], four.share[3][k]];
+        let (wu, row0, rows) = (self.width, self.row0, self.rows);
+        if i0 >= 0 && i0 + 1 < wu as i64 && j0 >= row0 && j0 + 1 < row0 + rows {
+            // All four pixels in the band (most dots).
+            let at = (j0 - row0) as usize * wu + i0 as usize;
+            sum[at] += shares[0];
+            sum[at + 1] += shares[1];
+            sum[at + wu] += shares[2];
+            sum[at + wu + 1] += shares[3];
+        } else {
+            self.add(sum, i0, j0, shares[0]);
+            self.add(sum, i0 + 1, j0, shares[1]);
+            self.add(sum, i0, j0 + 1, shares[2]);
+            self.add(sum, i0 + 1, j0 + 1, shares[3]);
+        }
+    }
+
+    /// The glare of `dot` along whole-pixel rays `whole_rays`, weights `fall` per step:
+    /// offsets from the glint's own pixel, clipped to the band and the image once per ray.
+    #[inline]
+    fn add_axis_rays(&self, sum: &mut [f32], dot: &Dot, whole_rays: &[(i64, i64)], fall: &[f32]) {
+        let (wu, row0, rows) = (self.width, self.row0, self.rows);
+        let (xi, yi) = (floor_i64(dot.x), floor_i64(dot.y));
+        for &(dx, dy) in whole_rays {
+            let (mut lo, mut hi) = (1i64, fall.len() as i64);
+            for (p, d, limit_lo, limit_hi) in [(xi, dx, 0, wu as i64 - 1), (yi, dy, row0, row0 + rows - 1)] {
+                // limit_lo ≤ p + d·step ≤ limit_hi
+                match d {
+                    0 if p < limit_lo || p > limit_hi => hi = 0,
+                    1 => (lo, hi) = (lo.max(limit_lo - p), hi.min(limit_hi - p)),
+                    -1 => (lo, hi) = (lo.max(p - limit_hi), hi.min(p - limit_lo)),
+                    _ => {}
+                }
+            }
+            for step in lo..=hi {
+                let at = (yi + dy * step - row0) as usize * wu + (xi + dx * step) as usize;
+                sum[at] += fall[step as usize - 1];
+            }
+        }
+    }
+
+    /// The glare of `dot` along rays in any direction `rays`, weights `fall` per step:
+    /// each ray pixel at its position along the ray, dropped outside the band.
+    #[inline]
+    fn add_rays(&self, sum: &mut [f32], dot: &Dot, rays: &[(f32, f32)], fall: &[f32]) {
+        for &(dx, dy) in rays {
+            for (step, f) in fall.iter().enumerate() {
+                let step = (step + 1) as f32;
+                let (qx, qy) = (dot.x + dx * step, dot.y + dy * step);
+                if qx >= 0.0 && qy >= 0.0 {
+                    self.add(sum, qx as i64, qy as i64, *f);
+                }
+            }
+        }
+    }
 }
 
 /// The bilinear shares of up to [`LANES`] dots among the four pixels around each (as
@@ -734,20 +809,77 @@ mod tests {
         }
     }
 
-    #[test]
-    fn glints_are_placed_in_lanes_as_one_at_a_time() {
-        // `Screen::place` against the scalar rules (`CameraView::project`, falloff,
-        // glare length, bands) for glints in front of, beside and behind the camera,
-        // through a pinhole (lanes) and a fisheye (scalar projection): same bits.
+    /// 1003 glints (position, brightness) in front of, beside and behind the default
+    /// camera.
+    fn glints_around_the_camera() -> Vec<(Vec3, f32)> {
         let mut rng =
             phenomena_core::rng::Stream::new(1, phenomena_core::rng::Purpose::named("test.place"), 0);
-        let glints: Vec<(Vec3, f32)> = (0..1003)
+        (0..1003)
             .map(|_| {
                 let x =
                     Vec3::new(rng.uniform(-30.0, 30.0), rng.uniform(-5.0, 25.0), rng.uniform(-60.0, 20.0));
                 (x, rng.uniform(0.0, 1.0))
             })
-            .collect();
+            .collect()
+    }
+
+    /// A placed dot: x, y, brightness, glare length, first and last band.
+    type Placed = (f32, f32, f32, f32, u32, u32);
+
+    /// The dots `screen` (falloff2 64, peak 1, glare 9 px from 0.4) should place, by the
+    /// scalar rules: `CameraView::project`, falloff, glare length and bands.
+    fn placed_one_at_a_time(glints: &[(Vec3, f32)], view: &CameraView, screen: &Screen) -> Vec<Placed> {
+        let (w, h) = screen.size;
+        let mut want = Vec::new();
+        for &(x, v) in glints {
+            let Some(p) = view.project(x) else { continue };
+            let v = v * (64.0 / (x - screen.eye).length_squared()).min(1.0);
+            let len = if v >= 0.4 { (9.0 * v.sqrt()).max(1.0) } else { 0.0 };
+            let m = len + 1.0;
+            if p.x_px > -m && p.y_px > -m && p.x_px < w + m && p.y_px < h + m {
+                let band = |y: f32| (y as u32 / BAND_ROWS as u32).min(screen.last_band);
+                let (lo, hi) =
+                    (band((p.y_px - len - 1.0).max(0.0)), band((p.y_px + len + 1.0).clamp(0.0, h - 1.0)));
+                want.push((p.x_px, p.y_px, v, len, lo, hi));
+            }
+        }
+        want
+    }
+
+    /// The bilinear shares of `dots` in lanes ([`Bilinear::of`]) equal the scalar ones, bit
+    /// for bit.
+    fn assert_bilinear_is_scalar(dots: &[Dot]) {
+        for group in dots.chunks(LANES) {
+            let four = Bilinear::of(group);
+            for (k, d) in group.iter().enumerate() {
+                let (fx, fy) = (d.x - 0.5, d.y - 0.5);
+                assert_eq!(four.inside & (1 << k) != 0, fx >= -1.0 && fy >= -1.0);
+                if fx < -1.0 || fy < -1.0 {
+                    continue;
+                }
+                let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
+                let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
+                let v = d.value;
+                let shares = [
+                    v * ((1.0 - tx) * (1.0 - ty)),
+                    v * (tx * (1.0 - ty)),
+                    v * ((1.0 - tx) * ty),
+                    v * (tx * ty),
+                ];
+                assert_eq!((i64::from(four.i0[k]), i64::from(four.j0[k])), (i0, j0));
+                for (c, share) in shares.iter().enumerate() {
+                    assert_eq!(four.share[c][k].to_bits(), share.to_bits());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn glints_are_placed_in_lanes_as_one_at_a_time() {
+        // `Screen::place` against the scalar rules (`CameraView::project`, falloff,
+        // glare length, bands) for glints in front of, beside and behind the camera,
+        // through a pinhole (lanes) and a fisheye (scalar projection): same bits.
+        let glints = glints_around_the_camera();
         let (w, h) = (320usize, 180usize);
         for projection in [
             phenomena_core::camera::Projection::Perspective { fov_y_deg: 60.0 },
@@ -771,24 +903,10 @@ mod tests {
                 let (xs, is): (Vec<Vec3>, Vec<f32>) = group.iter().copied().unzip();
                 screen.place(&view, &xs, &is, |d, lo, hi| got.push((d.x, d.y, d.value, d.len, lo, hi)));
             }
-            let mut want = Vec::new();
-            for &(x, v) in &glints {
-                let Some(p) = view.project(x) else { continue };
-                let v = v * (64.0 / (x - camera.position).length_squared()).min(1.0);
-                let len = if v >= 0.4 { (9.0 * v.sqrt()).max(1.0) } else { 0.0 };
-                let m = len + 1.0;
-                if p.x_px > -m && p.y_px > -m && p.x_px < w as f32 + m && p.y_px < h as f32 + m {
-                    let band = |y: f32| (y as u32 / BAND_ROWS as u32).min(screen.last_band);
-                    let (lo, hi) = (
-                        band((p.y_px - len - 1.0).max(0.0)),
-                        band((p.y_px + len + 1.0).clamp(0.0, h as f32 - 1.0)),
-                    );
-                    want.push((p.x_px, p.y_px, v, len, lo, hi));
-                }
-            }
+            let want = placed_one_at_a_time(&glints, &view, &screen);
             assert!(want.len() > 100 && want.len() < glints.len(), "{}", want.len());
             assert!(want.iter().any(|d| d.3 > 0.0) && want.iter().any(|d| d.4 != d.5));
-            let bits = |v: &[(f32, f32, f32, f32, u32, u32)]| -> Vec<_> {
+            let bits = |v: &[Placed]| -> Vec<_> {
                 v.iter()
                     .map(|d| (d.0.to_bits(), d.1.to_bits(), d.2.to_bits(), d.3.to_bits(), d.4, d.5))
                     .collect()
@@ -796,29 +914,7 @@ mod tests {
             assert_eq!(bits(&got), bits(&want), "{projection:?}");
             // The bilinear shares of the placed dots, in lanes and one at a time.
             let dots: Vec<Dot> = got.iter().map(|d| Dot { x: d.0, y: d.1, value: d.2, len: d.3 }).collect();
-            for group in dots.chunks(LANES) {
-                let four = Bilinear::of(group);
-                for (k, d) in group.iter().enumerate() {
-                    let (fx, fy) = (d.x - 0.5, d.y - 0.5);
-                    assert_eq!(four.inside & (1 << k) != 0, fx >= -1.0 && fy >= -1.0);
-                    if fx < -1.0 || fy < -1.0 {
-                        continue;
-                    }
-                    let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
-                    let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
-                    let v = d.value;
-                    let shares = [
-                        v * ((1.0 - tx) * (1.0 - ty)),
-                        v * (tx * (1.0 - ty)),
-                        v * ((1.0 - tx) * ty),
-                        v * (tx * ty),
-                    ];
-                    assert_eq!((i64::from(four.i0[k]), i64::from(four.j0[k])), (i0, j0));
-                    for (c, share) in shares.iter().enumerate() {
-                        assert_eq!(four.share[c][k].to_bits(), share.to_bits());
-                    }
-                }
-            }
+            assert_bilinear_is_scalar(&dots);
         }
     }
 

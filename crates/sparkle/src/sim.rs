@@ -199,6 +199,129 @@ impl<'a> Slots<'a> {
     fn put(&mut self, i: usize, x: Vec3, n: Vec3, v: f32, b: u32) {
         (self.x[i], self.n[i], self.v[i], self.b[i]) = (x, n, v, b);
     }
+
+    /// Every glint of `g`, in order, from the first place on.
+    fn put_all(&mut self, g: &Glints) {
+        for (i, ((x, n), (v, b))) in
+            g.position_m.iter().zip(&g.normal).zip(g.intensity.iter().zip(&g.birth_frame)).enumerate()
+        {
+            self.put(i, *x, *n, *v, *b);
+        }
+    }
+}
+
+/// How the held facets fare on the way into frame `next`, chunk by chunk of [`CHUNK`]
+/// (from their (N·H)² at `next`, -1 where unseen): seen glints are kept or die (ghosts
+/// when `memory` > 0); ghosts come back or are still remembered for `memory` frames.
+#[derive(Clone, Copy)]
+struct Fates<'a> {
+    lut: &'a IntensityLut,
+    memory: u32,
+    next: u32,
+}
+
+impl Fates<'_> {
+    /// (kept, dying into ghosts) per chunk of the seen glints with (N·H)² `c2`.
+    fn count_seen(&self, c2: &[f32]) -> Vec<(usize, usize)> {
+        let memory = self.memory;
+        c2.par_chunks(CHUNK)
+            .map(|c| {
+                let kept = c.iter().filter(|&&v| v >= 0.0).count();
+                (kept, if memory > 0 { c.len() - kept } else { 0 })
+            })
+            .collect()
+    }
+
+    /// (back, still remembered) per chunk of the ghosts with (N·H)² `g2`, last seen at
+    /// `last_seen`.
+    fn count_ghosts(&self, g2: &[f32], last_seen: &[u32]) -> Vec<(usize, usize)> {
+        let (memory, next) = (self.memory, self.next);
+        g2.par_chunks(CHUNK)
+            .zip(last_seen.par_chunks(CHUNK))
+            .map(|(c, last)| {
+                let back = c.iter().filter(|&&v| v >= 0.0).count();
+                let still = c.iter().zip(last).filter(|&(&v, &l)| v < 0.0 && next - l <= memory).count();
+                (back, still)
+            })
+            .collect()
+    }
+
+    /// Write the seen glints `g` (with (N·H)² `c2`) to their places: the kept ones with
+    /// their new intensity into `kept`, the dying ones as ghosts last seen at `next - 1`
+    /// into `dead`, per chunk as `tracked` counted them. Returns the lifetimes (frames
+    /// seen) of the glints that died, but not of those seen since frame 0.
+    fn write_seen(
+        &self,
+        g: &Glints,
+        c2: &[f32],
+        tracked: &[(usize, usize)],
+        kept: Slots<'_>,
+        dead: Slots<'_>,
+    ) -> Vec<Vec<u32>> {
+        let (lut, memory, next) = (self.lut, self.memory, self.next);
+        kept.chunks(tracked.iter().map(|t| t.0))
+            .into_par_iter()
+            .zip(dead.chunks(tracked.iter().map(|t| t.1)))
+            .enumerate()
+            .map(|(k, (mut kept, mut dead))| {
+                let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
+                let mut lifetimes = Vec::new();
+                let (mut a, mut d) = (0, 0);
+                for i in range {
+                    let (x, nrm, birth) = (g.position_m[i], g.normal[i], g.birth_frame[i]);
+                    if c2[i] >= 0.0 {
+                        kept.put(a, x, nrm, lut.get(c2[i]), birth);
+                        a += 1;
+                    } else {
+                        if birth > 0 {
+                            lifetimes.push(next - birth);
+                        }
+                        if memory > 0 {
+                            dead.put(d, x, nrm, 0.0, next - 1);
+                            d += 1;
+                        }
+                    }
+                }
+                lifetimes
+            })
+            .collect()
+    }
+
+    /// Write the ghosts `gh` (with (N·H)² `g2`) to their places: those seen again as
+    /// glints born at `next` into `back`, those still remembered into `still`, per chunk
+    /// as `remembered` counted them. Returns the gaps (frames unseen) of those back.
+    fn write_ghosts(
+        &self,
+        gh: &Glints,
+        g2: &[f32],
+        remembered: &[(usize, usize)],
+        back: Slots<'_>,
+        still: Slots<'_>,
+    ) -> Vec<Vec<u32>> {
+        let (lut, memory, next) = (self.lut, self.memory, self.next);
+        back.chunks(remembered.iter().map(|t| t.0))
+            .into_par_iter()
+            .zip(still.chunks(remembered.iter().map(|t| t.1)))
+            .enumerate()
+            .map(|(k, (mut back, mut still))| {
+                let range = k * CHUNK..((k + 1) * CHUNK).min(gh.len());
+                let mut gaps = Vec::new();
+                let (mut a, mut s) = (0, 0);
+                for i in range {
+                    let (x, nrm, last) = (gh.position_m[i], gh.normal[i], gh.birth_frame[i]);
+                    if g2[i] >= 0.0 {
+                        back.put(a, x, nrm, lut.get(g2[i]), next);
+                        a += 1;
+                        gaps.push(next - last - 1);
+                    } else if next - last <= memory {
+                        still.put(s, x, nrm, 0.0, last);
+                        s += 1;
+                    }
+                }
+                gaps
+            })
+            .collect()
+    }
 }
 
 /// Move every facet of `g` one frame in place (chunk k drawing from stream k of
@@ -694,9 +817,8 @@ impl SparkleSim {
         };
         let mean_q = regions.as_ref().map_or(table.mean_q, |r| r.mean_q);
         let chunks = ((n as f64 * mean_q / CANDIDATES_PER_CHUNK).ceil() as u64).clamp(1, MAX_BIRTH_CHUNKS);
-        let lut = &self.intensity;
-        let space = &self.space;
-        let walk = Walk { history: &history, motion, space, lut, frame };
+        let walk = Walk { history: &history, motion, space: &self.space, lut: &self.intensity, frame };
+        let births = Births { to, walk, table: &table, lobe: &self.lobe, n, chunks, mean_q };
         let parts: Vec<(Glints, u64)> = (0..chunks)
             .into_par_iter()
             .map(|k| {
@@ -704,55 +826,11 @@ impl SparkleSim {
                 let mut lanes = LaneRng::new(&mut rng);
                 let mut out = Glints::default();
                 let mut seen = Survivors::default();
-                let mut count = 0;
-                match &regions {
-                    Some(r) => {
-                        // This chunk's run of regions, each with its Poisson count.
-                        for i in r.range(k, chunks) {
-                            let lambda = n as f64 * r.mass[i];
-                            let Ok(poisson) = rand_distr::Poisson::new(lambda) else { continue };
-                            let c = rng.sample(&poisson) as u64;
-                            count += c;
-                            let (corner, size, omc_inner) = r.boxes[i];
-                            let omc = (omc_inner as f32, r.one_minus_cos_alpha as f32);
-                            for start in (0..c).step_by(LANES) {
-                                let (x1, n0, fine) =
-                                    to.geo.candidates_in(corner, size, omc, r.two_sided, &mut lanes);
-                                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, &mut lanes);
-                                let lanes_used = (c - start).min(LANES as u64) as u32;
-                                seen.push_seen(&x1, &n0, &n1, c2, fine & ((1u32 << lanes_used) - 1));
-                            }
-                            if seen.len() >= CANDIDATE_BATCH as usize {
-                                walk.back(&mut seen, &mut lanes, &mut out);
-                            }
-                        }
-                    }
-                    None => {
-                        let len = n / chunks + u64::from(k < n % chunks);
-                        count = rng.binomial(len, mean_q);
-                        let (mut x1, mut n0) = (Vec::new(), Vec::new());
-                        let mut left = count;
-                        while left > 0 {
-                            let batch = left.min(CANDIDATE_BATCH);
-                            left -= batch;
-                            x1.clear();
-                            n0.clear();
-                            for _ in 0..batch {
-                                if let Some((x, n)) = table.draw(space, &self.lobe, &to.geo, &mut rng) {
-                                    x1.push(x);
-                                    n0.push(n);
-                                }
-                            }
-                            for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
-                                let (x1, n0) = (V8::load(xc), V8::load(nc));
-                                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, &mut lanes);
-                                seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
-                            }
-                            walk.back(&mut seen, &mut lanes, &mut out);
-                        }
-                    }
-                }
-                walk.back(&mut seen, &mut lanes, &mut out);
+                let count = match &regions {
+                    Some(r) => births.by_region(r, k, &mut rng, &mut lanes, &mut seen, &mut out),
+                    None => births.by_table(k, &mut rng, &mut lanes, &mut seen, &mut out),
+                };
+                births.walk.back(&mut seen, &mut lanes, &mut out);
                 (out, count)
             })
             .collect();
@@ -795,23 +873,9 @@ impl SparkleSim {
         // unseen for more than `memory` frames. Counted per chunk first, then written
         // straight to their places in the next frame's arrays, chunk by chunk in
         // parallel, in the order of the chunks: kept, back, newborn; dead, still.
-        let (g, gh) = (&self.glints, &self.ghosts);
-        let tracked: Vec<(usize, usize)> = c2
-            .par_chunks(CHUNK)
-            .map(|c| {
-                let kept = c.iter().filter(|&&v| v >= 0.0).count();
-                (kept, if memory > 0 { c.len() - kept } else { 0 })
-            })
-            .collect();
-        let remembered: Vec<(usize, usize)> = g2
-            .par_chunks(CHUNK)
-            .zip(gh.birth_frame.par_chunks(CHUNK))
-            .map(|(c, last)| {
-                let back = c.iter().filter(|&&v| v >= 0.0).count();
-                let still = c.iter().zip(last).filter(|&(&v, &l)| v < 0.0 && next - l <= memory).count();
-                (back, still)
-            })
-            .collect();
+        let fates = Fates { lut: &self.intensity, memory, next };
+        let tracked = fates.count_seen(&c2);
+        let remembered = fates.count_ghosts(&g2, &self.ghosts.birth_frame);
         let kept: usize = tracked.iter().map(|t| t.0).sum();
         let back: usize = remembered.iter().map(|t| t.0).sum();
         let dead: usize = tracked.iter().map(|t| t.1).sum();
@@ -820,70 +884,13 @@ impl SparkleSim {
         let mut ghosts = std::mem::take(&mut self.spare_ghosts);
         glints.resize(kept + back + born.len());
         ghosts.resize(dead + still);
-        let lut = &self.intensity;
         let (to_glints, to_ghosts) = (Slots::of(&mut glints), Slots::of(&mut ghosts));
         let (kept_slots, rest) = to_glints.split(kept);
         let (back_slots, mut born_slots) = rest.split(back);
         let (dead_slots, still_slots) = to_ghosts.split(dead);
-        let lifetimes: Vec<Vec<u32>> = kept_slots
-            .chunks(tracked.iter().map(|t| t.0))
-            .into_par_iter()
-            .zip(dead_slots.chunks(tracked.iter().map(|t| t.1)))
-            .enumerate()
-            .map(|(k, (mut kept, mut dead))| {
-                let range = k * CHUNK..((k + 1) * CHUNK).min(g.len());
-                let mut lifetimes = Vec::new();
-                let (mut a, mut d) = (0, 0);
-                for i in range {
-                    let (x, nrm, birth) = (g.position_m[i], g.normal[i], g.birth_frame[i]);
-                    if c2[i] >= 0.0 {
-                        kept.put(a, x, nrm, lut.get(c2[i]), birth);
-                        a += 1;
-                    } else {
-                        if birth > 0 {
-                            lifetimes.push(next - birth);
-                        }
-                        if memory > 0 {
-                            dead.put(d, x, nrm, 0.0, next - 1);
-                            d += 1;
-                        }
-                    }
-                }
-                lifetimes
-            })
-            .collect();
-        let gaps: Vec<Vec<u32>> = back_slots
-            .chunks(remembered.iter().map(|t| t.0))
-            .into_par_iter()
-            .zip(still_slots.chunks(remembered.iter().map(|t| t.1)))
-            .enumerate()
-            .map(|(k, (mut back, mut still))| {
-                let range = k * CHUNK..((k + 1) * CHUNK).min(gh.len());
-                let mut gaps = Vec::new();
-                let (mut a, mut s) = (0, 0);
-                for i in range {
-                    let (x, nrm, last) = (gh.position_m[i], gh.normal[i], gh.birth_frame[i]);
-                    if g2[i] >= 0.0 {
-                        back.put(a, x, nrm, lut.get(g2[i]), next);
-                        a += 1;
-                        gaps.push(next - last - 1);
-                    } else if next - last <= memory {
-                        still.put(s, x, nrm, 0.0, last);
-                        s += 1;
-                    }
-                }
-                gaps
-            })
-            .collect();
-        for (i, ((x, n), (v, b))) in born
-            .position_m
-            .iter()
-            .zip(&born.normal)
-            .zip(born.intensity.iter().zip(&born.birth_frame))
-            .enumerate()
-        {
-            born_slots.put(i, *x, *n, *v, *b);
-        }
+        let lifetimes = fates.write_seen(&self.glints, &c2, &tracked, kept_slots, dead_slots);
+        let gaps = fates.write_ghosts(&self.ghosts, &g2, &remembered, back_slots, still_slots);
+        born_slots.put_all(&born);
         self.lifetimes.clear();
         self.lifetimes.extend(lifetimes.into_iter().flatten());
         self.gaps.extend(gaps.into_iter().flatten());
@@ -1050,6 +1057,95 @@ impl Walk<'_> {
     }
 }
 
+/// What the birth chunks draw from: the test at the new frame `to`, the walk back
+/// through the remembered frames, the candidate cells, the normals' lobe, the population
+/// of `n` virtual facets shared among `chunks` chunks, and the candidate probability per
+/// facet `mean_q`.
+struct Births<'a> {
+    to: &'a Seen,
+    walk: Walk<'a>,
+    table: &'a CellTable,
+    lobe: &'a Lobe,
+    n: u64,
+    chunks: u64,
+    mean_q: f64,
+}
+
+impl Births<'_> {
+    /// Chunk `k`'s candidates drawn region by region ([`Regions`]: each with its Poisson
+    /// count, in lanes), into `seen`, walked back into `out` every [`CANDIDATE_BATCH`];
+    /// returns the candidate count.
+    fn by_region(
+        &self,
+        r: &Regions,
+        k: u64,
+        rng: &mut Stream,
+        lanes: &mut LaneRng,
+        seen: &mut Survivors,
+        out: &mut Glints,
+    ) -> u64 {
+        let (to, motion, space) = (self.to, self.walk.motion, self.walk.space);
+        let mut count = 0;
+        // This chunk's run of regions, each with its Poisson count.
+        for i in r.range(k, self.chunks) {
+            let lambda = self.n as f64 * r.mass[i];
+            let Ok(poisson) = rand_distr::Poisson::new(lambda) else { continue };
+            let c = rng.sample(&poisson) as u64;
+            count += c;
+            let (corner, size, omc_inner) = r.boxes[i];
+            let omc = (omc_inner as f32, r.one_minus_cos_alpha as f32);
+            for start in (0..c).step_by(LANES) {
+                let (x1, n0, fine) = to.geo.candidates_in(corner, size, omc, r.two_sided, lanes);
+                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, lanes);
+                let lanes_used = (c - start).min(LANES as u64) as u32;
+                seen.push_seen(&x1, &n0, &n1, c2, fine & ((1u32 << lanes_used) - 1));
+            }
+            if seen.len() >= CANDIDATE_BATCH as usize {
+                self.walk.back(seen, lanes, out);
+            }
+        }
+        count
+    }
+
+    /// Chunk `k`'s candidates: its share of the facets, a binomial count of them drawn
+    /// from the candidate cells ([`CellTable`]) in batches of [`CANDIDATE_BATCH`], each
+    /// tested in lanes into `seen` and walked back into `out`; returns the count.
+    fn by_table(
+        &self,
+        k: u64,
+        rng: &mut Stream,
+        lanes: &mut LaneRng,
+        seen: &mut Survivors,
+        out: &mut Glints,
+    ) -> u64 {
+        let (to, motion, space) = (self.to, self.walk.motion, self.walk.space);
+        let (n, chunks) = (self.n, self.chunks);
+        let len = n / chunks + u64::from(k < n % chunks);
+        let count = rng.binomial(len, self.mean_q);
+        let (mut x1, mut n0) = (Vec::new(), Vec::new());
+        let mut left = count;
+        while left > 0 {
+            let batch = left.min(CANDIDATE_BATCH);
+            left -= batch;
+            x1.clear();
+            n0.clear();
+            for _ in 0..batch {
+                if let Some((x, n)) = self.table.draw(space, self.lobe, &to.geo, rng) {
+                    x1.push(x);
+                    n0.push(n);
+                }
+            }
+            for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
+                let (x1, n0) = (V8::load(xc), V8::load(nc));
+                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, lanes);
+                seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
+            }
+            self.walk.back(seen, lanes, out);
+        }
+        count
+    }
+}
+
 /// Birth candidates in the periodic box with uniform normals, by region: a facet whose
 /// normal at t lay within an inner angle β of ±H_{t+1}(x_{t+1}) was certainly seen at t,
 /// so only the annulus between β and α (α = θ + δ + margin) holds candidates.
@@ -1108,51 +1204,17 @@ impl Regions {
         let theta_in = (theta - CAP_MARGIN_RAD).max(0.0);
         let far: Vec<Vec3> = to.geo.points().collect();
         let mut boxes = Vec::new();
-        // Slabs, made disjoint by carving axis by axis.
-        let (mut cmin, mut cmax) = (min, min + size);
-        for axis in 0..3 {
-            let (mut a_lo, mut a_hi) = (cmin, cmax);
-            a_hi[axis] = cmin[axis] + lo[axis];
-            boxes.push((a_lo, a_hi - a_lo, 0.0));
-            a_lo = cmin;
-            a_hi = cmax;
-            a_lo[axis] = cmax[axis] - hi[axis];
-            boxes.push((a_lo, a_hi - a_lo, 0.0));
-            cmin[axis] += lo[axis];
-            cmax[axis] -= hi[axis];
-        }
+        let (cmin, cmax) = carve_face_slabs(min, min + size, lo, hi, &mut boxes);
         let n = cells_per_axis;
         let cell = (cmax - cmin) / n as f32;
-        let radius = f64::from(0.5 * cell.length());
+        let bound =
+            InnerCap { far, sun_chord, reach_m: reach, radius_m: f64::from(0.5 * cell.length()), theta_in };
         for k in 0..n {
             for j in 0..n {
                 for i in 0..n {
                     let corner = cmin + cell * Vec3::new(i as f32, j as f32, k as f32);
                     let centre = corner + 0.5 * cell;
-                    // Least distances from the cell (and the path of length `reach` out
-                    // of it) to the eye and the lamp.
-                    let mut e = sun_chord;
-                    let mut lip = 0.0;
-                    let mut near = false;
-                    for p in &far {
-                        let dist = f64::from((*p - centre).length());
-                        let (r_cell, r_path) = (dist - radius, dist - radius - reach);
-                        if !(r_path > 0.0) {
-                            near = true;
-                            break;
-                        }
-                        e += reach / r_path;
-                        lip += 1.0 / r_cell;
-                    }
-                    let u_min = f64::from((to.geo.light_dir(centre) + to.geo.eye_dir(centre)).length())
-                        - lip * radius;
-                    let omc_inner = if near || !(e < u_min) {
-                        0.0
-                    } else {
-                        let eta = (e / u_min).asin();
-                        if theta_in > eta { one_minus_cos(theta_in - eta) } else { 0.0 }
-                    };
-                    boxes.push((corner, cell, omc_inner.min(omc_alpha)));
+                    boxes.push((corner, cell, bound.one_minus_cos_beta(to, centre).min(omc_alpha)));
                 }
             }
         }
@@ -1198,6 +1260,78 @@ impl Regions {
             }
         };
         at(k)..at(k + 1)
+    }
+}
+
+/// The slabs along the faces of the box `min..max` where a facet may have wrapped from
+/// the other side, `lo` and `hi` thick at the low and high face of each axis, made
+/// disjoint by carving axis by axis, pushed to `boxes` with no inner cap (1 - cos β =
+/// 0). Returns the interior left.
+fn carve_face_slabs(
+    min: Vec3,
+    max: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+    boxes: &mut Vec<(Vec3, Vec3, f64)>,
+) -> (Vec3, Vec3) {
+    let (mut cmin, mut cmax) = (min, max);
+    for axis in 0..3 {
+        let (mut a_lo, mut a_hi) = (cmin, cmax);
+        a_hi[axis] = cmin[axis] + lo[axis];
+        boxes.push((a_lo, a_hi - a_lo, 0.0));
+        a_lo = cmin;
+        a_hi = cmax;
+        a_lo[axis] = cmax[axis] - hi[axis];
+        boxes.push((a_lo, a_hi - a_lo, 0.0));
+        cmin[axis] += lo[axis];
+        cmax[axis] -= hi[axis];
+    }
+    (cmin, cmax)
+}
+
+/// The inner angle β of an interior cell of [`Regions`]: how far H can turn for a facet
+/// that ends in the cell (η, from the bound e on the change of u = L + V), so that
+/// normals within β = θ' - η of ±H_{t+1} were certainly seen at t.
+struct InnerCap {
+    /// The eye and the lamp (the points L and V are 1/r-Lipschitz about).
+    far: Vec<Vec3>,
+    /// How far the sun's L moves in the step (a chord; 0 for a lamp).
+    sun_chord: f64,
+    /// Most a facet moves in the step, m.
+    reach_m: f64,
+    /// Half a cell's diagonal, m.
+    radius_m: f64,
+    /// θ' = θ minus the cap margin.
+    theta_in: f64,
+}
+
+impl InnerCap {
+    /// 1 - cos β for the cell centred at `centre`, 0 when the cell or a facet's path out
+    /// of it comes near the eye or the lamp, or when no bound holds (e ≥ |u_{t+1}|).
+    fn one_minus_cos_beta(&self, to: &Seen, centre: Vec3) -> f64 {
+        let (radius, reach) = (self.radius_m, self.reach_m);
+        // Least distances from the cell (and the path of length `reach` out of it) to the
+        // eye and the lamp.
+        let mut e = self.sun_chord;
+        let mut lip = 0.0;
+        let mut near = false;
+        for p in &self.far {
+            let dist = f64::from((*p - centre).length());
+            let (r_cell, r_path) = (dist - radius, dist - radius - reach);
+            if !(r_path > 0.0) {
+                near = true;
+                break;
+            }
+            e += reach / r_path;
+            lip += 1.0 / r_cell;
+        }
+        let u_min = f64::from((to.geo.light_dir(centre) + to.geo.eye_dir(centre)).length()) - lip * radius;
+        if near || !(e < u_min) {
+            0.0
+        } else {
+            let eta = (e / u_min).asin();
+            if self.theta_in > eta { one_minus_cos(self.theta_in - eta) } else { 0.0 }
+        }
     }
 }
 
