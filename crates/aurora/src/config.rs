@@ -1,8 +1,8 @@
 //! Aurora parameters, deserialisable from a scene's `[aurora]` table. Defaults follow
 //! the thesis's Tables 3.2 and 3.3 where it gives values; the rest are ours, documented.
 
+use crate::noise::{FractalNoise, NoiseKind};
 use glam::Vec2;
-use phenomena_core::noise::{FractalNoise, NoiseKind};
 use phenomena_core::validate::{Issue, Issues};
 use serde::{Deserialize, Serialize};
 

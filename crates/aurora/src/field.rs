@@ -9,8 +9,8 @@
 
 use std::sync::Arc;
 
+use crate::noise::NoiseSampler;
 use glam::Vec2;
-use phenomena_core::noise::NoiseSampler;
 use phenomena_core::rng::{Purpose, Stream};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;

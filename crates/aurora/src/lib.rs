@@ -24,6 +24,8 @@ pub mod emission;
 pub mod fall;
 pub mod field;
 pub mod motion;
+pub mod noise;
+pub mod pairs;
 pub mod plane;
 mod render;
 pub mod shape;

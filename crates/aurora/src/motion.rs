@@ -3,11 +3,11 @@
 //! repulsion computed as an SPH pressure force (eq 2.11-2.18), and the position and
 //! velocity updates of eq (2.19)-(2.20) followed by a speed limit.
 
+use crate::pairs::{CellRows, for_each_half_pair_run, for_each_half_pair_run2};
 use glam::Vec2;
 use phenomena_core::grid::GridError;
 use phenomena_core::kernel::{Dim, Kernel, KernelKind};
 use phenomena_core::lanes::{LANES, add, in_run, load};
-use phenomena_core::pairs::{CellRows, for_each_half_pair_run, for_each_half_pair_run2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use wide::f32x8;

@@ -2,9 +2,9 @@
 //! renewed (particles redistributed against the old shape, §2.3.4; a new field computed,
 //! §2.2.3); every frame the particles move (§2.3).
 
+use crate::noise::NoiseSampler;
 use glam::Vec2;
 use phenomena_core::clock::SharedClock;
-use phenomena_core::noise::NoiseSampler;
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::InvalidConfig;
 use serde::{Deserialize, Serialize};

@@ -443,3 +443,99 @@ fn use_trees_expand_and_words_are_whole() {
     ]);
     assert_eq!(cycle(&g), Some(vec!["a".to_string(), "b".to_string(), "a".to_string()]));
 }
+
+/// The functions of a file longer than `max` lines, counted from the line of `fn` to
+/// the closing brace at the same indentation (name, first line, length).
+fn long_functions(text: &str, max: usize) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut found = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let trimmed = line.trim_start();
+        let indent = line.len() - trimmed.len();
+        let mut words = trimmed.split_whitespace().skip_while(|w| {
+            ["pub", "pub(crate)", "pub(super)", "const", "async", "unsafe", "extern"].contains(w)
+        });
+        if words.next() != Some("fn") {
+            continue;
+        }
+        let name = words.next().unwrap_or("").split(['(', '<']).next().unwrap_or("").to_string();
+        // The signature ends at the first line ending in `{` (a body) or `;` (none).
+        let Some(open) = (i..lines.len()).find(|&j| {
+            let l = lines[j].trim_end();
+            l.ends_with('{') || l.ends_with(';')
+        }) else {
+            continue;
+        };
+        if lines[open].trim_end().ends_with(';') {
+            continue;
+        }
+        let close = (open + 1..lines.len()).find(|&j| {
+            let l = lines[j];
+            l.len() - l.trim_start().len() == indent && l.trim_start().starts_with('}')
+        });
+        let length = close.map_or(lines.len(), |c| c + 1) - i;
+        if length > max {
+            found.push((name, i + 1, length));
+        }
+    }
+    found
+}
+
+/// No function is longer than a screen (80 lines), in any crate, tests included.
+#[test]
+fn no_function_is_longer_than_80_lines() {
+    let mut long = Vec::new();
+    for p in workspace() {
+        for dir in ["src", "tests", "benches", "examples"] {
+            for file in rust_files(&p.dir.join(dir)) {
+                let text = std::fs::read_to_string(&file).unwrap();
+                for (name, line, length) in long_functions(&text, 80) {
+                    long.push(format!("{}:{line}: fn {name} is {length} lines", file.display()));
+                }
+            }
+        }
+    }
+    assert!(long.is_empty(), "{}", long.join("\n"));
+}
+
+/// `phenomena-core` holds what two or more crates share: each of its modules (a table
+/// made for another core module aside) is named by at least two other crates.
+#[test]
+fn every_core_module_serves_two_crates() {
+    let packages = workspace();
+    let core = packages.iter().find(|p| p.name == "phenomena-core").expect("the core crate");
+    let src = core.dir.join("src");
+    let graph = module_graph(&src);
+    let mut lonely = Vec::new();
+    for module in graph.keys() {
+        // Used inside the core by another of its modules: part of that one.
+        if graph.iter().any(|(m, uses)| m != module && uses.contains(module)) {
+            continue;
+        }
+        let users: Vec<&str> = packages
+            .iter()
+            .filter(|p| p.name != core.name)
+            .filter(|p| {
+                ["src", "tests", "benches", "examples"].iter().any(|d| {
+                    rust_files(&p.dir.join(d)).iter().any(|f| {
+                        let text = std::fs::read_to_string(f).unwrap();
+                        use_paths(&text).iter().any(|u| u.starts_with(&format!("phenomena_core::{module}")))
+                            || text.contains(&format!("phenomena_core::{module}::"))
+                    })
+                })
+            })
+            .map(|p| p.name.as_str())
+            .collect();
+        if users.len() < 2 {
+            lonely.push(format!("phenomena_core::{module} is used by {users:?}: it belongs in its one user"));
+        }
+    }
+    assert!(lonely.is_empty(), "{}", lonely.join("\n"));
+}
+
+#[test]
+fn long_functions_are_measured_from_fn_to_its_brace() {
+    let text = "fn short() {\n    1\n}\n\n    pub(crate) fn long(\n        x: u32,\n    ) -> u32 {\n        x\n        + 1\n    }\nfn decl();\n";
+    assert_eq!(long_functions(text, 3), vec![("long".to_string(), 5, 6)]);
+    assert!(long_functions(text, 6).is_empty());
+}

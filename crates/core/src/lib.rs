@@ -4,13 +4,10 @@
 //! - [`tonemap`]: exposure and tone mapping for display.
 //! - [`kernel`]: normalised SPH kernels (poly6, spiky, cubic spline) in 2-D and 3-D.
 //! - [`grid`]: uniform-grid neighbour search by counting sort.
-//! - [`pairs`]: every close pair once, in parallel and thread-count independent (2-D).
 //! - [`rng`]: random streams keyed by (seed, purpose, index), for thread-count independence.
-//! - [`noise`]: Perlin / simplex noise over space and time.
 //! - [`image`]: planar f32 frames, point deposit, separable Gaussian blur.
 //! - [`bands`]: work filed by bands of image rows for deterministic parallel drawing.
 //! - [`camera`]: look-at cameras: perspective, orthographic, fisheye, equirectangular.
-//! - [`raster`]: triangle z-buffer rasteriser for depth and shadow maps, with ids.
 //! - [`validate`]: configuration problems that name the field, the value and the valid range.
 //! - [`phenomenon`]: the one API shape of every phenomenon ([`phenomenon::Simulation`],
 //!   [`phenomenon::Renderer`]).
@@ -41,10 +38,7 @@ pub mod grid;
 pub mod image;
 pub mod kernel;
 pub mod lanes;
-pub mod noise;
-pub mod pairs;
 pub mod phenomenon;
-pub mod raster;
 pub mod rng;
 pub mod serde_vec;
 pub mod tonemap;

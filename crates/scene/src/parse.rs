@@ -172,11 +172,11 @@ mod tests {
     }
 
     #[test]
-    fn the_readme_scene_example_is_valid() {
-        let readme = include_str!("../../../README.md");
-        let start = readme.find("```toml\n").expect("README has a TOML example") + 8;
-        let end = start + readme[start..].find("```").expect("closed");
-        if let Err(e) = parse(&readme[start..end], "README.md") {
+    fn the_guides_scene_example_is_valid() {
+        let guide = include_str!("../../../docs/guide.md");
+        let start = guide.find("```toml\n").expect("the guide has a TOML example") + 8;
+        let end = start + guide[start..].find("```").expect("closed");
+        if let Err(e) = parse(&guide[start..end], "docs/guide.md") {
             panic!("{e}");
         }
     }

@@ -26,6 +26,7 @@ mod flood;
 pub mod groups;
 pub mod load;
 pub mod mesh;
+pub mod raster;
 pub mod reference;
 pub mod render;
 mod sim;

@@ -2,11 +2,11 @@
 //! the sky, with optional fog as in the paper's figures; or the snow probability P_a of
 //! the topmost map seen from above.
 
+use crate::raster::{Cull, NO_ID, rasterize};
 use glam::Vec3;
 use phenomena_core::camera::Camera;
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
-use phenomena_core::raster::{Cull, NO_ID, rasterize};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use serde::{Deserialize, Serialize};
 
@@ -268,7 +268,7 @@ fn draw_flakes(
     sim: &SnowSim,
     flakes: &Flakes,
     view: &phenomena_core::camera::CameraView,
-    buf: &phenomena_core::raster::DepthBuffer,
+    buf: &crate::raster::DepthBuffer,
     frame: &mut Frame,
 ) {
     let dirs = sim.directions();

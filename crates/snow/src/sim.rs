@@ -3,9 +3,9 @@
 //! snowfall directions, accumulation S_a(T) = ∫ P_a M(t) dt, stabilisation at the angle
 //! of repose and falling onto lower maps.
 
+use crate::raster::{Cull, DepthBuffer, RasterError, Rasterizer, rasterize};
 use glam::{Vec2, Vec3};
 use phenomena_core::camera::{Camera, CameraView, Projection};
-use phenomena_core::raster::{Cull, DepthBuffer, RasterError, Rasterizer, rasterize};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;

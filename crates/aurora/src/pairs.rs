@@ -22,7 +22,7 @@
 //!
 //! ```
 //! use glam::Vec2;
-//! use phenomena_core::pairs::{CellRows, for_each_half_pair_run};
+//! use phenomena_aurora::pairs::{CellRows, for_each_half_pair_run};
 //! let points = [Vec2::new(3.0, 0.0), Vec2::new(0.0, 0.0), Vec2::new(0.5, 0.0)];
 //! let mut rows = CellRows::default();
 //! rows.build(&points, 1.0).unwrap();
@@ -46,7 +46,7 @@ use std::ops::Range;
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::grid::GridError;
+use phenomena_core::grid::GridError;
 
 /// Rows of cells per stripe for `rings` = 1; stripes are `rings` times taller.
 const STRIPE_ROWS: usize = 1;

@@ -5,7 +5,7 @@
 //! time axis is just another coordinate, so animation is smooth and deterministic.
 //!
 //! ```
-//! use phenomena_core::noise::{FractalNoise, NoiseKind};
+//! use phenomena_aurora::noise::{FractalNoise, NoiseKind};
 //! let n = FractalNoise { kind: NoiseKind::Perlin, seed: 3, octaves: 4, ..Default::default() }
 //!     .sampler();
 //! let a = n.sample3(0.3, 1.7, 0.25);

@@ -18,7 +18,7 @@
 //! ```
 //! use glam::Vec3;
 //! use phenomena_core::camera::{Camera, Projection};
-//! use phenomena_core::raster::{Cull, rasterize};
+//! use phenomena_snow::raster::{Cull, rasterize};
 //! // A camera 10 m above the origin looking down, 4 m across 4 pixels.
 //! let top = Camera {
 //!     position: Vec3::new(0.0, 10.0, 0.0),
@@ -37,7 +37,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::camera::CameraView;
+use phenomena_core::camera::CameraView;
 
 /// Which faces to skip.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -593,7 +593,7 @@ fn for_each_fragment(s: &Setup, rows: std::ops::Range<usize>, mut f: impl FnMut(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Camera, Projection};
+    use phenomena_core::camera::{Camera, Projection};
 
     /// Looking down from y = 10 over a `size` m square of `n × n` pixels.
     fn top_view(n: usize, size: f32) -> CameraView {
