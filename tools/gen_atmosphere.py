@@ -12,17 +12,17 @@ Writes (paths relative to the repository root):
   and the neutral temperature (K) from 80 to 500 km at 1 km, header
   ``altitude_km,n_o,n_n2,n_o2,temperature_k``.
 * ``crates/aurora/data/atmosphere_msis21_minor.csv``: the minor species the physical
-  mode's ion chemistry needs (issue 20), atomic nitrogen N(4S) and nitric oxide NO
+  mode's ion chemistry needs, atomic nitrogen N(4S) and nitric oxide NO
   (m^-3), same altitudes and conditions, header ``altitude_km,n_n,n_no``. NRLMSIS 2.1
   gives no N below about 92 km (NaN): written as 0 there.
 
 The provenance of the crate's tables is in ``crates/aurora/data/README.md``, kept by
 hand (it also describes the night ionosphere of ``tools/iri90``).
 
-Conditions (since 2026-12-04, issue 20): a winter midnight on the auroral oval, 65.0 N
+Conditions (since 2026-12-04): a winter midnight on the auroral oval, 65.0 N
 0.0 E, 2017-12-21 00:00 UT (local solar midnight), F10.7 = 100 sfu (daily and 81-day
 mean), Ap = 10 for every entry of the ap history (so no space weather file is
-downloaded): the conditions at which issue 20 compares the column model with NCAR
+downloaded): the conditions at which the project compares the column model with NCAR
 GLOW. (Before, the example conditions of shared/aurora-physics.md: 69.6 N 19.0 E,
 2024-01-15 22:00 UT, F10.7 = 150, Ap = 15; those tables are kept in
 ``tests/data/air/tromso/``.)

@@ -1,4 +1,4 @@
-"""Blender as the real client of phenomena's outputs (issue 21): import a flame OpenVDB
+"""Blender as the real client of phenomena's outputs: import a flame OpenVDB
 frame as a volume object and render it with Cycles (the image must not be black), a
 flame PLY particle cache as a point mesh, and a snow GLB, checking what was imported
 against the files themselves (grid names, vertex counts, bounds).

@@ -1,5 +1,5 @@
 // Validate glTF/GLB files with the Khronos glTF-Validator; exit 1 on any error or
-// warning (issue 5: exported GLB must pass with 0 errors and 0 warnings).
+// warning (exported GLB must pass with 0 errors and 0 warnings).
 //   node tools/gltf-validate/validate.mjs FILE.glb [...]
 import { readFileSync } from "node:fs";
 import { createRequire } from "node:module";

@@ -1,4 +1,4 @@
-"""A 1-D estimate of the paper mode's colours by altitude (issue 24), for choosing its
+"""A 1-D estimate of the paper mode's colours by altitude, for choosing its
 constants before rendering: one vertical fall per §2.4.1 with exact free paths (the
 collision density at z is sigma n(z) P(Poisson(sigma N(z)) < budget), N the column above),
 §2.4.2's species choice by density and line shares, and quenching either by eq 2.25 with
@@ -7,7 +7,7 @@ shared/aurora-physics.md (eq 2.25 made exact per quencher). The curtain is where
 luminance is >= 2 % of its peak, cut into thirds by altitude, as the image tests cut rows.
 CIE 1931 colour matching values at the five lines (approximate), linear sRGB.
 Run: python3 tools/paper-look/model.py   (reads crates/aurora/data/atmosphere_msis21.csv)
-Measured 2026-12-03 (see issue 24's note): with measured quenching the top third is not
+Measured 2026-12-03 (see the note): with measured quenching the top third is not
 redder than the middle for Table 3.2's fixed 100-collision budget.
 """
 import csv, math

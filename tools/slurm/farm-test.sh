@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 22, part 4: a farm render on a real single-node Slurm. Brings Slurm up
+# a farm render on a real single-node Slurm. Brings Slurm up
 # (tools/slurm/up.sh), submits `phenomena farm slurm --submit` for a small flame and a
 # small aurora scene in 4 chunks each, waits (bounded), checks that every job completed
 # (sacct -c: job completion records, as accounting storage is off) and that every frame

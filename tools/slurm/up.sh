@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Bring up a single-node Slurm on this machine for the farm tests (issue 22): munged,
+# bring up a single-node Slurm on this machine for the farm tests: munged,
 # slurmctld and slurmd on localhost, configured with the machine's CPUs and memory, all
 # state under one scratch folder. Usage: tools/slurm/up.sh DIR  (prints the slurm.conf
 # path; export SLURM_CONF to it). Stop it with tools/slurm/down.sh DIR.

@@ -1,4 +1,4 @@
-// Browser end-to-end tests of `phenomena studio` (issue 7): Playwright (playwright-core)
+// Browser end-to-end tests of `phenomena studio`: Playwright (playwright-core)
 // driving Debian's chromium headless. Usage:
 //   node e2e.mjs PATH/TO/phenomena OUT_DIR
 // Starts the studio on a free port, runs every check, writes OUT_DIR/studio-snow.glb
@@ -276,7 +276,7 @@ await check('snow: the GLB download is a glTF binary', async () => {
   assert.equal(bytes.subarray(0, 4).toString('latin1'), 'glTF');
 });
 
-// --- hostile uploads (issue 18): a page cannot make the studio read other files ---
+// --- hostile uploads: a page cannot make the studio read other files ---
 // One triangle, and a glTF whose only buffer has the URI given.
 const triangle = Buffer.from(new Float32Array([0, 0, 0, 0, 0, 4, 4, 0, 0]).buffer);
 const gltf = (uri) => Buffer.from(JSON.stringify({

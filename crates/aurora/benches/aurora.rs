@@ -1,10 +1,10 @@
 //! Aurora hot paths at Table 3.2's settings (120,000 particles, 256×256 grid): one
-//! renewal of the intermediate shape's field and one motion step (issue 3's targets:
-//! ≤ 20 ms and ≤ 15 ms), the Poisson solvers alone, and the full frame of issue 4
+//! renewal of the intermediate shape's field and one motion step (its targets:
+//! ≤ 20 ms and ≤ 15 ms), the Poisson solvers alone, and the full frame
 //! (step + emission + splat + colour at 1280×720: ≤ 250 ms) and its 640×360 preview
 //! with 30,000 particles (≥ 20 frames per second, i.e. ≤ 50 ms), and the physical
-//! mode's column tables that a renderer builds once (issue 20); the five line volumes
-//! of a frame as one OpenVDB file (issue 21: ≤ 200 ms).
+//! mode's column tables that a renderer builds once; the five line volumes
+//! of a frame as one OpenVDB file (≤ 200 ms).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use glam::Vec2;
@@ -15,7 +15,7 @@ use phenomena_aurora::{
 };
 use std::hint::black_box;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "../../core/benches/shared/reference.rs"]
 mod reference;
 
@@ -104,7 +104,7 @@ fn full_frame(c: &mut Criterion) {
         });
         eprintln!("{name}: {} particles, {:?}", sim.particles().len(), sky.timings());
     }
-    // The physical mode's tables, built once per renderer (issue 20: ionisation, ion
+    // The physical mode's tables, built once per renderer (ionisation, ion
     // chemistry and electron degradation at every altitude, then the samplers).
     group.bench_function("column_model_build", |b| {
         b.iter(|| {
@@ -117,7 +117,7 @@ fn full_frame(c: &mut Criterion) {
             black_box(column.altitude_sampler())
         })
     });
-    // Issue 23 item 2: a paper-mode frame (§2.4 as printed, exact free paths) at Table
+    // A paper-mode frame (§2.4 as printed, exact free paths) at Table
     // 3.2's 120,000 particles within 1 s.
     let mut config = AuroraConfig::default();
     config.redistribution.enabled = false;
@@ -138,7 +138,7 @@ fn full_frame(c: &mut Criterion) {
     group.finish();
 }
 
-/// Issue 21's target: the five line volumes of 120,000 particles at 1 km voxels,
+/// Target: the five line volumes of 120,000 particles at 1 km voxels,
 /// voxelised and encoded as one OpenVDB file, within 200 ms.
 #[allow(clippy::print_stderr, reason = "the bench reports the volume's size beside criterion's times")]
 fn line_volumes(c: &mut Criterion) {

@@ -1,5 +1,5 @@
-//! CPU time of sky frames at Table 3.2's 120,000 particles and 1280x720 (issue 23 items
-//! 1 and 2), for comparing two builds on a busy machine, where wall-clock benches drift:
+//! CPU time of sky frames at Table 3.2's 120,000 particles and 1280x720 (the physical
+//! and the paper mode), for comparing two builds on a busy machine, where wall-clock benches drift:
 //!
 //!     cargo build --release -p phenomena-aurora --example paper_cycles
 //!     RAYON_NUM_THREADS=1 perf stat -e task-clock target/release/examples/paper_cycles 2

@@ -1,4 +1,4 @@
-//! Issue 24's numbers: renders a thesis scene in `paper` mode (default: scene 2, frame
+//! Numbers: renders a thesis scene in `paper` mode (default: scene 2, frame
 //! 200, 640x360) and prints the curtain's colour by height (the image criteria), each
 //! line's paper-mode emission peak beside the physical mode's, and the frame as a PPM.
 //!

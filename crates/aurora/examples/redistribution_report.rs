@@ -1,4 +1,4 @@
-//! Issue 20 part 2's numbers: runs the thesis scenes 1-5 with the default motion and
+//! Numbers: runs the thesis scenes 1-5 with the default motion and
 //! redistribution parameters and prints, per scene, the fullest cell right after any
 //! renewal's redistribution, the worst share of particles within L_thr over the last 40
 //! frames, the particles at the end and the mean time per frame.

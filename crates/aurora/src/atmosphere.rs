@@ -1,4 +1,4 @@
-//! The neutral atmosphere of the `physical` colour mode (issue 4): number densities of
+//! The neutral atmosphere of the `physical` colour mode: number densities of
 //! O, N2 and O2 and the temperature from 80 to 500 km, from NRLMSIS 2.1 (Emmert et al.
 //! 2021) for a winter night over the auroral oval. The table is embedded; how it was made
 //! is in `crates/aurora/data/README.md` and `tools/gen_atmosphere.py`.

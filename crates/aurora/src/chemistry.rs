@@ -1,5 +1,5 @@
 //! The ion chemistry of the `physical` mode's column and the sources of O(¹D), the
-//! upper state of the red 630.0 nm line (issue 20).
+//! upper state of the red 630.0 nm line.
 //!
 //! At each altitude, given the ionisation of O, O₂ and N₂ by the precipitating
 //! electrons, the ions O⁺(⁴S, ²D, ²P), N⁺, N₂⁺, O₂⁺ and NO⁺ are each in photochemical

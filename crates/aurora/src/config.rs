@@ -219,7 +219,7 @@ pub struct MotionParams {
     /// Stronger damping holds particles closer to the shape at the cost of a slower
     /// response. The default, 6/s (a velocity memory of 5 frames), is the smallest whole
     /// rate that keeps 90 % of the particles within L_thr over the last 40 frames of
-    /// every thesis scene (issue 20 part 2). Why particles leave: the potential of the
+    /// every thesis scene. Why particles leave: the potential of the
     /// whole shape is a bowl, and beyond L_thr its pull towards the shape's centre of
     /// charge outweighs the sheet's own well in places (a third of the cells 1-1.5 L_thr
     /// from scene 5's four sheets have E pointing away from the nearest sheet); the
@@ -263,7 +263,7 @@ pub enum RedistributionRule {
     /// in the cell.
     Paper,
     /// The printed rules with three changes that keep the promise of Table 3.3's
-    /// thresholds (issue 20 part 2):
+    /// thresholds:
     /// - a near cell over `remove_above` loses its whole excess (farthest first), so no
     ///   cell holds more than `remove_above` right after a renewal; `remove_max` does not
     ///   apply (with it, at the default damping, scenes 1 and 2 leave 1 and 6 cells over

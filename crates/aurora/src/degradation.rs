@@ -1,6 +1,6 @@
 //! How the energy of auroral electrons ends up: the local energy degradation of an
 //! electron in the air at one altitude, counting ionisations and the excitations that
-//! the red line needs (issue 20).
+//! the red line needs.
 //!
 //! Most O(¹D) in aurora comes from electron impact on O by the secondary and degraded
 //! primary electrons of a few eV to a few tens of eV (threshold 1.96 eV). How many per
@@ -24,15 +24,15 @@
 //! solve per energy bin and column, on every scene's precipitation; this costs one
 //! sweep.
 //!
-//! **Known limit (review of 2026-12-03, issue 20):** at the red line's altitudes the
-//! local assumption fails for the 4-10 eV electrons that make most O(¹D) (the cross
-//! section peaks near 5.9 eV): at 200-220 km they need 160-480 km of path to lose their
-//! energy to the neutrals and, with elastic mean free paths of 1.7-3 km, diffuse some
-//! 20-40 km, comparable to N₂'s scale height. So the O(¹D) yield per ion pair here rises
-//! steadily with altitude (2 keV: 0.74 at 197 km, 0.81 at 221, 0.86 at 245, 0.90 at
-//! 300), where GLOW's transported yield (`jlocal = 0`) peaks near 0.87 at 210 km and
-//! falls (0.73 at 245, 0.37 at 300). That is the main reason our 630.0 nm peak sits
-//! ~25 km above GLOW's; the cure is the two-stream transport term, not a fitted shape.
+//! **Its limit, and what handles it:** at the red line's altitudes the local
+//! assumption fails for the 4-10 eV electrons that make most O(¹D) (the cross section
+//! peaks near 5.9 eV): at 200-220 km they need 160-480 km of path to lose their energy to
+//! the neutrals and, with elastic mean free paths of 1.7-3 km, diffuse some 20-40 km,
+//! comparable to N₂'s scale height. Alone, this local balance makes the O(¹D) yield per
+//! ion pair rise steadily with altitude, where GLOW's transported yield peaks near
+//! 210 km and falls, which put the 630.0 nm peak ~25 km above GLOW's. `transport.rs`
+//! therefore moves the electrons below 100 eV along the field line (two-stream); this
+//! module's balance is what it reduces to where transport does not matter.
 //!
 //! Cross sections:
 //! - excitation: the analytic form of Green and Stolarski (1972, J. Atmos. Terr. Phys.

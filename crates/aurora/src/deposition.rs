@@ -16,7 +16,7 @@
 //!   1985); 427.8 nm from the same N2⁺(B) states with branching 0.20 against 0.65
 //!   (ratio 3.25); O(¹S) mostly from N2(A³Σu⁺) energy transfer to O (GLOW). O(¹S)
 //!   radiates the share A/(1/τ + Σ k n) of [`Line::radiated_fraction`].
-//! - The red line (issue 20): O(¹D) from every source of
+//! - The red line: O(¹D) from every source of
 //!   [`crate::chemistry::O1dSource`], electron impact on O per ion pair from the local
 //!   degradation of [`crate::degradation`], dissociative recombination of O₂⁺ with the
 //!   electron density of the ion balance of [`crate::chemistry`], N(²D) + O₂, N⁺ + O₂,
@@ -714,7 +714,7 @@ mod tests {
 
     #[test]
     fn the_issues_2_kev_maxwellian_column() {
-        // Issue 4's evidence: 2 keV Maxwellian, 1 erg cm⁻² s⁻¹.
+        // Evidence: 2 keV Maxwellian, 1 erg cm⁻² s⁻¹.
         let m = model(Spectrum::Maxwellian, 2.0, 1.0);
         let green = m.peak_altitude_km(Line::O557);
         assert!((100.0..=130.0).contains(&green), "557.7 nm peak at {green} km");

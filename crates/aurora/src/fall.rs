@@ -12,7 +12,7 @@
 //! particle may be quenched before it radiates (eq 2.25); the light reaching the eye is
 //! attenuated by c = exp(-(d z_a)²) (eq 2.27) with z_a the emission point's depth from
 //! the camera. The thesis prints neither the production ratios, nor r, nor τ; two sets of
-//! choices for them (issue 24):
+//! choices for them:
 //!
 //! - the defaults, from the physics the thesis cites ([`PaperProduction::Column`],
 //!   [`PaperQuenching::Measured`]): the production ratios are the upper states made per
@@ -60,7 +60,7 @@ pub struct PaperFall {
     pub energy_loss_ev: f64,
     /// Largest |ω| relative to |B| = 1: ω is uniform in the ball of this radius. The
     /// thesis gives neither its size nor its distribution ("a minute wobble"). The default
-    /// 0.15 was chosen by eye for the look of its figures (issue 24): the curtains keep
+    /// 0.15 was chosen by eye for the look of its figures: the curtains keep
     /// their rays and folds low down, while the long free paths high up (~100 km at
     /// 250 km) widen the top by ~15 km. Physically an electron stays within its
     /// gyroradius (metres) of the field line; with jitter 0.05 the curtains are sharp
@@ -68,7 +68,7 @@ pub struct PaperFall {
     /// top third 1.14× redder than the middle instead of 1.38×; 1.24× at 0.1;
     /// `examples/paper_look.rs`): the red top's share of the measure comes from this
     /// widening, not from `red_diffusion` (1.36× without it). 0.3 was the default before
-    /// issue 24.
+    /// the paper-look review.
     pub jitter: f64,
     /// r in eq 2.22 (and in eq 2.25 with `quenching = "hard-sphere"`), m. The thesis
     /// does not print it; the default makes 100 collisions end near 108 km in the MSIS
@@ -139,7 +139,7 @@ pub enum PaperQuenching {
     #[default]
     Measured,
     /// Eq 2.25 with the fall's `collision_radius_m` for every species and τ fixed at the
-    /// state's lifetime (the equations read with one r, before issue 24).
+    /// state's lifetime (the equations read with one r, before they were made exact).
     HardSphere,
 }
 
@@ -481,7 +481,7 @@ impl PaperEmission {
         // points below ~265 km (where the chances sum to about 0.46 at the defaults) for
         // √2 more noise there; measured 2026-12-03, a paper frame took 0.80 s this way
         // and 1.00 s with a weight per altitude (`cargo bench -p phenomena-aurora
-        // --bench aurora -- paper_frame`), and issue 23 asks for 1 s.
+        // --bench aurora -- paper_frame`), and the target is 1 s.
         let weight = chances.iter().map(|c| c.iter().sum::<f64>()).fold(1.0, f64::max);
         let cumulative = chances
             .iter()
@@ -1152,7 +1152,7 @@ mod tests {
 
     #[test]
     fn each_line_peaks_near_the_physical_mode() {
-        // Issue 24: the altitude of each line's brightest paper-mode emission lies within
+        // The altitude of each line's brightest paper-mode emission lies within
         // 20 km of the physical mode's peak for the same settings.
         let air = Atmosphere::msis21();
         let params = PaperFall::default();

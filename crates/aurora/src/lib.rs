@@ -1,5 +1,6 @@
-//! Artist-controllable aurora, after Sekiguchi, "Artist-controllable aurora" (2018,
-//! `shared/papers/aurora-artist-controllable-sekiguchi-2018.txt`).
+//! Artist-controllable aurora, after Sekiguchi, "A study of artist-controllable aurora
+//! simulation" (アーティスト制御可能なオーロラシミュレーションに関する研究, master's
+//! thesis, University of Tsukuba, 2018).
 //!
 //! Part 1: artist shapes and keyframes ([`shape`], §2.2.1-2.2.2; edited through
 //! [`editor`], §3.1), the electric field of

@@ -844,7 +844,7 @@ mod tests {
         assert_eq!(anim.shape_at(0.0).next[4..], [None, None], "not yet split: unlinked");
     }
 
-    /// Issue 19: operations that would quietly do something else are refused, each at
+    /// Operations that would quietly do something else are refused, each at
     /// its place in the scene.
     #[test]
     fn repeated_self_and_empty_operations_are_refused() {

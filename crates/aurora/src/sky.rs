@@ -184,8 +184,8 @@ impl Default for SkyCamera {
     }
 }
 
-/// What a camera kind's fields default to when the scene file leaves them out (issue 20:
-/// `kind = "dome"` alone was refused for want of `fov_deg`).
+/// What a camera kind's fields default to when the scene file leaves them out (so that
+/// `kind = "dome"` alone is a camera, not a refusal for want of `fov_deg`).
 mod defaults {
     pub(super) fn ground_distance_km() -> f32 {
         250.0
@@ -251,7 +251,7 @@ pub struct SkySettings {
     /// below which the shares (j + ξ)/m of its column are emitted, j = 0..m, with one
     /// uniform ξ per particle and line (systematic sampling: evenly spaced in the
     /// column). 28 keep the frame as close to 512 points as 32 points with an
-    /// independent ξ per point did (test `sampling_quality`, issue 23).
+    /// independent ξ per point did (test `sampling_quality`).
     pub points_per_particle: u32,
     /// `physical` mode: the precipitating electrons.
     pub precipitation: Precipitation,
@@ -1082,7 +1082,7 @@ mod tests {
 
     #[test]
     fn every_camera_kind_has_defaults() {
-        // Issue 20: `kind = "dome"` alone was refused ("missing field `fov_deg`").
+        // `kind = "dome"` alone was refused ("missing field `fov_deg`").
         let parse = |text: &str| toml::from_str::<SkyCamera>(text).map_err(|e| e.to_string());
         assert_eq!(parse(r#"kind = "dome""#), Ok(SkyCamera::Dome { fov_deg: 180.0 }));
         assert_eq!(parse(r#"kind = "panorama""#), Ok(SkyCamera::Panorama));

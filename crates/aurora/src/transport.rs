@@ -1,4 +1,4 @@
-//! Transport of the low-energy electrons along the field line (issue 20): the two-stream
+//! Transport of the low-energy electrons along the field line: the two-stream
 //! equations of Banks and Nagy (1970, J. Geophys. Res. 75, 6260) for the electrons below
 //! [`TRANSPORT_TOP_EV`], so that the 4-10 eV electrons that make most O(¹D) excite it
 //! where they go, not where they are born.

@@ -1,4 +1,4 @@
-//! The aurora as volumes (issue 21): one emission grid per line, from the particles and
+//! The aurora as volumes: one emission grid per line, from the particles and
 //! the line altitude profiles of the physical mode, for OpenVDB files a 3-D scene or a
 //! planetarium's 3-D Earth renders.
 //!

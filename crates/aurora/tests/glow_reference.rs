@@ -1,4 +1,4 @@
-//! The physical mode's column model against an independent 1-D auroral model (issue 20):
+//! The physical mode's column model against an independent 1-D auroral model:
 //! NCAR GLOW v0.981, run by `tools/glow-ref` (our driver; GLOW's source is not in the
 //! repository) for Maxwellian electrons of E0 = 1, 2, 5 keV at 1 erg cm⁻² s⁻¹, 65° N,
 //! winter local midnight, F10.7 = 100, Ap = 10. Its profiles are committed in

@@ -1,4 +1,4 @@
-//! Issue 24's image criteria: thesis scene 2 (`scenes/aurora-scene2.toml`) rendered in
+//! Image criteria: thesis scene 2 (`scenes/aurora-scene2.toml`) rendered in
 //! `paper` mode with its defaults at 640 × 360, frame 200 (the split S of the thesis's
 //! Fig. 3.10 between its second and third keyframes):
 //! - the middle third of the curtain is green-dominant (G above R and B in its summed

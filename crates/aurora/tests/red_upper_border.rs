@@ -1,4 +1,4 @@
-//! Issue 20's image criterion: thesis scene 2 (`scenes/aurora-scene2.toml`) rendered at
+//! Image criterion: thesis scene 2 (`scenes/aurora-scene2.toml`) rendered at
 //! 1280 × 720 in the physical mode with default settings shows a redder upper border:
 //! the top third of the curtain is at least 1.2× redder (R/G) than its middle third.
 //!

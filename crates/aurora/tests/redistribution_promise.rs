@@ -1,4 +1,4 @@
-//! Issue 20 part 2: redistribution keeps Table 3.3's promise with the default
+//! Redistribution keeps Table 3.3's promise with the default
 //! parameters. (a) Right after every renewal's redistribution no near cell holds more
 //! than the deletion threshold (500); (b) at least 90 % of the particles lie within L_thr
 //! of the intermediate target over each thesis scene's last 40 frames.

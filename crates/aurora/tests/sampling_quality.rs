@@ -1,11 +1,11 @@
-//! Issue 23 item 1's image-quality guard: any change to the physical mode's sampling
+//! Image-quality guard: any change to the physical mode's sampling
 //! (fewer or better-placed emission points) must keep the frame as good. The measure is
 //! the PSNR of a frame rendered with the default samples against a reference rendered
 //! with 512 points per particle (16× the default of 32 when the guard was written), over
 //! the linear RGB frame with the reference's brightest value as the peak:
 //! PSNR = 10 log10(peak² / mean squared difference).
 //!
-//! The case is issue 23's `--stats` case: thesis scene 2 after redistribution (frame
+//! The case is the `--stats` case: thesis scene 2 after redistribution (frame
 //! 100), 1280 × 720, physical mode, defaults. Rendering is deterministic (streams keyed
 //! by seed, frame and particle), so the PSNR is one exact number for the code; the floor
 //! is the value measured when the guard was written (2026-12-03) less 0.2 dB, i.e. a

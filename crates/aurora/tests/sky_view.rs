@@ -1,4 +1,4 @@
-//! The sky view end to end (issue 4's image evidence): colour by height in a rendered
+//! The sky view end to end (its image evidence): colour by height in a rendered
 //! curtain, the afterglow's decay, thread-count independence, and the dome and
 //! panorama cameras.
 

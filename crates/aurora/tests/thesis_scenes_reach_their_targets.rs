@@ -1,4 +1,4 @@
-//! Issue 3's evidence on the shipped thesis scenes 1-5: after the transitions finish,
+//! Evidence on the shipped thesis scenes 1-5: after the transitions finish,
 //! at least 90 % of the particles lie within L_thr of the final target shape, and every
 //! segment of it has particles within L_thr along its whole length; a split turns one
 //! connected particle cloud into two (scene 2), a merge three into two (scene 3); and

@@ -1,4 +1,4 @@
-//! `phenomena farm slurm`: a render split over a Slurm cluster (issue 22). Two jobs: one
+//! `phenomena farm slurm`: a render split over a Slurm cluster. Two jobs: one
 //! simulates the whole scene once, writing a checkpoint every K frames; then an array job
 //! whose task i renders frames iK..(i+1)K from checkpoint iK, started only when the
 //! simulation succeeded (`--dependency=afterok`). Each task's frames are byte-identical

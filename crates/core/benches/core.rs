@@ -12,7 +12,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::vdb::{AnyGrid, Grid, GridClass, Metadata, Transform, encode_into};
 use std::hint::black_box;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "shared/reference.rs"]
 mod reference;
 

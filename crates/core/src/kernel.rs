@@ -312,7 +312,7 @@ mod tests {
 
     #[test]
     fn kernels_integrate_to_one() {
-        // Issue 2: ∫W = 1 within 1e-3. Simpson's error at 20,000 intervals is far below
+        // ∫W = 1 within 1e-3. Simpson's error at 20,000 intervals is far below
         // that; the remaining error is f32 rounding of W (relative ~1e-7).
         for kind in KINDS {
             for dim in [Dim::Two, Dim::Three] {

@@ -1,5 +1,5 @@
 //! The blackbody colours agree with an independent implementation, the Python package
-//! colour-science (table and provenance in `tests/data/`), to the tolerances of issue 2:
+//! colour-science (table and provenance in `tests/data/`), to these tolerances:
 //! 1e-4 in CIE 1931 x, y and 2e-3 in normalised linear r, g, b for 1,000-10,000 K.
 //!
 //! Remaining differences are known and small: colour-science uses c2 = 0.014388 m·K

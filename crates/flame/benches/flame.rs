@@ -1,5 +1,5 @@
 //! Flame hot paths: one SPH step, one 1280×720 render (splats, shimmer, composite), and
-//! the two together, at the particle counts of issue 2 (10,000 and 30,000) and the
+//! the two together, at 10,000 and 30,000 particles and the
 //! paper's 3,000.
 //!
 //! Also one OpenVDB frame of 30,000 particles (`flame_vdb`).
@@ -13,7 +13,7 @@ use phenomena_flame::{FlameConfig, FlameRenderer, FlameSim, RenderSettings};
 use std::hint::black_box;
 use std::time::Duration;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "../../core/benches/shared/reference.rs"]
 mod reference;
 
@@ -77,7 +77,7 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-/// Issue 21's target: one VDB frame of 30,000 particles at 1 cm voxels (voxelising the
+/// Target: one VDB frame of 30,000 particles at 1 cm voxels (voxelising the
 /// three grids and encoding the file) within 50 ms. `frame_*` is a frame of an animation
 /// as the VDB sink writes it (the voxeliser's grids and the file buffer kept from the
 /// previous frame); `voxelize_*` and `encode_*` are its two halves; `first_frame_*`

@@ -1,5 +1,5 @@
 //! CPU time of flame steps and renders at 30,000 particles and 1280x720 with ½-res
-//! splats (issue 23 item 3), for comparing two builds on a busy machine, where
+//! splats, for comparing two builds on a busy machine, where
 //! wall-clock benches drift:
 //!
 //!     cargo build --release -p phenomena-flame --example flame_cycles

@@ -1,6 +1,6 @@
 //! Real-time flame from particle-based fluid simulation, after Inagaki, Imura, Ikeda,
 //! Manabe and Chihara, "Real-time Rendering of Flame Using Particle-based Fluid
-//! Simulation" (`shared/papers/flame-sph-realtime-inagaki.txt`).
+//! Simulation" (粒子ベース流体シミュレーションを用いた炎のリアルタイムレンダリング).
 //!
 //! - [`FlameSim`] (module `sim`): the SPH gas of §4: poly6 density (eq 2-3), pressure
 //!   p = k(ρ - ρ0) (eq 11), the symmetrised pressure force (eq 12), a = f/ρ (eq 8), wind

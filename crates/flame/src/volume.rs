@@ -1,4 +1,4 @@
-//! The flame as volumes (issue 21): the SPH fields of §4 sampled at the centres of a
+//! The flame as volumes: the SPH fields of §4 sampled at the centres of a
 //! voxel grid, for OpenVDB files a renderer such as Blender's Cycles reads.
 //!
 //! At a voxel centre x, with the poly6 density kernel W of §4.2 (support d) and each

@@ -1,4 +1,4 @@
-//! Issue 19 item 7: `validate` predicts the SPH step's neighbour limit at the burner
+//! `validate` predicts the SPH step's neighbour limit at the burner
 //! (`FlameConfig::max_burner_rate_per_s`), so a flame it accepts also renders: just
 //! under the predicted rate the simulation runs past its steady state without
 //! "too dense", and above it the configuration is refused at `emitter.rate_per_s`.

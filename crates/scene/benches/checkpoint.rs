@@ -1,4 +1,4 @@
-//! Checkpoints (issue 22): writing and reading the state of thesis scene 2 after its
+//! Checkpoints: writing and reading the state of thesis scene 2 after its
 //! redistribution has grown it to about 190,000 particles (frame 100). Target: a state
 //! within 10 MB, written within 100 ms.
 
@@ -8,7 +8,7 @@ use phenomena_scene::{Assets, Runner, Simulate};
 use std::hint::black_box;
 use std::path::Path;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "../../core/benches/shared/reference.rs"]
 mod reference;
 

@@ -1,7 +1,7 @@
 //! Flipbook atlases for game engines: a render's frames tiled into one RGBA atlas
 //! (rows × columns, row-major from the top left) with a JSON descriptor, the texture
 //! sheet a particle system or a sprite shader plays. Assembly only; the `flipbook`
-//! format ([`crate::flipbook`]) writes the files.
+//! format (`flipbook.rs`) writes the files.
 //!
 //! Frames are rendered over black (the phenomenon's emission alone) and tone mapped as
 //! PNG frames are; alpha is the largest of the three display-linear channels, the usual

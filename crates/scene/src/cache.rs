@@ -1,4 +1,4 @@
-//! Particle caches (issue 21): a frame's particles as one binary little-endian PLY file
+//! Particle caches: a frame's particles as one binary little-endian PLY file
 //! (Stanford PLY 1.0: a header naming `element vertex N` and its properties, then N
 //! records of those properties in order), which Blender, Houdini and MeshLab import as
 //! a point cloud (x, y, z; nx, ny, nz as normals where present; other properties as

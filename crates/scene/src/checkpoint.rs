@@ -1,6 +1,6 @@
 //! Checkpoints: a simulation's whole state at a frame, in a versioned, checksummed
 //! binary file, so that a render can start at any frame without simulating the ones
-//! before it (issue 22). Encoding and decoding only; [`crate::output`] writes and finds
+//! before it. Encoding and decoding only; [`crate::output`] writes and finds
 //! the files.
 //!
 //! # Format, version 2
@@ -32,7 +32,7 @@ pub const MAGIC: &[u8; 8] = b"PHNMCKPT";
 /// The format version this build writes and reads. Raised whenever a simulation's
 /// state or what a frame's state means changes, so that an older checkpoint is refused
 /// (and the render falls back to simulating) instead of resuming wrongly. 2: an aurora
-/// frame ends with its renewal (issue 20 part 2), so a version-1 state taken on a
+/// frame ends with its renewal, so a version-1 state taken on a
 /// renewal frame would skip that renewal.
 pub const FORMAT_VERSION: u32 = 2;
 /// Largest state a checkpoint may hold, bytes (a larger length is a corrupt file, not

@@ -1,4 +1,4 @@
-//! Snow hot paths (issue 5's speed targets): the snow probability of a scene (64
+//! Snow hot paths (its speed targets): the snow probability of a scene (64
 //! directions at 256×256) and one accumulation + stabilisation step of the paper's Fig 8
 //! setting (five 128×128 maps, one per primitive).
 
@@ -8,7 +8,7 @@ use phenomena_snow::reference::naive_vertex_probability;
 use phenomena_snow::{SnowConfig, SnowSim};
 use std::hint::black_box;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "../../core/benches/shared/reference.rs"]
 mod reference;
 
@@ -21,7 +21,7 @@ fn probability(c: &mut Criterion) {
     });
 }
 
-/// Issue 5's target: a ~13,000-triangle scene, 64 directions, 256×256 (maps and depth
+/// Target: a ~13,000-triangle scene, 64 directions, 256×256 (maps and depth
 /// maps) in ≤ 100 ms (stretch 40 ms).
 fn village(c: &mut Criterion) {
     let mesh = village_scene();
@@ -63,7 +63,7 @@ fn step(c: &mut Criterion) {
     c.bench_function("snow_step_5_maps_128", |b| {
         b.iter_batched_ref(|| sim.clone(), |s| black_box(s.step().unwrap()), BatchSize::LargeInput)
     });
-    // Issue 5's step: accumulation + stabilisation + remesh (the snow solids).
+    // Step: accumulation + stabilisation + remesh (the snow solids).
     c.bench_function("snow_step_and_remesh_5_maps_128", |b| {
         b.iter_batched_ref(
             || sim.clone(),
@@ -76,7 +76,7 @@ fn step(c: &mut Criterion) {
     });
 }
 
-/// Issue 25's workload: `scenes/snow-yard.toml` (256² maps, 64 directions, 4 cm/h in
+/// Workload: `scenes/snow-yard.toml` (256² maps, 64 directions, 4 cm/h in
 /// 0.25 h steps, repose 35°): criterion's times for one step early in the snowfall, one
 /// after 9 hours and the last of 12 hours, when the piles under the eaves are deep; then
 /// [`yard_steps`], every step of the 12 hours.
@@ -98,7 +98,7 @@ fn yard(c: &mut Criterion) {
     yard_steps(&fresh);
 }
 
-/// Issue 25's target, checked over every step of the 12 hours (48 steps): each step within
+/// Target, checked over every step of the 12 hours (48 steps): each step within
 /// 30 ms, and the last at most twice the median of the first ten. The 12 hours are run
 /// five times from the same start and each step's time is its median over the runs (the
 /// machine is shared: a median drops the runs another process slowed). Printed, not

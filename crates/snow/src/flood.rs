@@ -1,4 +1,4 @@
-//! The flood stabilisation (issue 25): the snow brought to rest at the angle of repose
+//! The flood stabilisation: the snow brought to rest at the angle of repose
 //! (§2.4.1) with work that follows the texels that change, not the depth of the snow.
 //!
 //! The texels of all maps are the nodes of one graph whose edges are the repose

@@ -1,5 +1,5 @@
-//! Snow cover, after Tokoi and Moriki, "Real-time modeling of snow-covered shape" (2006,
-//! `shared/papers/snow-cover-realtime-tokoi-moriki-2006.txt`).
+//! Snow cover, after Tokoi and Moriki, "Real-time modeling of snow-covered shape"
+//! (積雪形状のリアルタイムモデリング, 2006).
 //!
 //! [`mesh`] holds scene triangles and the built-in procedural shapes; [`groups`] makes
 //! the polygon groups of §2.1 automatically; [`SnowSim`] builds one top-down snow map per

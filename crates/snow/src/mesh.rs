@@ -224,7 +224,7 @@ pub enum Builtin {
     /// Like the paper's Fig 9: a village of about 12,000+ triangles.
     Village,
     /// A small yard like one a user makes in Blender: a house with a steep gable roof,
-    /// three trees, a fence and a bench (issue 25's stabilisation workload).
+    /// three trees, a fence and a bench (its stabilisation workload).
     Yard,
 }
 
@@ -339,7 +339,7 @@ pub fn village_scene() -> Mesh {
     mesh
 }
 
-/// Issue 25's snowfall on [`yard_scene`], as `scenes/snow-yard.toml` has it: 256² maps,
+/// Snowfall on [`yard_scene`], as `scenes/snow-yard.toml` has it: 256² maps,
 /// 64 directions of 8° spread, 4 cm/h in 0.25 h steps, repose 35°, 0.3 m margin.
 pub fn yard_config() -> crate::SnowConfig {
     crate::SnowConfig {
@@ -354,7 +354,7 @@ pub fn yard_config() -> crate::SnowConfig {
     }
 }
 
-/// A small yard like the one of issue 25 (made there in Blender 3.4: ground, a house with
+/// A small yard like one made in Blender 3.4 (ground, a house with
 /// a pitched roof, three trees, a fence, a bench; 24 objects): a 12 m ground square, a
 /// 5 × 3 × 4 m house whose gable roof (ridge along x, 0.4 m eaves) rises 2.1 m over its
 /// 2.4 m half-depth (41°, steeper than a 35° repose, so its snow slides off and piles up

@@ -102,7 +102,7 @@ pub enum Stabiliser {
     /// The surplus over the highest stable surface under the snow, found bottom-up in one
     /// ordered sweep, carried downhill in height order and settled by priority floods
     /// (`flood.rs`); then the paper's local rule checks the result. The work follows the
-    /// texels that change, not the depth of the snow (issue 25).
+    /// texels that change, not the depth of the snow.
     #[default]
     Flood,
     /// The paper's local rule of Fig 6 (§2.4.1) swept over the maps until no slope
@@ -585,7 +585,7 @@ impl SnowSim {
         // change. The sweep visits only set bits, in the same order as a sweep over every
         // texel, and a texel not marked cannot move snow (neither it nor a neighbour
         // changed since it was last found stable), so the result is that of the full
-        // sweep while the cost follows the texels that move (issue 25).
+        // sweep while the cost follows the texels that move.
         if self.dense_sweeps {
             active.iter_mut().for_each(|b| b.fill(texels));
         }
@@ -720,7 +720,7 @@ pub(crate) fn neighbours(
         // (Before, a neighbour a little higher than this texel was not "lower", the
         // texel measured to its own ground, and snow deeper than the rise fell off
         // the scene along the join: a V-shaped trench along the ground's diagonal,
-        // found on the yard scene; issue 25.)
+        // found on the yard scene.)
         let g = map.ground_m[k];
         let joined = maps
             .iter()
@@ -738,7 +738,7 @@ pub(crate) fn neighbours(
         // surface. Its snow may stand higher than the source: the snow is walled in there
         // and does not move. (Chosen by snow surface before, a texel whose neighbouring
         // pile had risen above it found no lower map and sent its snow off the scene from
-        // the middle of the yard, under the bench; issue 25.)
+        // the middle of the yard, under the bench.)
         let lower = maps
             .iter()
             .enumerate()
@@ -758,7 +758,7 @@ pub(crate) fn neighbours(
 }
 
 /// How far past the repose a slope may be before snow moves, as a height over one texel:
-/// half of issue 5's 1e-4 slope tolerance, so that f32 rounding of the final heights
+/// half of the 1e-4 slope tolerance, so that f32 rounding of the final heights
 /// cannot push a slope past it.
 pub(crate) fn repose_tolerance(fp: Footprint) -> f32 {
     0.5e-4 * fp.texel_m
@@ -825,7 +825,7 @@ pub(crate) fn four(n: usize, k: usize) -> impl Iterator<Item = usize> {
         .flatten()
 }
 
-/// The shape of the snow maps' regions as the stabilisation needs it (issue 25).
+/// The shape of the snow maps' regions as the stabilisation needs it.
 #[derive(Clone, Debug)]
 pub(crate) struct Regions {
     /// Per map, the texels outside its region next to one inside it: a change there

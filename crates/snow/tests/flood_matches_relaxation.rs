@@ -1,4 +1,4 @@
-//! Issue 25's evidence for the flood stabilisation: step by step from the same snow, it
+//! Evidence for the flood stabilisation: step by step from the same snow, it
 //! agrees with the paper's local rule (the relaxation, `stabiliser = "relaxation"`) run
 //! to convergence where the stable state is unique, both meet the angle of repose and
 //! keep every gram of snow, and the flood leaves the local rule nothing to do.
@@ -34,7 +34,7 @@ fn snowfall_m3(s: &SnowSim) -> f64 {
 /// - on every texel where neither result holds more than the snow it started with plus
 ///   its own snowfall, the surfaces differ by at most one increment, plus ε for the
 ///   relaxation, which may take old snow within its tolerance;
-/// - both meet the repose (+1e-4, issue 5's tolerance) and conserve the snow: volume +
+/// - both meet the repose (+1e-4, the tolerance) and conserve the snow: volume +
 ///   fallen off = what there was plus the snowfall, within 1e-5 of it (relative; f32
 ///   depths).
 ///
@@ -102,7 +102,7 @@ fn start_volume(start: &[Vec<f32>], s: &SnowSim) -> f64 {
     start.iter().map(|m| m.iter().map(|&d| f64::from(d)).sum::<f64>()).sum::<f64>() * t2
 }
 
-/// The paper's Fig 7 table under heavy snow (issue 5's repose test): the top sheds over
+/// The paper's Fig 7 table under heavy snow (its repose test): the top sheds over
 /// its edges, the pit under it fills from the sides.
 #[test]
 fn on_the_table_the_flood_agrees_with_the_relaxation_where_the_stable_state_is_unique() {
@@ -118,7 +118,7 @@ fn on_the_table_the_flood_agrees_with_the_relaxation_where_the_stable_state_is_u
     assert!(deposits < 0.5, "{deposits}");
 }
 
-/// The yard (issue 25's scene) at 100² for 12 hours: roofs and tree cones steeper than
+/// The yard (its scene) at 100² for 12 hours: roofs and tree cones steeper than
 /// the repose, piles under the eaves and rims, a ground split between two maps.
 #[test]
 fn on_the_yard_the_flood_agrees_with_the_relaxation_where_the_stable_state_is_unique() {

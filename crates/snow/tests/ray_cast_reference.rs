@@ -1,5 +1,5 @@
 //! The shadow-map snow probability against the BVH ray-cast reference with the same
-//! directions (issue 5: mean |ΔP| ≤ 0.01 and 99th percentile ≤ 0.10 off silhouettes).
+//! directions (mean |ΔP| ≤ 0.01 and 99th percentile ≤ 0.10 off silhouettes).
 
 use phenomena_snow::mesh::{primitives_scene, table_scene, village_scene};
 use phenomena_snow::reference::ray_cast_probability;

@@ -1,4 +1,4 @@
-//! Issue 5's evidence on the table scene of the paper's Fig 7: the probability under the
+//! Evidence on the table scene of the paper's Fig 7: the probability under the
 //! table, its edges with and without spread, the angle of repose, conservation, snow
 //! falling off the table onto the ground, and thread-count independence.
 
@@ -225,7 +225,7 @@ fn changed_grounds_are_found_again() {
 
 /// A surface split between two maps (here a ground square whose two triangles are given
 /// different groups, as the automatic grouping does to a ground under objects) holds snow
-/// as one surface: no trench along the join, nothing lost there. Before issue 25's fix a
+/// as one surface: no trench along the join, nothing lost there. Before the fix a
 /// texel next to a slightly higher neighbour on the other map measured its slope to its
 /// own ground, so snow deeper than the repose rise fell off the scene along the diagonal.
 #[test]
@@ -281,7 +281,7 @@ fn a_surface_split_between_two_maps_holds_snow_evenly_across_the_join() {
     assert!(s.fallen_off_m3() < wedges, "{} m³ fell off (wedges: {wedges} m³)", s.fallen_off_m3());
 }
 
-/// The relaxation visits only texels next to a change (issue 25): on the yard (a
+/// The relaxation visits only texels next to a change: on the yard (a
 /// steep roof draining onto piles, trees, a fence, a ground split between two maps), it
 /// gives bit for bit the snow, the fallen volume and the passes of the sweep that visits
 /// every texel in every pass. 100² maps: not a whole number of 64-texel words, so the
@@ -310,7 +310,7 @@ fn the_sparse_stabilisation_equals_visiting_every_texel() {
     assert!(sparse.fallen_off_m3() > 0.0 && dense.steps() == 24);
 }
 
-/// The same across a join of two maps (issue 25's split ground), where a texel's slope
+/// The same across a join of two maps (its split ground), where a texel's slope
 /// past its region's edge is measured to the other map's surface: pits dug on one side
 /// next to the join avalanche across it. (The sparse sweep also marks the other map's
 /// texels next to any change for this; neither this case nor the yard has been seen to
@@ -376,7 +376,7 @@ fn the_sparse_stabilisation_equals_visiting_every_texel_across_a_join() {
 /// Snow walled in by a higher snow surface stays (§2.4.2: the snow falls to the highest
 /// map whose snow-possible region, its ground, lies below the source). A low block in
 /// deep snow: the ground's snow stands above the block's, so past the block's edge the
-/// slope is measured up to the ground's snow surface and nothing moves. Before issue 25's
+/// slope is measured up to the ground's snow surface and nothing moves. Before the fix for split maps,
 /// fix the lower map was chosen by its snow surface, none was found, and the block's snow
 /// fell off the scene from the middle of the ground (found under the yard's bench).
 #[test]

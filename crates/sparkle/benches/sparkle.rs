@@ -1,4 +1,4 @@
-//! Sparkle hot paths (issue 6's speed targets): one frame (step + 1280×720 render) of
+//! Sparkle hot paths (its speed targets): one frame (step + 1280×720 render) of
 //! 10⁹ virtual diamond-dust crystals with n = 10,000 (visible fraction 3.0·10⁻⁴), and a
 //! step of the stochastic model against a brute-force step at equal N = 10⁷.
 //!
@@ -10,7 +10,7 @@ use phenomena_sparkle::{Method, Population, RenderSettings, SparkleConfig, Spark
 use std::hint::black_box;
 use std::time::Duration;
 
-/// The fixed reference workload reported beside these numbers (issue 23).
+/// The fixed reference workload reported beside these numbers.
 #[path = "../../core/benches/shared/reference.rs"]
 mod reference;
 

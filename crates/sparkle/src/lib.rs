@@ -1,6 +1,6 @@
 //! Glints of specular micro-particles, after Hwang and Noma, "Rendering of Particle
 //! Systems for Specular Reflection Objects by Stochastic Model"
-//! (`shared/papers/sparkle-stochastic-particles-hwang-noma.txt`).
+//! (確率モデルによるパーティクルシステムの描画法).
 //!
 //! Of N tiny mirror facets only those whose normal lies in the cone of half-angle
 //! θ = arccos((I_e/(k_s I_l))^(1/n)) around the half vector H are seen (§2). The

@@ -100,7 +100,7 @@ pub(crate) fn components(sim: &AuroraSim, min_count: u32, min_cells: usize) -> u
     found
 }
 
-/// Colour of a sky frame's curtain by height (issues 20 and 24). Which pixels are the
+/// Colour of a sky frame's curtain by height. Which pixels are the
 /// curtain: in each image column, the rows whose luminance is at least `floor_share` of
 /// the frame's brightest pixel; the column's curtain runs from its highest to its lowest
 /// such row and is cut into thirds by row. R, G, B (linear sRGB, as rendered) are summed

@@ -1,5 +1,5 @@
 //! `phenomena studio`: a local web page that draws aurora shapes, steers every
-//! phenomenon and shows it live (issue 7). Built only with `--features studio`.
+//! phenomenon and shows it live. Built only with `--features studio`.
 //!
 //! The browser draws and controls; this side simulates and renders. One WebSocket per
 //! browser tab is one session ([`session`]): its own scene, simulation and preview

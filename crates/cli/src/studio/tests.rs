@@ -277,7 +277,7 @@ fn gltf_with_buffer(uri: &str) -> String {
     )
 }
 
-/// Issue 18: a page cannot make the studio read any file but its own uploads. Every
+/// A page cannot make the studio read any file but its own uploads. Every
 /// hostile glTF buffer URI is refused with a message naming the scene key and the URI
 /// (never the server's folders), without reading it; the session and other sessions
 /// keep working.
@@ -359,7 +359,7 @@ fn scene_files_are_read_only_from_the_session_uploads() {
     });
 }
 
-/// Issue 19: a page of another site whose name was rebound to 127.0.0.1 names its own
+/// A page of another site whose name was rebound to 127.0.0.1 names its own
 /// host: refused on every route, with a message saying how to allow a name. The
 /// loopback names, the bind address and `--allow-host` names are served.
 #[test]
@@ -393,7 +393,7 @@ fn only_the_hosts_the_studio_is_served_as_are_answered() {
     });
 }
 
-/// Issue 19: a session that fails tells its page why and stays usable; the sequence
+/// A session that fails tells its page why and stays usable; the sequence
 /// that used to panic (keyframes set behind the editor's back, then a stroke on the
 /// new keyframe) is an ordinary edit now.
 #[test]
@@ -428,7 +428,7 @@ fn a_failing_session_says_why_and_goes_on() {
     });
 }
 
-/// Issue 21: "render final" writes every format the phenomenon has (here VDB volumes with
+/// "render final" writes every format the phenomenon has (here VDB volumes with
 /// their manifests), and refuses one it has not, naming those it has.
 #[test]
 fn render_final_writes_the_chosen_format() {

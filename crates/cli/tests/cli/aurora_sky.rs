@@ -109,7 +109,7 @@ fn bad_sky_settings_name_the_field_and_the_range() {
     assert!(err.contains("typo.toml:5:1: unknown field `afterglo`"), "{err}");
 }
 
-/// Issue 19: the shape export of every thesis scene with splits or merges, at the
+/// The shape export of every thesis scene with splits or merges, at the
 /// frames before and after they happen, is a consistent table: every `next` names a
 /// point of the same sheet that exists.
 #[test]
@@ -139,7 +139,7 @@ fn shape_exports_after_splits_and_merges_are_consistent() {
 
 #[test]
 fn the_profile_export_writes_the_paper_modes_profile_beside_the_physical_one() {
-    // Issue 24: both modes' emission by altitude, exported; each line's paper peak
+    // Both modes' emission by altitude, exported; each line's paper peak
     // within 20 km of the physical one (the library test holds the same for defaults).
     let dir = tempfile::tempdir().unwrap();
     ok(

@@ -90,7 +90,7 @@ fn studio_without_the_feature_says_how_to_build_it() {
     assert!(e.contains("--features studio"), "{e}");
 }
 
-/// Issue 19: scenes that were accepted but would do something questionable get an
+/// Scenes that were accepted but would do something questionable get an
 /// error at the key that causes it (items 6 and 8).
 #[test]
 fn questionable_scenes_are_refused_at_their_keys() {
@@ -144,7 +144,7 @@ fn questionable_scenes_are_refused_at_their_keys() {
     }
 }
 
-/// Issue 19 item 5: `validate` builds no simulation, so a scene whose work runs away
+/// `validate` builds no simulation, so a scene whose work runs away
 /// is checked at once; a scene over the memory budget is refused by `validate` and
 /// `render` alike, with the estimate and the flag that raises the budget.
 #[test]

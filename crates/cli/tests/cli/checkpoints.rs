@@ -1,4 +1,4 @@
-//! Issue 22: checkpoints. Frames rendered in chunks from checkpoints, in any order, are
+//! Checkpoints. Frames rendered in chunks from checkpoints, in any order, are
 //! byte-identical to one uninterrupted render, for every phenomenon; a damaged or
 //! foreign checkpoint is refused with a message and the render falls back to an older
 //! one or to simulating from frame 0, with the same bytes.

@@ -37,7 +37,7 @@ fn csv_matches_the_colour_science_reference() {
     assert_eq!(a.len(), b.len());
     for (ra, rb) in a.iter().zip(&b) {
         assert_eq!(ra[0], rb[0]);
-        // Issue 2's tolerances: 1e-4 in x, y; 2e-3 in linear r, g, b.
+        // Tolerances: 1e-4 in x, y; 2e-3 in linear r, g, b.
         for k in 1..3 {
             assert!((ra[k] - rb[k]).abs() < 1e-4, "{ra:?} vs {rb:?}");
         }
@@ -127,7 +127,7 @@ fn the_aurora_profile_has_the_issues_header_and_its_green_peak() {
     assert_eq!((rows[0][0], rows[420][0]), (80.0, 500.0));
     let peak = rows.iter().max_by(|a, b| a[3].total_cmp(&b[3])).unwrap()[0];
     assert!((100.0..=130.0).contains(&peak), "557.7 nm peak at {peak} km");
-    // The red line's budget (issue 20): its sources, and the same 630.0 nm as the profile.
+    // The red line's budget: its sources, and the same 630.0 nm as the profile.
     let red = std::fs::read_to_string(dir.path().join("p/red.csv")).unwrap();
     let mut red_lines = red.lines();
     let header = red_lines.next().unwrap();

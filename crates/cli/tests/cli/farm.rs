@@ -1,4 +1,4 @@
-//! Issue 22: `farm slurm` writes a two-stage Slurm job. Without a cluster, its scripts
+//! `farm slurm` writes a two-stage Slurm job. Without a cluster, its scripts
 //! are run here as Slurm would run them (the simulation, then each array task with its
 //! SLURM_ARRAY_TASK_ID, out of order), and the frames must equal one local render. The
 //! real Slurm run is `tools/slurm/farm-test.sh` in `.ci/run`.

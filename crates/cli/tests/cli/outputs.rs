@@ -1,4 +1,4 @@
-//! Issue 21: the outputs shots are finished with. VDB volumes and PLY caches per frame,
+//! The outputs shots are finished with. VDB volumes and PLY caches per frame,
 //! flipbooks of all frames; formats a phenomenon cannot write are refused before
 //! anything is simulated. (The real clients, OpenVDB and Blender, read these in
 //! `.ci/run`: `tools/vdb-check/check_frames.py`, `tools/blender-check/check.py`.)

@@ -26,7 +26,7 @@ fn resume_skips_finished_frames() {
     );
 }
 
-/// Issue 19: SIGTERM (what `timeout` and container runtimes send) stops a render
+/// SIGTERM (what `timeout` and container runtimes send) stops a render
 /// between frames: exit status 1 with a message, every written frame whole, no
 /// temporary file left; `--resume` then finishes with the same bytes as a render that
 /// was never stopped.

@@ -1,4 +1,4 @@
-//! The fixed reference workload every bench reports beside its own numbers (issue 23):
+//! The fixed reference workload every bench reports beside its own numbers:
 //! this machine's speed changes by up to 1.7x between days, so a result reads as a ratio
 //! to these two, measured in the same run. Neither depends on any code of ours, and
 //! neither may change: a changed reference breaks every ratio in docs/performance.md.
