@@ -32,8 +32,14 @@ export class AuroraEditor {
     const last = editor.keyframes.length - 1;
     this.selected = Math.min(Math.max(this.selected, 1), last);
     this.mergeFirst = null;
-    this.buildStrip();
+    // The strip's buttons are replaced only when what they show changed: a click that
+    // lands while an unchanged state arrives must not hit a button being replaced.
+    if (this.stripSignature() !== this.builtSignature) this.buildStrip();
     this.draw();
+  }
+
+  stripSignature() {
+    return JSON.stringify([this.state.keyframes.map((kf) => kf.frame), this.selected]);
   }
 
   mapping(canvas) {
@@ -142,6 +148,7 @@ export class AuroraEditor {
 
   buildStrip() {
     const kfs = this.state.keyframes;
+    this.builtSignature = this.stripSignature();
     this.strip.replaceChildren();
     const label = document.createElement('span');
     label.className = 'hint';
