@@ -88,18 +88,7 @@ fn leaf_bound(
         return Err(VolumeError::VoxelSize(voxel_km));
     }
     let h = voxel_km;
-    let grid = sim.grid();
-    let centre = grid.origin_km + grid.extent_km() * 0.5;
-    let mut leaf_columns: Vec<(i64, i64)> = sim
-        .particles()
-        .position_km
-        .iter()
-        .filter(|p| p.is_finite())
-        .map(|&p| {
-            let q = p - centre;
-            ((f64::from(q.x) / h).round() as i64 >> 3, (f64::from(q.y) / h).round() as i64 >> 3)
-        })
-        .collect();
+    let mut leaf_columns: Vec<(i32, i32)> = feet(sim, h).into_iter().map(|(x, z)| (x >> 3, z >> 3)).collect();
     leaf_columns.sort_unstable();
     leaf_columns.dedup();
     let top = f64::from(settings.top_altitude_km);
@@ -120,6 +109,22 @@ fn leaf_bound(
         return Err(VolumeError::TooLarge { voxels, voxel_km });
     }
     Ok(leaves)
+}
+
+/// The voxel column (x, z) of each particle's foot, the plane centred over the origin
+/// at voxels of `h` km (particles that are not finite left out), in particle order.
+fn feet(sim: &AuroraSim, h: f64) -> Vec<(i32, i32)> {
+    let grid = sim.grid();
+    let centre = grid.origin_km + grid.extent_km() * 0.5;
+    sim.particles()
+        .position_km
+        .iter()
+        .filter(|p| p.is_finite())
+        .map(|&p| {
+            let q = p - centre;
+            ((f64::from(q.x) / h).round() as i32, (f64::from(q.y) / h).round() as i32)
+        })
+        .collect()
 }
 
 /// Altitudes where a line's emission is below this share of its peak are left empty.
@@ -143,18 +148,7 @@ pub fn line_volumes(
     let transform = Transform::new(voxel_km * 1e3, [0.0; 3])?;
     let h = voxel_km;
     // The particles' feet, counted per voxel column (sorted: a fixed order).
-    let grid = sim.grid();
-    let centre = grid.origin_km + grid.extent_km() * 0.5;
-    let mut feet: Vec<(i32, i32)> = sim
-        .particles()
-        .position_km
-        .iter()
-        .filter(|p| p.is_finite())
-        .map(|&p| {
-            let q = p - centre;
-            ((f64::from(q.x) / h).round() as i32, (f64::from(q.y) / h).round() as i32)
-        })
-        .collect();
+    let mut feet = feet(sim, h);
     feet.sort_unstable();
     let mut columns: Vec<(i32, i32, u32)> = Vec::new();
     for f in feet {

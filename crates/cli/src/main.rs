@@ -203,9 +203,9 @@ enum SpectrumArg {
 #[derive(Subcommand, Debug)]
 enum ExportWhat {
     /// An aurora's particles after frame F: CSV `x,z,vx,vz` (km, km/s).
-    Particles(ParticlesArgs),
+    Particles(AfterFrameArgs),
     /// An aurora's intermediate target shape at frame F: CSV `sheet,index,x,z,next`.
-    Shape(ShapeArgs),
+    Shape(AfterFrameArgs),
     /// The aurora's model atmosphere (NRLMSIS 2.1, 80-500 km at 1 km): CSV
     /// `altitude_km,n_o,n_n2,n_o2,temperature_k` (m⁻³, K).
     Atmosphere(AtmosphereArgs),
@@ -366,23 +366,12 @@ struct SlurmArgs {
     view: Option<String>,
 }
 
+/// An aurora export of the state after a frame.
 #[derive(clap::Args, Debug)]
-struct ParticlesArgs {
+struct AfterFrameArgs {
     /// The aurora scene file.
     scene: PathBuf,
     /// The frame after which to export (0 = after the first step).
-    #[arg(long)]
-    frame: u32,
-    /// Output CSV file.
-    #[arg(long)]
-    out: PathBuf,
-}
-
-#[derive(clap::Args, Debug)]
-struct ShapeArgs {
-    /// The aurora scene file.
-    scene: PathBuf,
-    /// The frame after which to export.
     #[arg(long)]
     frame: u32,
     /// Output CSV file.
