@@ -137,7 +137,7 @@ await check('the page loads with no console errors', async () => {
   assert.deepEqual(consoleErrors, []);
 });
 
-for (const phenomenon of ['aurora', 'flame', 'snow', 'sparkle']) {
+for (const phenomenon of ['aurora', 'flame', 'snow', 'sparkle', 'shot']) {
   await check(`${phenomenon}: the preview shows a non-uniform image within a few seconds`, async () => {
     await openTab(phenomenon);
     const t0 = Date.now();

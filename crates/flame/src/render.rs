@@ -314,6 +314,12 @@ pub struct FlameRenderer {
     /// the last render wrote); everywhere else it already equals the background, so a
     /// new render only rewrites these columns and its own.
     dirty: Vec<(u32, u32)>,
+    /// Distance to the nearest opaque surface per frame pixel, metres (row-major), when
+    /// the flame is composed with surfaces ([`FlameRenderer::set_occluder`]).
+    occluder: Option<Vec<f32>>,
+    /// What the flame is composited over instead of `background`, when it is composed
+    /// with other phenomena ([`FlameRenderer::set_background`]).
+    behind: Option<Frame>,
 }
 
 impl FlameRenderer {
@@ -366,7 +372,105 @@ impl FlameRenderer {
             spans: vec![(0, 0); splat_h],
             frame: Frame::new(width, height),
             dirty: vec![(0, width as u32); height],
+            occluder: None,
+            behind: None,
         })
+    }
+
+    /// Composite the next renders over `behind` (a frame of this renderer's size, e.g.
+    /// the rest of a shot) instead of the settings' background; the shimmer distorts it.
+    /// A frame of another size is refused.
+    pub fn set_background(&mut self, behind: &Frame) -> Result<(), RenderError> {
+        if (behind.width(), behind.height()) != (self.width, self.height) {
+            return Err(RenderError::Size { width: behind.width(), height: behind.height() });
+        }
+        match &mut self.behind {
+            Some(b) => b.clone_from(behind),
+            None => self.behind = Some(behind.clone()),
+        }
+        self.dirty.fill((0, self.width as u32));
+        Ok(())
+    }
+
+    /// Hide what lies behind opaque surfaces in the next renders: `depth` holds the
+    /// distance along the view direction to the nearest surface per frame pixel, metres
+    /// (row-major, +∞ where none; `None`: no surfaces). A splat is kept or hidden whole,
+    /// by its centre: a splat spans a few pixels, so a flame cut by a surface's edge
+    /// is cut to within a splat's radius. A depth map of another size is refused.
+    pub fn set_occluder(&mut self, depth: Option<&[f32]>) -> Result<(), RenderError> {
+        match depth {
+            Some(d) if d.len() != self.width * self.height => {
+                Err(RenderError::Size { width: self.width, height: self.height })
+            }
+            Some(d) => {
+                let buf = self.occluder.get_or_insert_with(Vec::new);
+                buf.clear();
+                buf.extend_from_slice(d);
+                Ok(())
+            }
+            None => {
+                self.occluder = None;
+                Ok(())
+            }
+        }
+    }
+
+    /// The flame's light alone in the last render (the splats upsampled to the frame,
+    /// without the background or its shimmer).
+    pub fn emission(&self) -> Frame {
+        let (w, h) = (self.width, self.height);
+        let up = Upsampling::new((w, h), (self.splat_w, self.splat_h));
+        let mut out = Frame::new(w, h);
+        let mut tmp = [(); 5].map(|_| vec![0.0f32; up.sw]);
+        for y in 0..h {
+            let (y0, y1, ty) = up.source_rows(y);
+            for (p, t) in tmp.iter_mut().enumerate().take(3) {
+                let r0 = &self.planes[p].data()[y0 * up.sw..(y0 + 1) * up.sw];
+                let r1 = &self.planes[p].data()[y1 * up.sw..(y1 + 1) * up.sw];
+                for ((t, &a), &b) in t.iter_mut().zip(r0).zip(r1) {
+                    *t = a + (b - a) * ty;
+                }
+            }
+            for x in 0..w {
+                let v = up.at(&tmp, x);
+                out.set_pixel(x, y, Vec3::new(v[0], v[1], v[2]));
+            }
+        }
+        out
+    }
+
+    /// The flame as one point light, for lighting what is around it: where its light is
+    /// (the particles' positions weighted by their luminance) and its radiant intensity
+    /// in the frame's units of radiance times square metres (each particle's splat
+    /// radiance over its footprint, (1 - r²/R²)³ integrating to πR²/4, summed as if no
+    /// splat hid another). `None` when nothing glows.
+    pub fn light(&self, p: &Particles, config: &FlameConfig) -> Option<(Vec3, Vec3)> {
+        let s = &self.settings;
+        let r = config.sph.support_radius_m * s.splat_radius_scale;
+        let area = std::f64::consts::PI * f64::from(r * r) / 4.0;
+        let full_alpha = config.sph.rest_density_kg_m3 * s.full_alpha_density_ratio;
+        let (mut at, mut weight, mut total) = (glam::DVec3::ZERO, 0.0f64, glam::DVec3::ZERO);
+        for ((x, &t), &rho) in p.position_m.iter().zip(&p.temperature_k).zip(&p.density_kg_m3) {
+            let alpha = (rho / full_alpha).clamp(0.0, 1.0);
+            let c = (self.lut.lookup(t) * (s.intensity * alpha)).as_dvec3();
+            let l = c.x + c.y + c.z;
+            at += x.as_dvec3() * l;
+            weight += l;
+            total += c * area;
+        }
+        (weight > 0.0).then(|| ((at / weight).as_vec3(), total.as_vec3()))
+    }
+
+    /// Distance from the camera to the flame's light in the last render, metres: the
+    /// splats' depths weighted by their luminance (`None` when no splat is seen).
+    pub fn depth_m(&self) -> Option<f32> {
+        let (mut sum, mut weight) = (0.0f64, 0.0f64);
+        for s in self.splats.iter().flatten() {
+            let l = f64::from(s.color.x + s.color.y + s.color.z);
+            sum += f64::from(s.depth) * l;
+            weight += l;
+        }
+        (weight > 0.0).then(|| (sum / weight) as f32)
     }
 
     /// The settings.
@@ -384,7 +488,8 @@ impl FlameRenderer {
         &self.view
     }
 
-    /// The background the flame is composited over (before shimmer).
+    /// The settings' background (before shimmer); what the flame is composited over
+    /// unless [`FlameRenderer::set_background`] gave another.
     pub fn background(&self) -> &Frame {
         &self.background
     }
@@ -425,6 +530,15 @@ impl FlameRenderer {
         let (view, lut, intensity) = (&self.splat_view, &self.lut, s.intensity);
         let frame_per_splat_px = self.width as f32 / self.splat_w as f32;
         let (w, h) = (self.splat_w as f32, self.splat_h as f32);
+        let (occluder, frame_w) = (self.occluder.as_deref(), self.width);
+        let hidden = |x_px: f32, y_px: f32, depth: f32| {
+            occluder.is_some_and(|d| {
+                let (fx, fy) = (x_px * frame_per_splat_px, y_px * frame_per_splat_px);
+                let inside = fx >= 0.0 && fy >= 0.0 && (fx as usize) < frame_w;
+                let at = fy as usize * frame_w + fx as usize;
+                inside && at < d.len() && d[at] < depth
+            })
+        };
         p.position_m
             .par_iter()
             .zip(p.temperature_k.par_iter())
@@ -438,6 +552,9 @@ impl FlameRenderer {
                     || pr.x_px - reach > w
                     || pr.y_px - reach > h
                 {
+                    return None;
+                }
+                if hidden(pr.x_px, pr.y_px, pr.depth) {
                     return None;
                 }
                 let alpha = (rho / full_alpha).clamp(0.0, 1.0);
@@ -507,7 +624,7 @@ impl FlameRenderer {
         let sw = up.sw;
         let planes = &self.planes;
         let spans = &self.spans;
-        let bg = &self.background;
+        let bg = self.behind.as_ref().unwrap_or(&self.background);
         let [o0, o1, o2] = self.frame.planes_mut();
         o0.data_mut()
             .par_chunks_mut(w)

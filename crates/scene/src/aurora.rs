@@ -17,7 +17,9 @@ use crate::assets::Assets;
 use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, Capability, ExportKind, Exported, Phenomenon, Scratch, View, VolumeOptions};
+use crate::phenomenon::{
+    Built, Capability, ExportKind, Exported, Pass, Phenomenon, Scratch, Stage, View, VolumeOptions,
+};
 use crate::settings::SceneSettings;
 
 /// An aurora scene file.
@@ -158,6 +160,16 @@ impl Phenomenon for AuroraScene {
             }
         };
         Estimate::of(work, parts)
+    }
+
+    /// [`Pass::Sky`]: the aurora (and its stars and far ground) behind everything: the
+    /// shot's backdrop.
+    fn compose(sim: &AuroraSim, renderer: &mut AuroraRenderer, pass: Pass, stage: &mut Stage) {
+        if pass == Pass::Sky {
+            let sky = renderer.render(sim);
+            stage.under(sky);
+            stage.layers.push(("aurora", sky.clone(), None));
+        }
     }
 
     fn frame_time_s(&self) -> f64 {

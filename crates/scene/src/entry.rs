@@ -69,6 +69,11 @@ impl Entry {
         self.0.capabilities().contains(&what)
     }
 
+    /// Whether it is the composition of the others (a shot of several phenomena).
+    pub fn composite(self) -> bool {
+        self.0.composite()
+    }
+
     /// Its commented starter scene.
     pub fn starter(self) -> &'static str {
         self.0.starter()
@@ -114,6 +119,7 @@ pub(crate) trait Dispatch: Sync {
     fn exports(&self) -> &'static [ExportKind];
     fn capabilities(&self) -> &'static [Capability];
     fn starter(&self) -> &'static str;
+    fn composite(&self) -> bool;
 
     // Its scene files.
     fn default_file(&self) -> FileBox;
@@ -237,6 +243,10 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
         P::STARTER
     }
 
+    fn composite(&self) -> bool {
+        P::COMPOSITE
+    }
+
     fn default_file(&self) -> FileBox {
         Box::new(P::default())
     }
@@ -326,8 +336,7 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
         let loaded = scene.load(assets)?;
         scene.check(&loaded)?;
         let estimate = estimate(scene, &loaded).within(limits)?;
-        let identity =
-            checkpoint::identity(P::NAME, &checkpoint::simulation_tables(scene), P::files_identity(&loaded));
+        let identity = checkpoint::identity(P::NAME, &scene.simulation_tables(), P::files_identity(&loaded));
         let seed = scene.settings().seed;
         let live = Live::<P> { built: scene.build(loaded)?, identity, seed };
         Ok((Box::new(live), estimate))

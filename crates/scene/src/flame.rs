@@ -13,7 +13,7 @@ use crate::assets::Assets;
 use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, Capability, Phenomenon, Scratch, Steer, View, VolumeOptions};
+use crate::phenomenon::{Built, Capability, Pass, Phenomenon, Scratch, Stage, Steer, View, VolumeOptions};
 use crate::settings::SceneSettings;
 
 /// A flame scene file.
@@ -128,6 +128,40 @@ impl Phenomenon for FlameScene {
         let renderer = FlameRenderer::new(self.render.clone(), w, h, background.as_ref())
             .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings: Vec::new() })
+    }
+
+    /// [`Pass::Place`]: the flame's depth is its particles' mean position's, and it is
+    /// a light for the surfaces around it ([`FlameRenderer::light`]).
+    /// [`Pass::Media`]: its light over the shot so far, which its shimmer refracts; a
+    /// splat behind a surface is hidden.
+    fn compose(sim: &FlameSim, renderer: &mut FlameRenderer, pass: Pass, stage: &mut Stage) {
+        match pass {
+            Pass::Place => {
+                if let Some(light) = renderer.light(sim.particles(), sim.config()) {
+                    stage.lights.push(light);
+                }
+                let p = &sim.particles().position_m;
+                if !p.is_empty() {
+                    let sum = p.iter().fold(glam::DVec3::ZERO, |s, v| s + v.as_dvec3());
+                    let mean = (sum / p.len() as f64).as_vec3();
+                    if let Some(q) = renderer.view().project(mean) {
+                        stage.medium_depth_m = stage.medium_depth_m.min(q.depth);
+                    }
+                }
+            }
+            Pass::Media => {
+                // The flame's own background only when nothing farther gave one.
+                stage.under(renderer.background());
+                // The shot builds every renderer at its frame's size.
+                if renderer.set_background(&stage.image).is_ok()
+                    && renderer.set_occluder(Some(&stage.depth)).is_ok()
+                {
+                    stage.image.clone_from(renderer.render(sim));
+                    stage.layers.push(("flame", renderer.emission(), None));
+                }
+            }
+            _ => {}
+        }
     }
 
     fn frame_time_s(&self) -> f64 {

@@ -65,6 +65,7 @@ mod runner;
 mod scene;
 mod settings;
 pub mod shipped;
+pub mod shot;
 mod sink;
 pub mod snow;
 mod source;
@@ -79,7 +80,8 @@ pub use exr::write_exr;
 pub use format::{Format, OutputFormat, OutputOptions};
 pub use parse::{LoadError, MAX_SCENE_BYTES, load, parse};
 pub use phenomenon::{
-    Built, Capability, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, encode_volume,
+    Built, Capability, ExportKind, Exported, PASSES, Pass, Phenomenon, Scratch, Stage, Steer, View,
+    VolumeOptions, encode_volume,
 };
 pub use runner::Runner;
 pub use scene::{Scene, set_path};

@@ -1,4 +1,5 @@
-//! Scene files as text: TOML with a `[scene]` table and exactly one phenomenon's tables.
+//! Scene files as text: TOML with a `[scene]` table and one phenomenon's tables, or
+//! several phenomena's (a [`crate::shot`]).
 //! Every problem (syntax, unknown keys, bad values, values out of range) is reported
 //! with its line and column, all of them at once.
 
@@ -44,29 +45,32 @@ pub fn parse(text: &str, file: impl AsRef<Path>) -> Result<Scene, SceneErrors> {
     let root = DeTable::parse(text).map_err(|e| {
         SceneErrors(vec![source.at(e.span().map_or(0, |s| s.start), e.message().trim().to_string())])
     })?;
-    let present: Vec<Entry> =
-        registry::PHENOMENA.iter().copied().filter(|p| root.get_ref().get(p.name()).is_some()).collect();
+    let present: Vec<Entry> = registry::PHENOMENA
+        .iter()
+        .copied()
+        .filter(|p| !p.composite() && root.get_ref().get(p.name()).is_some())
+        .collect();
     let entry = match present.as_slice() {
         [one] => *one,
         [] => {
-            let names: Vec<String> = registry::PHENOMENA.iter().map(|p| format!("[{}]", p.name())).collect();
+            let names: Vec<String> = registry::PHENOMENA
+                .iter()
+                .filter(|p| !p.composite())
+                .map(|p| format!("[{}]", p.name()))
+                .collect();
             return Err(SceneErrors(vec![source.at(
                 0,
                 format!(
-                    "no phenomenon table: a scene holds exactly one of {} (e.g. a [flame] table)",
+                    "no phenomenon table: a scene holds one or more of {} (e.g. a [flame] table)",
                     names.join(", ")
                 ),
             )]));
         }
-        several => {
-            let second = several[1].name();
-            let offset = root.get_ref().get(second).map_or(0, |v| v.span().start);
-            let names: Vec<&str> = several.iter().map(|p| p.name()).collect();
-            return Err(SceneErrors(vec![source.at(
-                offset,
-                format!("a scene holds one phenomenon, but this file has [{}]", names.join("], [")),
-            )]));
-        }
+        // Several phenomena: a shot.
+        _ => match registry::PHENOMENA.iter().copied().find(|p| p.composite()) {
+            Some(shot) => shot,
+            None => unreachable!("the registry lists the shot"),
+        },
     };
     // Every problem at once: what cannot be read, and what the rest (read with those
     // entries left out) breaks of the valid ranges.
@@ -159,8 +163,8 @@ mod tests {
         assert!(e[0].contains("no phenomenon table"), "{e:?}");
         let e = errors("[flmae]\n");
         assert!(e[0].contains("no phenomenon table"), "{e:?}");
-        let e = errors("[flame]\n[snow]\n");
-        assert_eq!(e, ["s.toml:2:1: a scene holds one phenomenon, but this file has [flame], [snow]"]);
+        // Two phenomena make a shot.
+        assert!(parse("[flame]\n[sparkle]\nfps = 60.0\n", "s.toml").is_ok());
     }
 
     #[test]

@@ -154,6 +154,84 @@ impl VolumeOptions {
     }
 }
 
+/// The steps of composing a shot of several phenomena ([`crate::shot`]), in order: every
+/// phenomenon is asked at every pass and acts at those its light belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pass {
+    /// Before any light: a phenomenon says where it is ([`Stage::medium_depth_m`]).
+    Place,
+    /// Light from beyond everything in the shot (the aurora, ~100 km up, and the stars).
+    Sky,
+    /// Opaque surfaces over what is beyond them ([`Stage::depth`]).
+    Surfaces,
+    /// Points of light between the surfaces and the emissive medium (seen through it).
+    Behind,
+    /// The emissive medium (the flame): its light added, what is behind it refracted.
+    Media,
+    /// Points of light in front of the medium.
+    Front,
+}
+
+impl Stage {
+    /// Put `background` behind the image when no phenomenon has yet: the image then
+    /// holds only light added over black, so the background is added to it.
+    pub fn under(&mut self, background: &phenomena_core::image::Frame) {
+        if self.backdrop {
+            return;
+        }
+        self.backdrop = true;
+        for (out, b) in
+            self.image.planes_mut().into_iter().zip([&background.c0, &background.c1, &background.c2])
+        {
+            for (o, v) in out.data_mut().iter_mut().zip(b.data()) {
+                *o += v;
+            }
+        }
+    }
+}
+
+/// Every pass in order.
+pub const PASSES: [Pass; 6] =
+    [Pass::Place, Pass::Sky, Pass::Surfaces, Pass::Behind, Pass::Media, Pass::Front];
+
+/// What composing a shot's frame has made so far, far to near; each phenomenon reads it
+/// and adds its light at its [`Pass`]es.
+pub struct Stage {
+    /// What is seen so far (linear RGB).
+    pub image: phenomena_core::image::Frame,
+    /// Distance along the view direction to the nearest opaque surface per pixel,
+    /// metres (row-major; +∞ where none).
+    pub depth: Vec<f32>,
+    /// Whether a phenomenon has put its background behind the image yet (the farthest
+    /// one does: the aurora's night sky, else the snow's sky, the dust's or the flame's).
+    pub backdrop: bool,
+    /// Distance of the emissive medium along the view direction, metres (+∞: none).
+    pub medium_depth_m: f32,
+    /// Lights the phenomena give off for the others' surfaces (a fire): position,
+    /// metres, and radiant intensity (the frame's radiance times square metres).
+    pub lights: Vec<(glam::Vec3, glam::Vec3)>,
+    /// Each phenomenon's own light as it reaches the camera (an EXR layer each:
+    /// `<name>.R`, `.G`, `.B`, and `.A` where given).
+    pub layers: Vec<(&'static str, phenomena_core::image::Frame, Option<phenomena_core::image::Plane>)>,
+    /// Each phenomenon's own extra images (the aurora's lines), by channel name.
+    pub extra: Vec<(String, phenomena_core::image::Plane)>,
+}
+
+impl Stage {
+    /// An empty stage: black, no surfaces, no medium.
+    pub fn new(width: usize, height: usize) -> Self {
+        Self {
+            image: phenomena_core::image::Frame::new(width, height),
+            depth: vec![f32::INFINITY; width * height],
+            backdrop: false,
+            medium_depth_m: f32::INFINITY,
+            lights: Vec::new(),
+            layers: Vec::new(),
+            extra: Vec::new(),
+        }
+    }
+}
+
 /// One phenomenon's scene file.
 pub trait Phenomenon:
     Serialize + DeserializeOwned + Default + Clone + PartialEq + Debug + Send + Sync + 'static
@@ -171,6 +249,9 @@ pub trait Phenomenon:
     const CAN: &'static [Capability] = &[];
     /// A commented scene file holding every default (`phenomena new`).
     const STARTER: &'static str;
+    /// Whether this is the composition of the others (a [`crate::shot`]): a file with
+    /// two or more phenomenon tables is read as it.
+    const COMPOSITE: bool = false;
 
     /// The simulation.
     type Sim: Simulation;
@@ -206,6 +287,16 @@ pub trait Phenomenon:
     fn files_identity(_loaded: &Self::Loaded) -> Option<u64> {
         None
     }
+
+    /// What a checkpoint's identity is made of: the tables the simulation is built from
+    /// (by default the file without `[scene]` and `[render]`).
+    fn simulation_tables(&self) -> Value {
+        crate::checkpoint::simulation_tables(self)
+    }
+
+    /// Add this phenomenon's light to a shot at `pass` ([`Pass`]); phenomena that cannot
+    /// be part of a shot draw nothing.
+    fn compose(_sim: &Self::Sim, _renderer: &mut Self::Renderer, _pass: Pass, _stage: &mut Stage) {}
 
     /// Seconds of simulated time per frame (a flipbook's playback rate).
     fn frame_time_s(&self) -> f64;

@@ -14,6 +14,7 @@ pub const PHENOMENA: &[Entry] = &[
     Entry::of::<crate::aurora::AuroraScene>(),
     Entry::of::<crate::snow::SnowScene>(),
     Entry::of::<crate::sparkle::SparkleScene>(),
+    Entry::of::<crate::shot::ShotScene>(),
 ];
 
 /// Every output format, in the order tools list them; the first is the default. A
@@ -75,7 +76,7 @@ mod tests {
         let mut names: Vec<&str> = PHENOMENA.iter().map(|p| p.name()).collect();
         names.dedup();
         assert_eq!(names.len(), PHENOMENA.len());
-        assert_eq!(super::names(), "flame, aurora, snow or sparkle");
+        assert_eq!(super::names(), "flame, aurora, snow, sparkle or shot");
     }
 
     /// Every format has a unique name; png is first (the default) and every

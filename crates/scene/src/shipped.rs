@@ -56,7 +56,7 @@ macro_rules! shipped {
 
 /// Every scene in `scenes/`; the first of each phenomenon is the one the studio's tab
 /// opens with. `phenomena demo` renders those with a [`Demo`], in this order.
-pub static SHIPPED: [Shipped; 17] = [
+pub static SHIPPED: [Shipped; 18] = [
     shipped!("flame-paper", "flame", demo 120..121 at 640 x 360),
     shipped!("flame-campfire", "flame", demo 30..150 at 960 x 540),
     shipped!("flame-wind-left", "flame", demo 120..121 at 640 x 360),
@@ -74,6 +74,7 @@ pub static SHIPPED: [Shipped; 17] = [
     shipped!("sparkle-leaf-glitter", "sparkle", demo 60..61 at 960 x 540),
     shipped!("sparkle-sun-pillar", "sparkle"),
     shipped!("sparkle-paper", "sparkle"),
+    shipped!("winter-night", "shot", demo 120..121 at 960 x 540),
 ];
 
 /// The shipped scene `name`.

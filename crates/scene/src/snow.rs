@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use crate::assets::{AssetError, Assets};
 use crate::budget::Estimate;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, ExportKind, Exported, Phenomenon, View};
+use crate::phenomenon::{Built, ExportKind, Exported, Pass, Phenomenon, Stage, View};
 use crate::settings::SceneSettings;
 
 /// Where a snow scene's geometry comes from (`[geometry]`): a built-in scene or a mesh
@@ -265,6 +265,32 @@ impl Phenomenon for SnowScene {
             ),
             parts,
         )
+    }
+
+    /// [`Pass::Surfaces`]: the scene and its snow over the sky, lit also by the other
+    /// phenomena's lights (a fire); its depth hides what is behind a surface from the
+    /// passes after.
+    fn compose(sim: &SnowSim, renderer: &mut SnowRenderer, pass: Pass, stage: &mut Stage) {
+        if pass != Pass::Surfaces {
+            return;
+        }
+        stage.under(&renderer.background());
+        renderer.set_lights(&stage.lights);
+        let image = renderer.render_over(sim, &stage.image).clone();
+        let depth = renderer.depth();
+        let (w, h) = (image.width(), image.height());
+        let mut own = Frame::new(w, h);
+        let mut cover = phenomena_core::image::Plane::new(w, h);
+        for (k, (&d, at)) in depth.iter().zip(stage.depth.iter_mut()).enumerate() {
+            if d.is_finite() {
+                let (x, y) = (k % w, k / w);
+                own.set_pixel(x, y, image.pixel(x, y));
+                cover.set(x, y, 1.0);
+                *at = at.min(d);
+            }
+        }
+        stage.image = image;
+        stage.layers.push(("snow", own, Some(cover)));
     }
 
     fn frame_time_s(&self) -> f64 {

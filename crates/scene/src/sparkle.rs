@@ -4,7 +4,7 @@
 use phenomena_core::image::Frame;
 use phenomena_core::validate::Issues;
 use phenomena_sparkle::{
-    Background, Method, RenderSettings, SparkleConfig, SparkleError, SparkleRenderer, SparkleSim,
+    Background, DepthWindow, Method, RenderSettings, SparkleConfig, SparkleError, SparkleRenderer, SparkleSim,
 };
 use serde::{Deserialize, Serialize};
 
@@ -12,7 +12,7 @@ use crate::assets::Assets;
 use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, Capability, Phenomenon, View};
+use crate::phenomenon::{Built, Capability, Pass, Phenomenon, Stage, View};
 use crate::settings::SceneSettings;
 
 /// A sparkle scene file (diamond dust or leaf glitter).
@@ -108,6 +108,42 @@ impl Phenomenon for SparkleScene {
         );
         estimate.unchecked = unchecked;
         estimate
+    }
+
+    /// [`Pass::Behind`]: the glints farther than the shot's medium (all of them when it
+    /// has none); [`Pass::Front`]: the nearer ones. Each is drawn only where no surface
+    /// is nearer.
+    fn compose(sim: &SparkleSim, renderer: &mut SparkleRenderer, pass: Pass, stage: &mut Stage) {
+        let medium = stage.medium_depth_m;
+        let glints = match pass {
+            Pass::Behind => {
+                if !stage.backdrop {
+                    stage.under(&renderer.background(sim));
+                }
+                let near_m = if medium.is_finite() { medium } else { 0.0 };
+                renderer.render_glints(sim, DepthWindow { near_m, far_m: Some(&stage.depth) })
+            }
+            Pass::Front if medium.is_finite() => {
+                let far: Vec<f32> = stage.depth.iter().map(|d| d.min(medium)).collect();
+                renderer.render_glints(sim, DepthWindow { near_m: 0.0, far_m: Some(&far) })
+            }
+            _ => return,
+        };
+        for (out, add) in stage.image.planes_mut().into_iter().zip([&glints.c0, &glints.c1, &glints.c2]) {
+            for (o, a) in out.data_mut().iter_mut().zip(add.data()) {
+                *o += a;
+            }
+        }
+        match stage.layers.iter_mut().find(|l| l.0 == "sparkle") {
+            Some((_, own, _)) => {
+                for (out, add) in own.planes_mut().into_iter().zip([&glints.c0, &glints.c1, &glints.c2]) {
+                    for (o, a) in out.data_mut().iter_mut().zip(add.data()) {
+                        *o += a;
+                    }
+                }
+            }
+            None => stage.layers.push(("sparkle", glints.clone(), None)),
+        }
     }
 
     fn frame_time_s(&self) -> f64 {

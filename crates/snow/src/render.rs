@@ -59,6 +59,12 @@ pub struct SnowRenderSettings {
     pub flakes: Flakes,
     /// Behind the scene.
     pub background: Background,
+    /// Sunlight on a surface facing the sun, relative to a white surface's value in the
+    /// frame (1.1: the bright day of the paper's figures; a night scene lit by the moon
+    /// sets it far lower).
+    pub sun_strength: f32,
+    /// Light from the whole sky on any surface, same units (0.35).
+    pub sky_strength: f32,
 }
 
 /// Snowflakes falling through the scene view along the snowfall directions: flake k
@@ -93,6 +99,8 @@ impl Default for SnowRenderSettings {
             fog_per_m: 0.0,
             flakes: Flakes::default(),
             background: Background::Sky,
+            sun_strength: SUN,
+            sky_strength: AMBIENT,
         }
     }
 }
@@ -109,6 +117,8 @@ impl SnowRenderSettings {
             i.push("sun_direction", format!("{:?}", self.sun_direction.to_array()), "a non-zero direction");
         }
         i.range("fog_per_m", self.fog_per_m, 0.0..=100.0);
+        i.range("sun_strength", self.sun_strength, 0.0..=1e6);
+        i.range("sky_strength", self.sky_strength, 0.0..=1e6);
         i.count("flakes.count", u64::from(self.flakes.count), 0..=1_000_000);
         i.range("flakes.fall_m_per_s", self.flakes.fall_m_per_s, 0.0..=100.0);
         i.range("flakes.radius_px", self.flakes.radius_px, 0.1..=50.0);
@@ -146,6 +156,11 @@ pub struct SnowRenderer {
     /// The image behind the scene, at the frame's size (`None`: the sky colour).
     background: Option<Frame>,
     frame: Frame,
+    /// Distance along the view direction to the nearest surface per pixel of the last
+    /// scene view, metres (+∞ where none; empty for the probability view).
+    depth: Vec<f32>,
+    /// Point lights besides the sun and sky: position (m) and radiant intensity.
+    lights: Vec<(Vec3, Vec3)>,
 }
 
 impl SnowRenderer {
@@ -168,7 +183,13 @@ impl SnowRenderer {
         Self::check(&settings, width, height)?;
         let wanted = matches!(settings.background, Background::Image { .. });
         let background = image_background(wanted, background, width, height)?;
-        Ok(Self { settings, background, frame: Frame::new(width, height) })
+        Ok(Self {
+            settings,
+            background,
+            frame: Frame::new(width, height),
+            depth: Vec::new(),
+            lights: Vec::new(),
+        })
     }
 
     /// The settings.
@@ -185,11 +206,50 @@ impl SnowRenderer {
     /// a degenerate one gives a black frame.
     pub fn render(&mut self, sim: &SnowSim) -> &Frame {
         let (w, h) = (self.frame.width(), self.frame.height());
-        self.frame = match self.settings.view {
-            SnowView::Scene => render_scene(sim, &self.settings, self.background.as_ref(), w, h),
-            SnowView::Probability => render_probability(sim, w, h),
-        };
+        match self.settings.view {
+            SnowView::Scene => {
+                (self.frame, self.depth) =
+                    render_scene(sim, &self.settings, self.background.as_ref(), &self.lights, w, h)
+            }
+            SnowView::Probability => (self.frame, self.depth) = (render_probability(sim, w, h), Vec::new()),
+        }
         &self.frame
+    }
+
+    /// Light the next renders also with point lights (a fire): each a position, metres,
+    /// and a radiant intensity I in the frame's units of radiance times square metres,
+    /// so a surface of albedo ρ at distance r facing the light at angle θ gains
+    /// ρ I cos θ / (π r²). Nothing shadows them.
+    pub fn set_lights(&mut self, lights: &[(Vec3, Vec3)]) {
+        self.lights.clear();
+        self.lights.extend_from_slice(lights);
+    }
+
+    /// Draw the scene view of `sim` over `behind` (a frame of this renderer's size: what
+    /// lies beyond the scene, in place of the background; fog fades towards it), for
+    /// composition with other phenomena.
+    pub fn render_over(&mut self, sim: &SnowSim, behind: &Frame) -> &Frame {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        (self.frame, self.depth) = render_scene(sim, &self.settings, Some(behind), &self.lights, w, h);
+        &self.frame
+    }
+
+    /// What the settings put behind the scene, at the frame's size (the sky's colour or
+    /// the image), for composition with other phenomena.
+    pub fn background(&self) -> Frame {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        self.background.clone().unwrap_or_else(|| {
+            let mut f = Frame::new(w, h);
+            f.map_pixels(|_| SKY);
+            f
+        })
+    }
+
+    /// Distance along the view direction to the nearest surface, metres, per pixel of
+    /// the last scene view (row-major; +∞ where no surface is seen); empty before the
+    /// first scene view.
+    pub fn depth(&self) -> &[f32] {
+        &self.depth
     }
 }
 
@@ -207,20 +267,22 @@ fn render_scene(
     sim: &SnowSim,
     settings: &SnowRenderSettings,
     background: Option<&Frame>,
+    lights: &[(Vec3, Vec3)],
     width: usize,
     height: usize,
-) -> Frame {
+) -> (Frame, Vec<f32>) {
     let mut frame = Frame::new(width, height);
+    let none = || vec![f32::INFINITY; width * height];
     let scene = &sim.mesh().triangles;
     let camera = settings.camera.unwrap_or_else(|| {
         let (lo, hi) = bounds(scene);
         Camera::framing(lo, hi, width, height)
     });
-    let Some(view) = camera.view(width, height) else { return frame };
+    let Some(view) = camera.view(width, height) else { return (frame, none()) };
     let snow = snow_mesh(sim);
     let mut tris = scene.clone();
     tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
-    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else { return frame };
+    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else { return (frame, none()) };
     let sun = settings.sun_direction.normalize_or_zero();
     let eye = camera.position;
     for y in 0..height {
@@ -240,15 +302,28 @@ fn render_scene(
                 } else {
                     Vec3::splat(SNOW_ALBEDO)
                 };
-                let lit = albedo * (SUN * n.dot(sun).max(0.0) + AMBIENT);
+                let mut lit = albedo * (settings.sun_strength * n.dot(sun).max(0.0) + settings.sky_strength);
+                if !lights.is_empty() {
+                    // The surface point: its depth along the view direction on the pixel's ray.
+                    let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
+                    for &(at, intensity) in lights {
+                        let d = at - p;
+                        let r2 = d.length_squared().max(1e-4);
+                        let cos = n.dot(d / r2.sqrt()).max(0.0);
+                        lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
+                    }
+                }
                 let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
                 lit * fog + sky * (1.0 - fog)
             };
             frame.set_pixel(x, y, colour);
         }
     }
-    draw_flakes(sim, &settings.flakes, &view, &buf, &mut frame);
-    frame
+    // Flakes are lit as the snow is: white in the default light.
+    let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
+    draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
+    (frame, buf.depth().to_vec())
 }
 
 /// The box around `tris` (the origin for none).
@@ -269,6 +344,7 @@ fn draw_flakes(
     flakes: &Flakes,
     view: &phenomena_core::camera::CameraView,
     buf: &crate::raster::DepthBuffer,
+    light: f32,
     frame: &mut Frame,
 ) {
     let dirs = sim.directions();
@@ -298,7 +374,7 @@ fn draw_flakes(
                 let cover = (1.0 - (dx * dx + dy * dy).sqrt() / r).clamp(0.0, 1.0);
                 if cover > 0.0 && buf.depth_at(x, y) > q.depth {
                     let c = frame.pixel(x, y);
-                    frame.set_pixel(x, y, c.lerp(Vec3::splat(1.4), 0.9 * cover));
+                    frame.set_pixel(x, y, c.lerp(Vec3::splat(1.4 * light), 0.9 * cover));
                 }
             }
         }

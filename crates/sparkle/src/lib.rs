@@ -39,5 +39,5 @@ pub use config::{
     MIN_CONE_DEG, Method, Normals, Phong, Population, SparkleConfig,
 };
 pub use phenomena_core::phenomenon::RenderError;
-pub use render::{Background, GlareShape, RenderSettings, SparkleRenderer};
+pub use render::{Background, DepthWindow, GlareShape, RenderSettings, SparkleRenderer};
 pub use sim::{Everything, Glints, SparkleError, SparkleSim, SparkleState, StepStats};

@@ -196,18 +196,49 @@ impl SparkleRenderer {
             self.frame = Frame::new(w, h);
             return &self.frame;
         };
+        self.update_background(sim, &view);
+        if let Some((_, bg)) = &self.cached {
+            splat(&self.settings, &mut self.frame, bg, sim, &view, None);
+        }
+        &self.frame
+    }
+
+    /// Draw the background again when the light has moved since it was drawn.
+    fn update_background(&mut self, sim: &SparkleSim, view: &CameraView) {
+        let (w, h) = (self.frame.width(), self.frame.height());
         let light = sim.config().light.at(sim.time_s());
         let fresh = !matches!(&self.cached, Some((l, _)) if *l == light);
         if fresh {
             let bg = match (&self.settings.background, &self.user_background) {
                 (Background::Image { .. }, Some(img)) => img.clone(),
                 (Background::Black, _) => Frame::new(w, h),
-                _ => sky(&self.settings, &view, light, &sim.config().population),
+                _ => sky(&self.settings, view, light, &sim.config().population),
             };
             self.cached = Some((light, bg));
         }
-        if let Some((_, bg)) = &self.cached {
-            splat(&self.settings, &mut self.frame, bg, sim, &view);
+    }
+
+    /// The background the glints are drawn over now (the sky for the light's place,
+    /// the image, or black), for composition with other phenomena.
+    pub fn background(&mut self, sim: &SparkleSim) -> Frame {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        match sim.config().camera.view(w, h) {
+            Some(view) => {
+                self.update_background(sim, &view);
+                self.cached.as_ref().map_or_else(|| Frame::new(w, h), |(_, bg)| bg.clone())
+            }
+            None => Frame::new(w, h),
+        }
+    }
+
+    /// The glints (and glare) alone over black, only those `window` keeps, for
+    /// composition with other phenomena (the settings' background is not drawn).
+    pub fn render_glints(&mut self, sim: &SparkleSim, window: DepthWindow<'_>) -> &Frame {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        let black = Frame::new(w, h);
+        match sim.config().camera.view(w, h) {
+            Some(view) => splat(&self.settings, &mut self.frame, &black, sim, &view, Some(window)),
+            None => self.frame = black,
         }
         &self.frame
     }
@@ -227,11 +258,18 @@ impl phenomena_core::phenomenon::Renderer<SparkleSim> for SparkleRenderer {
 /// parallel, bucketed by bands of [`BAND_ROWS`] rows that their footprint touches, and
 /// each band adds its glints in glint order: every pixel sums in the same order for any
 /// thread count. Each band writes its rows of the frame once (background + glints).
-fn splat(s: &RenderSettings, frame: &mut Frame, bg: &Frame, sim: &SparkleSim, view: &CameraView) {
+fn splat(
+    s: &RenderSettings,
+    frame: &mut Frame,
+    bg: &Frame,
+    sim: &SparkleSim,
+    view: &CameraView,
+    window: Option<DepthWindow<'_>>,
+) {
     let colour = Vec3::from(s.light_rgb) * s.glint_gain;
     let (wu, hu) = (frame.width(), frame.height());
     let bands = hu.div_ceil(BAND_ROWS);
-    let chunks = project_glints(s, sim, view, (wu, hu), bands);
+    let chunks = project_glints(s, sim, view, (wu, hu), bands, window);
     let glare = Glare::of(s);
     let [c0, c1, c2] = frame.planes_mut();
     let stride = BAND_ROWS * wu;
@@ -268,6 +306,7 @@ fn project_glints(
     view: &CameraView,
     (width_px, height_px): (usize, usize),
     bands: usize,
+    window: Option<DepthWindow<'_>>,
 ) -> Vec<Filed<Dot>> {
     let g = sim.glints();
     let glare = !s.glare.rays().is_empty();
@@ -280,6 +319,7 @@ fn project_glints(
         glare_threshold: s.glare_threshold,
         size: (width_px as f32, height_px as f32),
         last_band: bands as u32 - 1,
+        window,
     };
     g.position_m
         .par_chunks(PROJECT_CHUNK)
@@ -513,7 +553,7 @@ struct Dot {
 }
 
 /// What places glints on screen: the view, the brightness rules and the image's bands.
-struct Screen {
+struct Screen<'w> {
     /// The view as numbers, when it is perspective or orthographic (projected in lanes).
     pinhole: Option<Pinhole>,
     eye: Vec3,
@@ -527,9 +567,46 @@ struct Screen {
     /// Image width and height, px.
     size: (f32, f32),
     last_band: u32,
+    /// The depths a glint is drawn at (all when `None`).
+    window: Option<DepthWindow<'w>>,
 }
 
-impl Screen {
+/// Which glints to draw, by depth, when glints are composed with other phenomena: a
+/// glint at distance d along the view direction is drawn when `near_m ≤ d` and, where
+/// `far_m` is given (per pixel, row-major, the frame's size: the nearest opaque
+/// surface), d < the value at its pixel (the nearest pixel for a glint just off the
+/// image). A drawn glint's glare is drawn whole.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DepthWindow<'a> {
+    /// Nearest depth drawn, metres.
+    pub near_m: f32,
+    /// Per pixel, the depth from which glints are hidden, metres.
+    pub far_m: Option<&'a [f32]>,
+}
+
+impl DepthWindow<'_> {
+    fn keeps(&self, x_px: f32, y_px: f32, depth: f32, width: usize) -> bool {
+        if depth.is_nan() || depth < self.near_m {
+            return false;
+        }
+        match self.far_m {
+            None => true,
+            Some(far) => {
+                // A glint just off the image (whose glare reaches in) is judged by the
+                // nearest pixel on the image.
+                let height = far.len() / width.max(1);
+                if width == 0 || height == 0 {
+                    return true;
+                }
+                let x = (x_px.max(0.0) as usize).min(width - 1);
+                let y = (y_px.max(0.0) as usize).min(height - 1);
+                depth < far[y * width + x]
+            }
+        }
+    }
+}
+
+impl Screen<'_> {
     /// Project up to [`LANES`] glints (positions `xc`, brightness `ic`) and hand each one
     /// whose footprint (its pixel and glare) touches the image to `keep`, with the first
     /// and last band it touches, in glint order. Eight at a time in lanes: a glint's
@@ -542,7 +619,7 @@ impl Screen {
         let mut value = [ic[0]; LANES];
         value[..ic.len()].copy_from_slice(ic);
         let mut value = f32x8::from(value);
-        let (px, py, ok) = match &self.pinhole {
+        let (px, py, ok, depth) = match &self.pinhole {
             Some(ph) => {
                 let d = x.sub(V8::splat(ph.eye));
                 let depth = d.dot(V8::splat(ph.forward));
@@ -554,18 +631,18 @@ impl Screen {
                 };
                 let px = f32x8::splat(ph.centre_px.0) + d.dot(V8::splat(ph.right)) * s;
                 let py = f32x8::splat(ph.centre_px.1) - d.dot(V8::splat(ph.up)) * s;
-                (px, py, ok)
+                (px, py, ok, depth.to_array())
             }
             None => {
                 // Fisheye and equirectangular views: one glint at a time.
-                let (mut px, mut py, mut ok) = ([0.0; LANES], [0.0; LANES], 0u32);
+                let (mut px, mut py, mut ok, mut depth) = ([0.0; LANES], [0.0; LANES], 0u32, [0.0; LANES]);
                 for (i, p) in xc.iter().enumerate() {
                     if let Some(q) = view.project(*p) {
-                        (px[i], py[i]) = (q.x_px, q.y_px);
+                        (px[i], py[i], depth[i]) = (q.x_px, q.y_px, q.depth);
                         ok |= 1 << i;
                     }
                 }
-                (f32x8::from(px), f32x8::from(py), ok)
+                (f32x8::from(px), f32x8::from(py), ok, depth)
             }
         };
         if self.falloff2 > 0.0 {
@@ -596,6 +673,11 @@ impl Screen {
         while kept != 0 {
             let i = kept.trailing_zeros() as usize;
             kept &= kept - 1;
+            if let Some(window) = &self.window
+                && !window.keeps(px[i], py[i], depth[i], self.size.0 as usize)
+            {
+                continue;
+            }
             keep(Dot { x: px[i], y: py[i], value: value[i], len: len[i] }, lo[i], hi[i]);
         }
     }
@@ -676,6 +758,40 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
 mod tests {
     use super::*;
     use crate::config::SparkleConfig;
+
+    /// Depth windows split the glints without loss or overlap: the glints nearer than
+    /// a depth and those from it on sum to all of them over black (to f32 rounding of
+    /// the per-pixel sums, 1e-5 relative), an opaque surface at zero depth hides them
+    /// all, and the full window draws exactly what the black background does.
+    #[test]
+    fn depth_windows_split_the_glints_and_surfaces_hide_them() {
+        let mut c = SparkleConfig::default();
+        c.phong.exponent_n = 100.0;
+        if let Population::DiamondDust(d) = &mut c.population {
+            d.density_per_m3 = 1.0;
+        }
+        let sim = SparkleSim::new(c, 3).unwrap();
+        let plain = RenderSettings { background: Background::Black, ..Default::default() };
+        let mut r = SparkleRenderer::new(plain, 160, 90, None).unwrap();
+        let all = r.render(&sim).clone();
+        let everything = r.render_glints(&sim, DepthWindow::default()).clone();
+        assert_eq!(everything, all, "the full window is the glints over black");
+        // Split at the median depth, so both sides hold glints.
+        let view = sim.config().camera.view(160, 90).unwrap();
+        let mut depths: Vec<f32> =
+            sim.glints().position_m.iter().filter_map(|x| view.project(*x)).map(|p| p.depth).collect();
+        depths.sort_by(f32::total_cmp);
+        let split = depths[depths.len() / 2];
+        let far = r.render_glints(&sim, DepthWindow { near_m: split, far_m: None }).clone();
+        let wall = vec![split; 160 * 90];
+        let near = r.render_glints(&sim, DepthWindow { near_m: 0.0, far_m: Some(&wall) }).clone();
+        let (a, b, n) = (all.c1.sum(), far.c1.sum(), near.c1.sum());
+        assert!(b > 0.0 && n > 0.0, "both sides hold light: {b} {n}");
+        assert!((b + n - a).abs() <= 1e-5 * a, "{b} + {n} vs {a}");
+        let hidden = vec![0.0; 160 * 90];
+        let none = r.render_glints(&sim, DepthWindow { near_m: 0.0, far_m: Some(&hidden) });
+        assert_eq!(none.c1.sum(), 0.0, "a surface at the eye hides every glint");
+    }
 
     #[test]
     fn glints_add_light_over_the_background() {
@@ -897,6 +1013,7 @@ mod tests {
                 glare_threshold: 0.4,
                 size: (w as f32, h as f32),
                 last_band: (h.div_ceil(BAND_ROWS) - 1) as u32,
+                window: None,
             };
             let mut got = Vec::new();
             for group in glints.chunks(LANES) {

@@ -49,6 +49,17 @@ const FEATURED: &[(&str, &[&str])] = &[
             "scene.seed",
         ],
     ),
+    (
+        "shot",
+        &[
+            "render.sun.azimuth_deg",
+            "render.sun.elevation_deg",
+            "render.flame.intensity",
+            "render.snow.sun_strength",
+            "render.sparkle.glint_gain",
+            "scene.seed",
+        ],
+    ),
 ];
 
 /// One control.

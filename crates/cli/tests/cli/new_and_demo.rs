@@ -32,7 +32,7 @@ fn every_phenomenon_has_a_starter_that_validates_and_renders() {
     let out = crate::run(dir.path(), &["new", "lava"]);
     assert_eq!(out.status.code(), Some(2));
     let e = String::from_utf8_lossy(&out.stderr);
-    assert!(e.contains("[possible values: flame, aurora, snow, sparkle]"), "{e}");
+    assert!(e.contains("[possible values: flame, aurora, snow, sparkle, shot]"), "{e}");
 }
 
 #[test]
@@ -49,5 +49,6 @@ fn demo_renders_every_system() {
     }
     assert_eq!(png_size(&d.join("aurora-scene2/frame_00230.png")), (640, 360));
     assert_eq!(png_size(&d.join("snow-table/frame_00059.png")), (640, 480));
+    assert_eq!(png_size(&d.join("winter-night/frame_00120.png")), (960, 540));
     assert_eq!(png_size(&d.join("blackbody-1000K-10000K.png")), (901, 1));
 }
