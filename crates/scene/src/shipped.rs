@@ -74,7 +74,7 @@ pub static SHIPPED: [Shipped; 18] = [
     shipped!("sparkle-leaf-glitter", "sparkle", demo 60..61 at 960 x 540),
     shipped!("sparkle-sun-pillar", "sparkle"),
     shipped!("sparkle-paper", "sparkle"),
-    shipped!("winter-night", "shot", demo 120..121 at 960 x 540),
+    shipped!("winter-night", "shot", demo 200..201 at 960 x 540),
 ];
 
 /// The shipped scene `name`.

@@ -49,6 +49,6 @@ fn demo_renders_every_system() {
     }
     assert_eq!(png_size(&d.join("aurora-scene2/frame_00230.png")), (640, 360));
     assert_eq!(png_size(&d.join("snow-table/frame_00059.png")), (640, 480));
-    assert_eq!(png_size(&d.join("winter-night/frame_00120.png")), (960, 540));
+    assert_eq!(png_size(&d.join("winter-night/frame_00200.png")), (960, 540));
     assert_eq!(png_size(&d.join("blackbody-1000K-10000K.png")), (901, 1));
 }
