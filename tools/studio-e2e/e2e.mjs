@@ -94,7 +94,10 @@ function previewStats() {
 
 async function openTab(phenomenon) {
   await page.click(`#tabs button[data-phenomenon="${phenomenon}"]`);
-  await until(`a ${phenomenon} scene`, () => studio(`window.studio.phenomenon === '${phenomenon}' && window.studio.scene && window.studio.scene['${phenomenon === 'snow' ? 'snow' : phenomenon}'] !== undefined`));
+  // A shot's scene holds several phenomena's tables (the flame's and the dust's, say).
+  const tables = phenomenon === 'shot' ? ['flame', 'sparkle'] : [phenomenon];
+  const held = tables.map((t) => `window.studio.scene['${t}'] !== undefined`).join(' && ');
+  await until(`a ${phenomenon} scene`, () => studio(`window.studio.phenomenon === '${phenomenon}' && window.studio.scene && ${held}`));
 }
 
 // Frames shown per second over `ms` of play, and the change-to-first-frame latency of
@@ -151,6 +154,14 @@ for (const phenomenon of ['aurora', 'flame', 'snow', 'sparkle', 'shot']) {
     report.tabs[phenomenon].first_image_ms = Date.now() - t0;
   });
 }
+
+await check('shot: each phenomenon has its own sections of controls', async () => {
+  await openTab('shot');
+  const titles = await page.evaluate(() => [...document.querySelectorAll('details > summary')].map((e) => e.textContent));
+  for (const t of ['[render.aurora]', '[render.snow]', '[render.sparkle]', '[render.flame]', '[flame.emitter]', '[sparkle.population]', '[snow]']) {
+    assert.ok(titles.includes(t), `${t} in ${JSON.stringify(titles)}`);
+  }
+});
 
 // --- aurora editor ---
 async function kmToPage(canvasId, p) {

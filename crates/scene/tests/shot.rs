@@ -205,3 +205,25 @@ fn a_shot_refuses_cameras_of_its_own_and_orphan_tables() {
     );
     assert!(messages.iter().any(|m| m.contains("render.snow") && m.contains("[snow]")), "{messages:?}");
 }
+
+/// The shipped winter night: each of the four phenomena reaches the camera (its layer
+/// holds light), the snow covers part of the frame, and the EXR's layers name each.
+#[test]
+fn the_winter_night_shows_all_four() {
+    let shipped = phenomena_scene::shipped::shipped("winter-night").expect("shipped");
+    let mut scene = shipped.scene().unwrap_or_else(|e| panic!("{e}"));
+    let s = scene.settings_mut();
+    (s.width, s.height) = (160, 90);
+    let mut runner = Runner::new(&scene, &Assets::none()).unwrap_or_else(|e| panic!("{e}"));
+    let mut keep = Keep::default();
+    runner.run(0..30, &mut keep, &mut ()).unwrap_or_else(|e| panic!("{e}"));
+    let layers = keep.layers;
+    for name in ["aurora", "snow", "sparkle", "flame"] {
+        let light: f64 =
+            ["R", "G", "B"].iter().flat_map(|c| &layers[&format!("{name}.{c}")]).map(|&v| f64::from(v)).sum();
+        assert!(light > 0.0, "{name} is not seen");
+    }
+    let cover = layers["snow.A"].iter().filter(|&&c| c == 1.0).count();
+    assert!(cover > 160 * 90 / 10 && cover < 160 * 90, "the village covers part of the frame: {cover}");
+    assert!(layers.keys().any(|k| k.starts_with("aurora_")), "the aurora's line layers: {:?}", layers.keys());
+}
