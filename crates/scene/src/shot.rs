@@ -32,6 +32,8 @@
 //! Emissive media add; surfaces replace. The EXR keeps each phenomenon's light as it
 //! reaches the camera in its own layer (`aurora.R`, `snow.R` with `snow.A` coverage,
 //! `flame.R`, `sparkle.R`, ...) beside the beauty, so a compositor can regrade each.
+//! `vdb` frames hold the nearest volume phenomenon's grids (the flame's); each
+//! phenomenon's exports are taken from its part.
 
 use std::any::Any;
 use std::sync::{Mutex, MutexGuard, PoisonError};
@@ -49,7 +51,9 @@ use crate::aurora::AuroraScene;
 use crate::budget::Estimate;
 use crate::error::BuildError;
 use crate::flame::FlameScene;
-use crate::phenomenon::{Built, ExportKind, Exported, PASSES, Pass, Phenomenon, Stage, View};
+use crate::phenomenon::{
+    Built, Capability, ExportKind, Exported, PASSES, Pass, Phenomenon, Scratch, Stage, View, VolumeOptions,
+};
 use crate::settings::SceneSettings;
 use crate::snow::{SnowGeometry, SnowScene};
 use crate::sparkle::SparkleScene;
@@ -207,6 +211,9 @@ const fn all_exports() -> [ExportKind; export_count()] {
     }
     out
 }
+
+/// Why a shot without a flame or an aurora writes no volumes.
+const NO_VOLUME: &str = "this shot holds no phenomenon with volumes (a [flame] or an [aurora])";
 
 /// The tables a shot's phenomena may hold, for messages.
 const TABLES: &str = "[flame], [aurora], [snow], [sparkle]";
@@ -402,6 +409,7 @@ impl Phenomenon for ShotScene {
         &[View { name: "shot", about: "every phenomenon through the one camera, composed far to near" }];
     const STARTER: &'static str = include_str!("../starters/shot.toml");
     const COMPOSITE: bool = true;
+    const CAN: &'static [Capability] = &[Capability::Volume];
     const EXPORTS: &'static [ExportKind] = &EXPORTS;
     type Sim = ShotSim;
     type Renderer = ShotRenderer;
@@ -480,6 +488,27 @@ impl Phenomenon for ShotScene {
         }
         let renderer = ShotRenderer { stage: Stage::new(w, h), names: Vec::new() };
         Ok(Built { sim: ShotSim { parts }, renderer, warnings })
+    }
+
+    /// `vdb`: the volumes of the nearest phenomenon that has them (the flame, in the
+    /// shot's metres; else the aurora, in its own frame).
+    fn volume(
+        built: &Built<Self>,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<Value, String> {
+        match built.sim.parts.iter().rev().map(open).find(|p| p.can(Capability::Volume)) {
+            Some(part) => part.volume(options, scratch, out),
+            None => Err(NO_VOLUME.to_string()),
+        }
+    }
+
+    fn volume_bytes(built: &Built<Self>, options: &VolumeOptions) -> Result<u64, String> {
+        match built.sim.parts.iter().rev().map(open).find(|p| p.can(Capability::Volume)) {
+            Some(part) => part.volume_bytes(options),
+            None => Err(NO_VOLUME.to_string()),
+        }
     }
 
     /// Each phenomenon's own preview (the aurora's thinned particles in the studio).
@@ -605,6 +634,14 @@ trait Part: Send {
     fn restore(&mut self, bytes: &[u8]) -> Result<(), String>;
     fn compose(&mut self, pass: Pass, stage: &mut Stage);
     fn before_render(&mut self, preview: Option<u32>);
+    fn can(&self, what: Capability) -> bool;
+    fn volume(
+        &self,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<Value, String>;
+    fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, String>;
     fn export(&self, name: &str, format: &str) -> Option<Result<Exported, String>>;
 }
 
@@ -647,6 +684,23 @@ impl<P: Phenomenon> Part for Built<P> {
 
     fn before_render(&mut self, preview: Option<u32>) {
         P::before_render(self, preview)
+    }
+
+    fn can(&self, what: Capability) -> bool {
+        P::CAN.contains(&what)
+    }
+
+    fn volume(
+        &self,
+        options: &VolumeOptions,
+        scratch: &mut Scratch,
+        out: &mut Vec<u8>,
+    ) -> Result<Value, String> {
+        P::volume(self, options, scratch, out)
+    }
+
+    fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, String> {
+        P::volume_bytes(self, options)
     }
 
     fn export(&self, name: &str, format: &str) -> Option<Result<Exported, String>> {

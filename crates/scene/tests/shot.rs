@@ -227,3 +227,26 @@ fn the_winter_night_shows_all_four() {
     assert!(cover > 160 * 90 / 10 && cover < 160 * 90, "the village covers part of the frame: {cover}");
     assert!(layers.keys().any(|k| k.starts_with("aurora_")), "the aurora's line layers: {:?}", layers.keys());
 }
+
+/// A shot's `vdb` frames hold its flame's volumes (in the shot's metres); a shot with
+/// no phenomenon that has volumes is refused before its first frame, by name.
+#[test]
+fn a_shot_writes_its_flames_volumes_or_says_it_has_none() {
+    use phenomena_scene::job::{self, Job};
+    use phenomena_scene::{Format, Limits};
+    let dir = tempfile::tempdir().unwrap();
+    let vdb = Format::named("vdb").expect("registered");
+    let flame = "[flame]\n[sparkle]\nfps = 60.0\n";
+    let scene = parse(&format!("{SIZE}{flame}"), "s.toml").unwrap_or_else(|e| panic!("{e}"));
+    let out = dir.path().join("fire");
+    let mut job = Job::new(&out, vdb);
+    job.frames = Some(4..6);
+    job::render(scene, &Assets::none(), &Limits::NONE, &job, &mut ()).unwrap_or_else(|e| panic!("{e}"));
+    let manifest = std::fs::read_to_string(out.join("frame_00005.vdb.json")).expect("a manifest");
+    assert!(manifest.contains("\"temperature\"") && manifest.contains("\"density\""), "{manifest}");
+    let cold = parse(&format!("{SIZE}{SNOW}[sparkle]\n"), "s.toml").unwrap();
+    let out = dir.path().join("cold");
+    let e = job::render(cold, &Assets::none(), &Limits::NONE, &Job::new(&out, vdb), &mut ()).unwrap_err();
+    assert!(e.to_string().contains("no phenomenon with volumes"), "{e}");
+    assert!(std::fs::read_dir(&out).map_or(true, |mut d| d.next().is_none()), "nothing written");
+}
