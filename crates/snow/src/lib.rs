@@ -34,7 +34,7 @@ mod sim;
 #[doc(hidden)]
 pub use flood::Counts as FloodCounts;
 pub use phenomena_core::phenomenon::RenderError;
-pub use render::{Background, Flakes, SnowRenderSettings, SnowRenderer, SnowView};
+pub use render::{Background, Flakes, Seen, SnowRenderSettings, SnowRenderer, SnowView};
 pub use sim::{
     Footprint, SnowConfig, SnowError, SnowMap, SnowSim, SnowState, Stabiliser, StepStats, snowfall_directions,
 };

@@ -4,7 +4,7 @@
 
 use crate::raster::{Cull, NO_ID, rasterize};
 use glam::Vec3;
-use phenomena_core::camera::Camera;
+use phenomena_core::camera::{Camera, CameraView};
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
@@ -65,6 +65,8 @@ pub struct SnowRenderSettings {
     pub sun_strength: f32,
     /// Light from the whole sky on any surface, same units (0.35).
     pub sky_strength: f32,
+    /// Pixels along each side of the sun's shadow map (0: no cast shadows).
+    pub shadow_map_px: u32,
 }
 
 /// Snowflakes falling through the scene view along the snowfall directions: flake k
@@ -101,6 +103,7 @@ impl Default for SnowRenderSettings {
             background: Background::Sky,
             sun_strength: SUN,
             sky_strength: AMBIENT,
+            shadow_map_px: 1024,
         }
     }
 }
@@ -119,6 +122,7 @@ impl SnowRenderSettings {
         i.range("fog_per_m", self.fog_per_m, 0.0..=100.0);
         i.range("sun_strength", self.sun_strength, 0.0..=1e6);
         i.range("sky_strength", self.sky_strength, 0.0..=1e6);
+        i.count("shadow_map_px", u64::from(self.shadow_map_px), 0..=8192);
         i.count("flakes.count", u64::from(self.flakes.count), 0..=1_000_000);
         i.range("flakes.fall_m_per_s", self.flakes.fall_m_per_s, 0.0..=100.0);
         i.range("flakes.radius_px", self.flakes.radius_px, 0.1..=50.0);
@@ -134,6 +138,11 @@ impl SnowRenderSettings {
 
 /// Linear-light colours of the picture.
 const SKY: Vec3 = Vec3::new(0.62, 0.70, 0.82);
+/// Colour of the sunlight (slightly warm) and of the light from the blue sky, each of
+/// mean 1: a surface the sun does not reach is lit by the sky alone, so it is darker
+/// and bluer than a sunlit one, as snow in shadow is.
+const SUN_RGB: Vec3 = Vec3::new(1.04, 1.0, 0.96);
+const SKY_RGB: Vec3 = Vec3::new(0.80, 0.97, 1.23);
 const SNOW_ALBEDO: f32 = 0.9;
 const SUN: f32 = 1.1;
 const AMBIENT: f32 = 0.35;
@@ -161,6 +170,19 @@ pub struct SnowRenderer {
     depth: Vec<f32>,
     /// Point lights besides the sun and sky: position (m) and radiant intensity.
     lights: Vec<(Vec3, Vec3)>,
+    /// What each pixel of the last scene view shows ([`Seen`]).
+    seen: Vec<Seen>,
+}
+
+/// What a pixel of the scene view shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Seen {
+    /// Nothing: the background.
+    Background,
+    /// A triangle of the scene's mesh.
+    Object,
+    /// The snow.
+    Snow,
 }
 
 impl SnowRenderer {
@@ -189,6 +211,7 @@ impl SnowRenderer {
             frame: Frame::new(width, height),
             depth: Vec::new(),
             lights: Vec::new(),
+            seen: Vec::new(),
         })
     }
 
@@ -208,10 +231,12 @@ impl SnowRenderer {
         let (w, h) = (self.frame.width(), self.frame.height());
         match self.settings.view {
             SnowView::Scene => {
-                (self.frame, self.depth) =
+                (self.frame, self.depth, self.seen) =
                     render_scene(sim, &self.settings, self.background.as_ref(), &self.lights, w, h)
             }
-            SnowView::Probability => (self.frame, self.depth) = (render_probability(sim, w, h), Vec::new()),
+            SnowView::Probability => {
+                (self.frame, self.depth, self.seen) = (render_probability(sim, w, h), Vec::new(), Vec::new())
+            }
         }
         &self.frame
     }
@@ -230,7 +255,8 @@ impl SnowRenderer {
     /// composition with other phenomena.
     pub fn render_over(&mut self, sim: &SnowSim, behind: &Frame) -> &Frame {
         let (w, h) = (self.frame.width(), self.frame.height());
-        (self.frame, self.depth) = render_scene(sim, &self.settings, Some(behind), &self.lights, w, h);
+        (self.frame, self.depth, self.seen) =
+            render_scene(sim, &self.settings, Some(behind), &self.lights, w, h);
         &self.frame
     }
 
@@ -243,6 +269,11 @@ impl SnowRenderer {
             f.map_pixels(|_| SKY);
             f
         })
+    }
+
+    /// What each pixel of the last scene view shows (row-major; empty before the first).
+    pub fn seen(&self) -> &[Seen] {
+        &self.seen
     }
 
     /// Distance along the view direction to the nearest surface, metres, per pixel of
@@ -270,21 +301,29 @@ fn render_scene(
     lights: &[(Vec3, Vec3)],
     width: usize,
     height: usize,
-) -> (Frame, Vec<f32>) {
+) -> (Frame, Vec<f32>, Vec<Seen>) {
     let mut frame = Frame::new(width, height);
-    let none = || vec![f32::INFINITY; width * height];
+    let none = || (vec![f32::INFINITY; width * height], vec![Seen::Background; width * height]);
     let scene = &sim.mesh().triangles;
     let camera = settings.camera.unwrap_or_else(|| {
         let (lo, hi) = bounds(scene);
         Camera::framing(lo, hi, width, height)
     });
-    let Some(view) = camera.view(width, height) else { return (frame, none()) };
+    let Some(view) = camera.view(width, height) else {
+        let (d, seen) = none();
+        return (frame, d, seen);
+    };
     let snow = snow_mesh(sim);
     let mut tris = scene.clone();
     tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
-    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else { return (frame, none()) };
+    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else {
+        let (d, seen) = none();
+        return (frame, d, seen);
+    };
     let sun = settings.sun_direction.normalize_or_zero();
     let eye = camera.position;
+    let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px);
+    let sky_seen = SkyVisibility { sim, fp: sim.footprint() };
     for y in 0..height {
         for x in 0..width {
             let id = buf.id_at(x, y);
@@ -302,17 +341,17 @@ fn render_scene(
                 } else {
                     Vec3::splat(SNOW_ALBEDO)
                 };
-                let mut lit = albedo * (settings.sun_strength * n.dot(sun).max(0.0) + settings.sky_strength);
-                if !lights.is_empty() {
-                    // The surface point: its depth along the view direction on the pixel's ray.
-                    let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
-                    for &(at, intensity) in lights {
-                        let d = at - p;
-                        let r2 = d.length_squared().max(1e-4);
-                        let cos = n.dot(d / r2.sqrt()).max(0.0);
-                        lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
-                    }
+                // The surface point: its depth along the view direction on the pixel's ray.
+                let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
+                let sunlit = n.dot(sun).max(0.0) * shadows.as_ref().map_or(1.0, |s| s.lit(p, n.dot(sun)));
+                let sky_light = SKY_RGB * (settings.sky_strength * sky_seen.at(p, n));
+                let mut lit = albedo * (SUN_RGB * (settings.sun_strength * sunlit) + sky_light);
+                for &(at, intensity) in lights {
+                    let d = at - p;
+                    let r2 = d.length_squared().max(1e-4);
+                    let cos = n.dot(d / r2.sqrt()).max(0.0);
+                    lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
                 }
                 let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
                 lit * fog + sky * (1.0 - fog)
@@ -323,8 +362,104 @@ fn render_scene(
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
     draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
-    (frame, buf.depth().to_vec())
+    let seen = buf
+        .ids()
+        .iter()
+        .map(|&id| match id {
+            NO_ID => Seen::Background,
+            id if (id as usize) < scene.len() => Seen::Object,
+            _ => Seen::Snow,
+        })
+        .collect();
+    (frame, buf.depth().to_vec(), seen)
 }
+
+/// The sun's shadow map: the scene and its snow seen from the sun by a parallel
+/// projection over their bounding sphere.
+struct SunShadow {
+    view: CameraView,
+    buf: crate::raster::DepthBuffer,
+    /// Size of a shadow-map pixel, m.
+    texel_m: f32,
+}
+
+impl SunShadow {
+    /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
+    /// side; `None` for no shadows (0 pixels, no sun, nothing to shade).
+    fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32) -> Option<Self> {
+        if px == 0 || sun == Vec3::ZERO || tris.is_empty() {
+            return None;
+        }
+        let (lo, hi) = bounds(tris);
+        let centre = 0.5 * (lo + hi);
+        let radius = (0.5 * (hi - lo).length()).max(1e-3);
+        let up = if sun.cross(Vec3::Y).length() > 1e-3 { Vec3::Y } else { Vec3::Z };
+        let camera = Camera {
+            position: centre + sun * (2.0 * radius),
+            look_at: centre,
+            up,
+            projection: phenomena_core::camera::Projection::Orthographic { height_m: 2.0 * radius },
+        };
+        let view = camera.view(px as usize, px as usize)?;
+        let (buf, _) = rasterize(&view, tris, None, Cull::None).ok()?;
+        Some(Self { view, buf, texel_m: 2.0 * radius / px as f32 })
+    }
+
+    /// The share of the sun's light reaching `p` (a surface whose normal makes cosine
+    /// `cos` with the sun): 3 × 3 shadow-map samples around it (soft edges), each
+    /// lit when `p` is no farther from the sun than the nearest surface there, less a
+    /// bias of a texel and a half that grows on slopes (no self-shadowing acne).
+    fn lit(&self, p: Vec3, cos: f32) -> f32 {
+        let Some(q) = self.view.project(p) else { return 1.0 };
+        let bias = 1.5 * self.texel_m / cos.max(0.2);
+        let (w, h) = (self.buf.width() as i64, self.buf.height() as i64);
+        let (cx, cy) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+        let mut lit = 0;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let (x, y) = ((cx + dx).clamp(0, w - 1), (cy + dy).clamp(0, h - 1));
+                if q.depth <= self.buf.depth_at(x as usize, y as usize) + bias {
+                    lit += 1;
+                }
+            }
+        }
+        lit as f32 / 9.0
+    }
+}
+
+/// How much of the sky a surface point sees, from the snow maps' probability P (the
+/// share of snowfall directions that reach a texel: the paper's occlusion, a sky
+/// visibility around the zenith): P of the map whose surface is at the point for a
+/// surface facing up, 1 elsewhere (walls and undersides the maps do not hold). Light
+/// the bright snow around reflects keeps a hollow from black: the sky light scales as
+/// [`BOUNCE`] + (1 − [`BOUNCE`]) P.
+struct SkyVisibility<'a> {
+    sim: &'a SnowSim,
+    fp: crate::sim::Footprint,
+}
+
+impl SkyVisibility<'_> {
+    fn at(&self, p: Vec3, n: Vec3) -> f32 {
+        if n.y < 0.5 {
+            return 1.0;
+        }
+        let (i, j) = ((p.x - self.fp.origin.x) / self.fp.texel_m, (p.z - self.fp.origin.y) / self.fp.texel_m);
+        if !(i >= 0.0 && j >= 0.0 && (i as usize) < self.fp.n && (j as usize) < self.fp.n) {
+            return 1.0;
+        }
+        let k = j as usize * self.fp.n + i as usize;
+        let near = 2.0 * self.fp.texel_m;
+        self.sim
+            .maps()
+            .iter()
+            .find(|m| m.possible(k) && (m.surface(k) - p.y).abs() <= near)
+            .map_or(1.0, |m| BOUNCE + (1.0 - BOUNCE) * m.probability[k])
+    }
+}
+
+/// The share of the sky light a surface that sees no sky still gets, reflected from the
+/// snow around it.
+const BOUNCE: f32 = 0.3;
 
 /// The box around `tris` (the origin for none).
 fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
