@@ -8,6 +8,7 @@ use phenomena_core::camera::{Camera, CameraView};
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::export::snow_mesh;
@@ -103,7 +104,7 @@ impl Default for SnowRenderSettings {
             background: Background::Sky,
             sun_strength: SUN,
             sky_strength: AMBIENT,
-            shadow_map_px: 1024,
+            shadow_map_px: 512,
         }
     }
 }
@@ -324,40 +325,46 @@ fn render_scene(
     let eye = camera.position;
     let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px);
     let sky_seen = SkyVisibility { sim, fp: sim.footprint() };
-    for y in 0..height {
-        for x in 0..width {
-            let id = buf.id_at(x, y);
-            let sky = background.map_or(SKY, |b| b.pixel(x, y));
-            let colour = if id == NO_ID {
-                sky
+    // Rows in parallel, each pixel on its own: the same bits for any thread count.
+    let shade = |x: usize, y: usize| -> Vec3 {
+        let id = buf.id_at(x, y);
+        let sky = background.map_or(SKY, |b| b.pixel(x, y));
+        if id == NO_ID {
+            sky
+        } else {
+            let [a, b, c] = tris[id as usize];
+            let mut n = (b - a).cross(c - a).normalize_or_zero();
+            if n.dot(eye - a) < 0.0 {
+                n = -n; // light the side facing the camera
+            }
+            let albedo = if (id as usize) < scene.len() {
+                object_albedo(sim.mesh().object[id as usize])
             } else {
-                let [a, b, c] = tris[id as usize];
-                let mut n = (b - a).cross(c - a).normalize_or_zero();
-                if n.dot(eye - a) < 0.0 {
-                    n = -n; // light the side facing the camera
-                }
-                let albedo = if (id as usize) < scene.len() {
-                    object_albedo(sim.mesh().object[id as usize])
-                } else {
-                    Vec3::splat(SNOW_ALBEDO)
-                };
-                // The surface point: its depth along the view direction on the pixel's ray.
-                let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-                let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
-                let sunlit = n.dot(sun).max(0.0) * shadows.as_ref().map_or(1.0, |s| s.lit(p, n.dot(sun)));
-                let sky_light = SKY_RGB * (settings.sky_strength * sky_seen.at(p, n));
-                let mut lit = albedo * (SUN_RGB * (settings.sun_strength * sunlit) + sky_light);
-                for &(at, intensity) in lights {
-                    let d = at - p;
-                    let r2 = d.length_squared().max(1e-4);
-                    let cos = n.dot(d / r2.sqrt()).max(0.0);
-                    lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
-                }
-                let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
-                lit * fog + sky * (1.0 - fog)
+                Vec3::splat(SNOW_ALBEDO)
             };
-            frame.set_pixel(x, y, colour);
+            // The surface point: its depth along the view direction on the pixel's ray.
+            let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
+            let sunlit = n.dot(sun).max(0.0) * shadows.as_ref().map_or(1.0, |s| s.lit(p, n.dot(sun)));
+            let sky_light = SKY_RGB * (settings.sky_strength * sky_seen.at(p, n));
+            let mut lit = albedo * (SUN_RGB * (settings.sun_strength * sunlit) + sky_light);
+            for &(at, intensity) in lights {
+                let d = at - p;
+                let r2 = d.length_squared().max(1e-4);
+                let cos = n.dot(d / r2.sqrt()).max(0.0);
+                lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
+            }
+            let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
+            lit * fog + sky * (1.0 - fog)
         }
+    };
+    let colours: Vec<Vec3> = (0..height)
+        .into_par_iter()
+        .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| shade(x, y))
+        .collect();
+    for (k, c) in colours.into_iter().enumerate() {
+        frame.set_pixel(k % width, k / width, c);
     }
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
