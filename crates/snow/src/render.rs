@@ -321,48 +321,40 @@ fn render_scene(
         let (d, seen) = none();
         return (frame, d, seen);
     };
-    let sun = settings.sun_direction.normalize_or_zero();
     let eye = camera.position;
-    let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px);
+    let sun = settings.sun_direction.normalize_or_zero();
+    let lighting = Lighting {
+        settings,
+        sun,
+        shadows: SunShadow::new(&tris, sun, settings.shadow_map_px),
+        sky_seen: SkyVisibility { sim, fp: sim.footprint() },
+        lights,
+    };
     let object_normals = smooth_normals(scene);
-    let sky_seen = SkyVisibility { sim, fp: sim.footprint() };
     // Rows in parallel, each pixel on its own: the same bits for any thread count.
     let shade = |x: usize, y: usize| -> Vec3 {
         let id = buf.id_at(x, y);
         let sky = background.map_or(SKY, |b| b.pixel(x, y));
         if id == NO_ID {
-            sky
-        } else {
-            let [a, b, c] = tris[id as usize];
-            // The surface point: its depth along the view direction on the pixel's ray.
-            let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-            let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
-            let face = (b - a).cross(c - a).normalize_or_zero();
-            let corners = match (id as usize).checked_sub(scene.len()) {
-                None => object_normals[id as usize],
-                Some(t) => [0, 1, 2].map(|k| snow.normals[snow.indices[3 * t + k] as usize]),
-            };
-            let mut n = interpolate([a, b, c], corners, p).unwrap_or(face);
-            if face.dot(eye - a) < 0.0 {
-                n = -n; // light the side facing the camera
-            }
-            let albedo = if (id as usize) < scene.len() {
-                object_albedo(sim.mesh().object[id as usize])
-            } else {
-                Vec3::splat(SNOW_ALBEDO)
-            };
-            let sunlit = n.dot(sun).max(0.0) * shadows.as_ref().map_or(1.0, |s| s.lit(p, n.dot(sun)));
-            let sky_light = SKY_RGB * (settings.sky_strength * sky_seen.at(p, n));
-            let mut lit = albedo * (SUN_RGB * (settings.sun_strength * sunlit) + sky_light);
-            for &(at, intensity) in lights {
-                let d = at - p;
-                let r2 = d.length_squared().max(1e-4);
-                let cos = n.dot(d / r2.sqrt()).max(0.0);
-                lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
-            }
-            let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
-            lit * fog + sky * (1.0 - fog)
+            return sky;
         }
+        let [a, b, c] = tris[id as usize];
+        // The surface point: its depth along the view direction on the pixel's ray.
+        let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+        let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
+        let face = (b - a).cross(c - a).normalize_or_zero();
+        let (corners, albedo) = match (id as usize).checked_sub(scene.len()) {
+            None => (object_normals[id as usize], object_albedo(sim.mesh().object[id as usize])),
+            Some(t) => {
+                ([0, 1, 2].map(|k| snow.normals[snow.indices[3 * t + k] as usize]), Vec3::splat(SNOW_ALBEDO))
+            }
+        };
+        let mut n = interpolate([a, b, c], corners, p).unwrap_or(face);
+        if face.dot(eye - a) < 0.0 {
+            n = -n; // light the side facing the camera
+        }
+        let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
+        lighting.at(p, n, albedo) * fog + sky * (1.0 - fog)
     };
     let colours: Vec<Vec3> = (0..height)
         .into_par_iter()
@@ -375,16 +367,47 @@ fn render_scene(
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
     draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
-    let seen = buf
-        .ids()
-        .iter()
-        .map(|&id| match id {
-            NO_ID => Seen::Background,
-            id if (id as usize) < scene.len() => Seen::Object,
-            _ => Seen::Snow,
-        })
-        .collect();
-    (frame, buf.depth().to_vec(), seen)
+    (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
+}
+
+/// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
+fn seen(buf: &crate::raster::DepthBuffer, objects: usize) -> Vec<Seen> {
+    let kind = |id: u32| match id {
+        NO_ID => Seen::Background,
+        id if (id as usize) < objects => Seen::Object,
+        _ => Seen::Snow,
+    };
+    buf.ids().iter().map(|&id| kind(id)).collect()
+}
+
+/// What lights a point of the scene: the sun (through its shadow map), the sky (as
+/// much as the point sees of it) and point lights (a fire).
+struct Lighting<'a> {
+    settings: &'a SnowRenderSettings,
+    /// Unit direction towards the sun.
+    sun: Vec3,
+    shadows: Option<SunShadow>,
+    sky_seen: SkyVisibility<'a>,
+    lights: &'a [(Vec3, Vec3)],
+}
+
+impl Lighting<'_> {
+    /// The light a Lambertian surface of `albedo` at `p` with unit normal `n` sends
+    /// back (before fog).
+    fn at(&self, p: Vec3, n: Vec3, albedo: Vec3) -> Vec3 {
+        let s = self.settings;
+        let cos = n.dot(self.sun);
+        let sunlit = cos.max(0.0) * self.shadows.as_ref().map_or(1.0, |m| m.lit(p, cos));
+        let sky_light = SKY_RGB * (s.sky_strength * self.sky_seen.at(p, n));
+        let mut lit = albedo * (SUN_RGB * (s.sun_strength * sunlit) + sky_light);
+        for &(at, intensity) in self.lights {
+            let d = at - p;
+            let r2 = d.length_squared().max(1e-4);
+            let cos = n.dot(d / r2.sqrt()).max(0.0);
+            lit += albedo * intensity * (cos / (std::f32::consts::PI * r2));
+        }
+        lit
+    }
 }
 
 /// Faces meeting at less than this are one smooth surface (a sphere's or a cone's
