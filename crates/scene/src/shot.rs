@@ -4,10 +4,11 @@
 //! with its `[geometry]`, `[sparkle]`) is a shot. Each phenomenon keeps its own tables;
 //! what they share is the shot's: `[scene]`, `[render.camera]` (metres), `[render.sun]`
 //! (towards the sun or the moon: the snow's light and the glints' light) and
-//! `[render.aurora_site_km]`. Each phenomenon's `[render]` settings move under
+//! `aurora_site_km` in `[render]`. Each phenomenon's `[render]` settings move under
 //! `[render.<name>]` (`[render.flame]`, ...), without a camera or a sun of their own.
 //!
-//! **One world.** Metres, +y up, +z north, +x east. The flame, the snow's geometry and
+//! **One world.** Metres, +y up, +z north, +x east (the aurora's and the glints'
+//! convention for directions). The flame, the snow's geometry and
 //! the diamond dust are placed in it by their own tables. The aurora lives in kilometres
 //! over the point on the ground below its plane's centre; the shot's origin is at
 //! `aurora_site_km` = [east, north] from that point (default 150 km south), so the
@@ -20,8 +21,9 @@
 //!
 //! **Composition**, far to near ([`Pass`]), per pixel:
 //! 1. the sky: the aurora's light (and its stars and far ground) at infinity;
-//! 2. opaque surfaces: the snow scene drawn over the sky; its depth map hides what is
-//!    behind a surface from everything drawn later;
+//! 2. opaque surfaces: the snow scene drawn over the sky, lit also by the flame (a
+//!    point light of the flame's radiant intensity, no shadows); its depth map hides
+//!    what is behind a surface from everything drawn later;
 //! 3. glints farther than the flame (the flame's particles' mean depth), each drawn only
 //!    where no surface is nearer;
 //! 4. the flame: its light is added (a flame absorbs little: what is behind it is seen
