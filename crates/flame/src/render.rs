@@ -461,18 +461,6 @@ impl FlameRenderer {
         (weight > 0.0).then(|| ((at / weight).as_vec3(), total.as_vec3()))
     }
 
-    /// Distance from the camera to the flame's light in the last render, metres: the
-    /// splats' depths weighted by their luminance (`None` when no splat is seen).
-    pub fn depth_m(&self) -> Option<f32> {
-        let (mut sum, mut weight) = (0.0f64, 0.0f64);
-        for s in self.splats.iter().flatten() {
-            let l = f64::from(s.color.x + s.color.y + s.color.z);
-            sum += f64::from(s.depth) * l;
-            weight += l;
-        }
-        (weight > 0.0).then(|| (sum / weight) as f32)
-    }
-
     /// The settings.
     pub fn settings(&self) -> &RenderSettings {
         &self.settings

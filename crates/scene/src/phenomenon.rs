@@ -180,12 +180,15 @@ impl Stage {
             return;
         }
         self.backdrop = true;
-        for (out, b) in
-            self.image.planes_mut().into_iter().zip([&background.c0, &background.c1, &background.c2])
-        {
-            for (o, v) in out.data_mut().iter_mut().zip(b.data()) {
-                *o += v;
-            }
+        add_light(&mut self.image, background);
+    }
+}
+
+/// Add `light` to `into`, pixel by pixel (frames of one size).
+pub(crate) fn add_light(into: &mut phenomena_core::image::Frame, light: &phenomena_core::image::Frame) {
+    for (out, add) in into.planes_mut().into_iter().zip([&light.c0, &light.c1, &light.c2]) {
+        for (o, a) in out.data_mut().iter_mut().zip(add.data()) {
+            *o += a;
         }
     }
 }

@@ -274,7 +274,9 @@ impl Phenomenon for SnowScene {
         if pass != Pass::Surfaces {
             return;
         }
-        stage.under(&renderer.background());
+        if !stage.backdrop {
+            stage.under(&renderer.background());
+        }
         renderer.set_lights(&stage.lights);
         let image = renderer.render_over(sim, &stage.image).clone();
         let depth = renderer.depth();

@@ -12,7 +12,7 @@ use crate::assets::Assets;
 use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, Capability, Pass, Phenomenon, Stage, View};
+use crate::phenomenon::{Built, Capability, Pass, Phenomenon, Stage, View, add_light};
 use crate::settings::SceneSettings;
 
 /// A sparkle scene file (diamond dust or leaf glitter).
@@ -129,19 +129,9 @@ impl Phenomenon for SparkleScene {
             }
             _ => return,
         };
-        for (out, add) in stage.image.planes_mut().into_iter().zip([&glints.c0, &glints.c1, &glints.c2]) {
-            for (o, a) in out.data_mut().iter_mut().zip(add.data()) {
-                *o += a;
-            }
-        }
+        add_light(&mut stage.image, glints);
         match stage.layers.iter_mut().find(|l| l.0 == "sparkle") {
-            Some((_, own, _)) => {
-                for (out, add) in own.planes_mut().into_iter().zip([&glints.c0, &glints.c1, &glints.c2]) {
-                    for (o, a) in out.data_mut().iter_mut().zip(add.data()) {
-                        *o += a;
-                    }
-                }
-            }
+            Some((_, own, _)) => add_light(own, glints),
             None => stage.layers.push(("sparkle", glints.clone(), None)),
         }
     }
