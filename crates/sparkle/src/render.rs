@@ -759,18 +759,23 @@ mod tests {
     use super::*;
     use crate::config::SparkleConfig;
 
+    /// Sparse diamond dust with wide lobes (n = 100): a few hundred glints in view.
+    fn sparse_dust() -> SparkleSim {
+        let mut c = SparkleConfig::default();
+        c.phong.exponent_n = 100.0;
+        if let Population::DiamondDust(d) = &mut c.population {
+            d.density_per_m3 = 1.0;
+        }
+        SparkleSim::new(c, 3).unwrap()
+    }
+
     /// Depth windows split the glints without loss or overlap: the glints nearer than
     /// a depth and those from it on sum to all of them over black (to f32 rounding of
     /// the per-pixel sums, 1e-5 relative), an opaque surface at zero depth hides them
     /// all, and the full window draws exactly what the black background does.
     #[test]
     fn depth_windows_split_the_glints_and_surfaces_hide_them() {
-        let mut c = SparkleConfig::default();
-        c.phong.exponent_n = 100.0;
-        if let Population::DiamondDust(d) = &mut c.population {
-            d.density_per_m3 = 1.0;
-        }
-        let sim = SparkleSim::new(c, 3).unwrap();
+        let sim = sparse_dust();
         let plain = RenderSettings { background: Background::Black, ..Default::default() };
         let mut r = SparkleRenderer::new(plain, 160, 90, None).unwrap();
         let all = r.render(&sim).clone();
@@ -795,12 +800,7 @@ mod tests {
 
     #[test]
     fn glints_add_light_over_the_background() {
-        let mut c = SparkleConfig::default();
-        c.phong.exponent_n = 100.0;
-        if let Population::DiamondDust(d) = &mut c.population {
-            d.density_per_m3 = 1.0;
-        }
-        let sim = SparkleSim::new(c, 3).unwrap();
+        let sim = sparse_dust();
         assert!(sim.glints().len() > 100);
         let mut r = SparkleRenderer::new(RenderSettings::default(), 160, 90, None).unwrap();
         let with = r.render(&sim).clone();
