@@ -49,7 +49,7 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     let fp = sim.footprint();
     let mut mesh = TriMesh::default();
     for map in sim.maps() {
-        let lattice = Lattice { map, fp: &fp };
+        let lattice = Lattice::new(map, &fp);
         let top_index = lattice.top_vertices(&mut mesh);
         for j in 0..fp.n {
             for i in 0..fp.n {
@@ -62,43 +62,182 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     mesh
 }
 
+/// Ground steps up to this many texel widths between a snowy texel and a bare one are one
+/// continuous surface (slopes up to 72°, the built-in cone's 63° with a margin), where
+/// the snow thins out instead of ending in a wall; larger steps, and texels that cannot
+/// hold snow (past a table's rim), are edges, where it keeps its side.
+const CONTINUOUS_TEXELS: f32 = 3.0;
+
+/// Smoothing passes along a patch's edge.
+const EDGE_SMOOTHING: usize = 3;
+
+/// A lattice corner with snow on at least one of its four texels.
+#[derive(Clone, Copy, Debug)]
+struct Corner {
+    /// The snow's top there, m.
+    top: Vec3,
+    /// The ground beneath it, m.
+    ground: f32,
+    /// On the edge of a patch over a continuous surface: the snow thins to nothing here
+    /// (top = ground).
+    feathered: bool,
+}
+
 /// One snow map's texels and the (n+1)² lattice of their corners, through which the
 /// mesh's top and bottom pass.
+///
+/// A patch's edge would otherwise be a staircase in plan, and over a continuous surface
+/// (snow that slid off a steep cone) a staircase of texel-high walls. So the corners on
+/// an edge move off the lattice to smooth it (a few Laplacian passes along the edge, each
+/// corner kept within half a texel of its lattice point), and over a continuous surface
+/// the snow thins to nothing there (top = the ground's bilinear interpolation at the
+/// moved corner): the edge follows the surface's contour, or the rim's, without steps.
 struct Lattice<'a> {
     map: &'a SnowMap,
     fp: &'a Footprint,
+    corners: Vec<Option<Corner>>,
 }
 
-impl Lattice<'_> {
+impl<'a> Lattice<'a> {
+    fn new(map: &'a SnowMap, fp: &'a Footprint) -> Self {
+        let n = fp.n;
+        let mut lattice = Self { map, fp, corners: Vec::new() };
+        lattice.corners =
+            (0..(n + 1) * (n + 1)).map(|c| lattice.raw_corner(c % (n + 1), c / (n + 1))).collect();
+        lattice.smooth_edges();
+        lattice
+    }
+
     /// Whether texel (i, j) lies in the map, can hold snow and holds more than
     /// [`MIN_DEPTH_M`].
     fn snowy(&self, i: i64, j: i64) -> bool {
-        let n = self.fp.n;
-        i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n && {
-            let k = j as usize * n + i as usize;
-            self.map.possible(k) && self.map.snow_m[k] > MIN_DEPTH_M
-        }
+        self.ground(i, j).is_some() && self.map.snow_m[j as usize * self.fp.n + i as usize] > MIN_DEPTH_M
     }
 
-    /// Corner (ci, cj): mean top and ground (m) of its snowy texels, if any.
-    fn corner(&self, ci: usize, cj: usize) -> Option<(f32, f32)> {
+    /// The ground of texel (i, j), if it lies in the map and can hold snow.
+    fn ground(&self, i: i64, j: i64) -> Option<f32> {
         let n = self.fp.n;
+        (i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n)
+            .then(|| j as usize * n + i as usize)
+            .filter(|&k| self.map.possible(k))
+            .map(|k| self.map.ground_m[k])
+    }
+
+    /// The four texels around corner (ci, cj).
+    fn around(ci: usize, cj: usize) -> [(i64, i64); 4] {
+        [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)].map(|(di, dj)| (ci as i64 + di, cj as i64 + dj))
+    }
+
+    /// Corner (ci, cj) on the lattice: the mean top and ground of its snowy texels; where
+    /// the others are bare ground continuous with them, feathered at the ground's mean.
+    fn raw_corner(&self, ci: usize, cj: usize) -> Option<Corner> {
         let (mut top, mut ground, mut c) = (0.0f32, 0.0f32, 0);
-        for (di, dj) in [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)] {
-            let (i, j) = (ci as i64 + di, cj as i64 + dj);
+        for (i, j) in Self::around(ci, cj) {
             if self.snowy(i, j) {
-                let k = j as usize * n + i as usize;
+                let k = j as usize * self.fp.n + i as usize;
                 top += self.map.surface(k);
                 ground += self.map.ground_m[k];
                 c += 1;
             }
         }
-        (c > 0).then(|| (top / c as f32, ground / c as f32))
+        if c == 0 {
+            return None;
+        }
+        let (top, ground) = (top / c as f32, ground / c as f32);
+        let xz = self.xz(ci, cj);
+        let step = CONTINUOUS_TEXELS * self.fp.texel_m;
+        let grounds = Self::around(ci, cj).map(|(i, j)| self.ground(i, j));
+        let continuous = grounds.iter().all(|g| g.is_some_and(|g| (g - ground).abs() <= step));
+        let feathered = c < 4 && continuous;
+        let ground =
+            if feathered { grounds.iter().map(|g| g.unwrap_or(ground)).sum::<f32>() / 4.0 } else { ground };
+        let top = if feathered { ground } else { top };
+        Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered })
     }
 
-    /// Position (x, z) of corner (ci, cj), m.
+    /// Position (x, z) of corner (ci, cj) on the lattice, m.
     fn xz(&self, ci: usize, cj: usize) -> glam::Vec2 {
         self.fp.origin + glam::Vec2::new(ci as f32, cj as f32) * self.fp.texel_m
+    }
+
+    fn corner(&self, ci: usize, cj: usize) -> Option<Corner> {
+        self.corners[cj * (self.fp.n + 1) + ci]
+    }
+
+    /// The neighbours of corner (ci, cj) along the patch's edge: the lattice edges from
+    /// it that separate a snowy texel from one without snow.
+    fn edge_neighbours(&self, ci: usize, cj: usize) -> Vec<(usize, usize)> {
+        let (i, j) = (ci as i64, cj as i64);
+        // Each lattice edge from the corner and the two texels on either side of it.
+        let edges = [((1, 0), (i, j - 1), (i, j)), ((-1, 0), (i - 1, j - 1), (i - 1, j))]
+            .into_iter()
+            .chain([((0, 1), (i - 1, j), (i, j)), ((0, -1), (i - 1, j - 1), (i, j - 1))]);
+        let n = self.fp.n as i64;
+        edges
+            .filter(|&((di, dj), a, b)| {
+                let (ni, nj) = (i + di, j + dj);
+                (0..=n).contains(&ni) && (0..=n).contains(&nj) && self.snowy(a.0, a.1) != self.snowy(b.0, b.1)
+            })
+            .map(|((di, dj), _, _)| ((i + di) as usize, (j + dj) as usize))
+            .collect()
+    }
+
+    /// Laplacian passes over the corners that lie on one edge (two edge neighbours),
+    /// each within half a texel of its lattice point; a feathered one at the ground's
+    /// bilinear height there, the others at their heights.
+    fn smooth_edges(&mut self) {
+        let n1 = self.fp.n + 1;
+        let chain: Vec<(usize, [(usize, usize); 2])> = (0..n1 * n1)
+            .filter(|&c| self.corners[c].is_some())
+            .filter_map(|c| {
+                let e = self.edge_neighbours(c % n1, c / n1);
+                (e.len() == 2 && e.iter().all(|&(a, b)| self.corner(a, b).is_some()))
+                    .then(|| (c, [e[0], e[1]]))
+            })
+            .collect();
+        let half = 0.5 * self.fp.texel_m;
+        for _ in 0..EDGE_SMOOTHING {
+            // (x, top, z) and ground of each corner after the pass.
+            let moved: Vec<(Vec3, f32)> = chain
+                .iter()
+                .map(|&(c, [a, b])| {
+                    let at = |(ci, cj): (usize, usize)| {
+                        self.corner(ci, cj).map_or((Vec3::ZERO, 0.0), |k| (k.top, k.ground))
+                    };
+                    let (here, ground) = at((c % n1, c / n1));
+                    let ((pa, ga), (pb, gb)) = (at(a), at(b));
+                    let top = here + 0.5 * (0.5 * (pa + pb) - here);
+                    let lattice = self.xz(c % n1, c / n1);
+                    let xz = lattice
+                        + (glam::Vec2::new(top.x, top.z) - lattice)
+                            .clamp(glam::Vec2::splat(-half), glam::Vec2::splat(half));
+                    (Vec3::new(xz.x, top.y, xz.y), ground + 0.5 * (0.5 * (ga + gb) - ground))
+                })
+                .collect();
+            for (&(c, _), (top, ground)) in chain.iter().zip(moved) {
+                let xz = glam::Vec2::new(top.x, top.z);
+                let g = self.bilinear_ground(c % n1, c / n1, xz);
+                if let Some(k) = self.corners[c].as_mut() {
+                    // A feathered corner stays on the ground; another keeps its snow on top
+                    // of its ground, both smoothed along the edge (no saw-tooth rim).
+                    (k.top, k.ground) = if k.feathered {
+                        (Vec3::new(xz.x, g, xz.y), g)
+                    } else {
+                        (Vec3::new(xz.x, top.y.max(ground), xz.y), ground)
+                    };
+                }
+            }
+        }
+    }
+
+    /// The ground at `xz` near corner (ci, cj), bilinear over the centres of its four
+    /// texels (all possible for a feathered corner).
+    fn bilinear_ground(&self, ci: usize, cj: usize, xz: glam::Vec2) -> f32 {
+        let g = Self::around(ci, cj).map(|(i, j)| self.ground(i, j).unwrap_or(0.0));
+        let f = ((xz - self.xz(ci, cj)) / self.fp.texel_m + 0.5).clamp(glam::Vec2::ZERO, glam::Vec2::ONE);
+        let low = g[0] * (1.0 - f.x) + g[1] * f.x;
+        let high = g[2] * (1.0 - f.x) + g[3] * f.x;
+        low * (1.0 - f.y) + high * f.y
     }
 
     /// The shared top vertices, one per corner with snow, with normals from central
@@ -107,38 +246,35 @@ impl Lattice<'_> {
     fn top_vertices(&self, mesh: &mut TriMesh) -> Vec<u32> {
         let (n, t) = (self.fp.n, self.fp.texel_m);
         let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
-        let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.0);
+        let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.top.y);
         for cj in 0..=n {
             for ci in 0..=n {
-                let Some((h, _)) = self.corner(ci, cj) else { continue };
+                let Some(corner) = self.corner(ci, cj) else { continue };
+                let h = corner.top.y;
                 let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
                 let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
                 let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
                 let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
                 let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
-                let p = self.xz(ci, cj);
-                top_index[cj * (n + 1) + ci] = mesh.vertex(Vec3::new(p.x, h, p.y), normal);
+                top_index[cj * (n + 1) + ci] = mesh.vertex(corner.top, normal);
             }
         }
         top_index
     }
 
     /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
-    /// its bottom on the ground, and a side towards each neighbour without snow.
+    /// its bottom on the ground, and a side towards each neighbour without snow (none
+    /// where both of the side's corners are feathered, a triangle where one is).
     fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize)) {
         let n = self.fp.n;
         let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
         // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
         // (x+1,z+1) → (x+1,z), as for the ground quads.
         mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
-        let bottom: Vec<Vec3> = corners
-            .iter()
-            .map(|&(ci, cj)| {
-                let p = self.xz(ci, cj);
-                Vec3::new(p.x, self.corner(ci, cj).map_or(0.0, |c| c.1), p.y)
-            })
-            .collect();
-        let b: Vec<u32> = bottom.iter().map(|&p| mesh.vertex(p, Vec3::NEG_Y)).collect();
+        let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
+        let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
+        let b: Vec<u32> =
+            corners.iter().map(|&(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y)).collect();
         mesh.quad([b[0], b[3], b[2], b[1]]);
         // Sides where the neighbour has no snow: (corner a, corner b, outward).
         let sides = [
@@ -147,21 +283,34 @@ impl Lattice<'_> {
             ((i + 1, j + 1), (i, j + 1), (0, 1), Vec3::Z),
             ((i, j + 1), (i, j), (-1, 0), Vec3::NEG_X),
         ];
-        for (a, bb, (di, dj), normal) in sides {
+        for (a, bb, (di, dj), outward) in sides {
             if self.snowy(i as i64 + di, j as i64 + dj) {
                 continue;
             }
-            let (ca, cb) =
-                (self.corner(a.0, a.1).unwrap_or_default(), self.corner(bb.0, bb.1).unwrap_or_default());
-            let (pa, pb) = (self.xz(a.0, a.1), self.xz(bb.0, bb.1));
-            // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside.
-            let v = [
-                mesh.vertex(Vec3::new(pa.x, ca.1, pa.y), normal),
-                mesh.vertex(Vec3::new(pa.x, ca.0, pa.y), normal),
-                mesh.vertex(Vec3::new(pb.x, cb.0, pb.y), normal),
-                mesh.vertex(Vec3::new(pb.x, cb.1, pb.y), normal),
-            ];
-            mesh.quad(v);
+            let (ca, cb) = (at(a.0, a.1), at(bb.0, bb.1));
+            // Outward and horizontal, square to the side as its smoothed corners run.
+            let run = cb.top - ca.top;
+            let normal = Vec3::new(-run.z, 0.0, run.x).normalize_or(outward);
+            let normal = if normal.dot(outward) < 0.0 { -normal } else { normal };
+            // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside; a
+            // feathered corner's top is its bottom.
+            let mut v = vec![mesh.vertex(bottom_of(ca), normal)];
+            if !ca.feathered {
+                v.push(mesh.vertex(ca.top, normal));
+            }
+            if !cb.feathered {
+                v.push(mesh.vertex(cb.top, normal));
+            }
+            v.push(mesh.vertex(bottom_of(cb), normal));
+            match v.len() {
+                4 => mesh.quad([v[0], v[1], v[2], v[3]]),
+                3 => mesh.indices.extend_from_slice(&v),
+                _ => {
+                    // Both ends feathered: no side; take back the two unused vertices.
+                    mesh.positions.truncate(mesh.positions.len() - 2);
+                    mesh.normals.truncate(mesh.normals.len() - 2);
+                }
+            }
         }
     }
 }

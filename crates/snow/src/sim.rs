@@ -750,9 +750,21 @@ pub(crate) fn neighbours(
         // same height: the two behave as one surface; measuring to the own ground
         // there sent snow back and forth between the two edges for ever, found on
         // the Stanford bunny).
+        // A slope that reaches the edge goes on past it: the edge's height drops below the
+        // own ground by as much as the ground rises from the opposite neighbour, so a
+        // surface steeper than the repose (a sphere's side near its silhouette) holds no
+        // snow at its edge, while a flat top (a table) keeps its cornice. (Measured to the
+        // own ground alone, every edge texel of a steep surface held one rise of snow: a
+        // ring of texel-sized blocks around the primitives' sphere.)
+        let (oi, oj) = (i as i64 - dx, j as i64 - dz);
+        let inner = (oi >= 0 && oj >= 0 && oi < n as i64 && oj < n as i64)
+            .then(|| oj as usize * n + oi as usize)
+            .filter(|&ok| map.possible(ok))
+            .map_or(g, |ok| map.ground_m[ok]);
+        let edge = g - (inner - g).max(0.0);
         match lower {
-            Some((o, m)) => (Target::Map(o as u32, nk as u32), map.ground_m[k].max(m.surface(nk))),
-            None => (Target::Off, map.ground_m[k]),
+            Some((o, m)) => (Target::Map(o as u32, nk as u32), edge.max(m.surface(nk))),
+            None => (Target::Off, edge),
         }
     })
 }
