@@ -36,6 +36,7 @@ fn faces(mesh: &TriMesh) -> impl Iterator<Item = (Vec3, f32, Vec3)> + '_ {
 }
 
 #[test]
+#[allow(clippy::print_stdout)]
 fn the_cylinders_rim_is_round_and_the_spheres_sides_hold_no_blocks() {
     let (sim, mesh) = primitives_snow();
     let texel = sim.footprint().texel_m;

@@ -698,7 +698,7 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
         LightAt::Position(_) => None,
     };
     let dome = match population {
-        Population::LeafGlitter(l) => Some((l.centre_m, l.radius_m)),
+        Population::LeafGlitter(l) => Some((l.centre_m, l.radius_m, l.spread_deg.to_radians().tan())),
         Population::DiamondDust(_) => None,
     };
     // The sun's disc (0.27° radius) and a soft aureole.
@@ -713,7 +713,7 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
                         LightAt::Direction(l) => 0.15 + 0.85 * n.dot(l).max(0.0),
                         LightAt::Position(p) => 0.15 + 0.85 * n.dot((p - o).normalize_or_zero()).max(0.0),
                     };
-                    if let Some((c, r)) = dome {
+                    if let Some((c, r, tilt)) = dome {
                         let oc = o - c;
                         let b = oc.dot(d);
                         let disc = b * b - (oc.length_squared() - r * r);
@@ -721,7 +721,7 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
                             let t = -b - disc.sqrt();
                             let p = o + d * t;
                             if t > 0.0 && p.y >= c.y {
-                                return crown * lit((p - c) / r);
+                                return crown * crown_light(p, (p - c) / r, tilt, light, zenith);
                             }
                         }
                         if d.y < 0.0 {
@@ -752,6 +752,58 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
         }
     }
     f
+}
+
+/// Size of a clump of leaves that turns one way, m (with sprays a third of it inside).
+const CLUMP_M: f32 = 0.3;
+
+/// The light on the crown at `p` (outward normal `n0`): leaves in clumps, each clump's
+/// normal tilted from the crown's by a smooth random field of the leaves' spread
+/// (`tilt` = tan of it), lit by the sun (Lambert), by the sky (the half of it a normal
+/// sees, in the sky's zenith colour, darker in a clump's hollows) and, from behind, by
+/// the sun through the leaves (translucency). An extension: §3.2 draws only the glints.
+fn crown_light(p: Vec3, n0: Vec3, tilt: f32, light: LightAt, zenith: Vec3) -> Vec3 {
+    // Clumps, and smaller sprays of leaves within them.
+    let field = clump_field(p / CLUMP_M) + 0.5 * clump_field(p * (3.0 / CLUMP_M));
+    let side = field - n0 * field.dot(n0);
+    let n = (n0 + side * tilt).normalize_or(n0);
+    let l = match light {
+        LightAt::Direction(l) => l,
+        LightAt::Position(q) => (q - p).normalize_or_zero(),
+    };
+    // The field's length (0 to 1.5√3) is how open the clump is: hollows see less sky.
+    let open = (0.55 + 0.3 * field.length()).min(1.0);
+    let sun = 0.85 * n.dot(l).max(0.0);
+    let through = 0.25 * (-n0.dot(l)).max(0.0);
+    let sky = (zenith / zenith.max_element().max(1e-6)) * 0.3 * (0.5 + 0.5 * n.y) * open;
+    Vec3::splat(sun + through) + sky
+}
+
+/// A smooth random vector field (each component in [-1, 1]): random vectors at the
+/// integer lattice, blended with smoothstep weights. Deterministic in `q` alone.
+fn clump_field(q: Vec3) -> Vec3 {
+    let base = q.floor();
+    let f = q - base;
+    let w = f * f * (Vec3::splat(3.0) - 2.0 * f);
+    let mut sum = Vec3::ZERO;
+    for corner in 0..8u32 {
+        let o = Vec3::new((corner & 1) as f32, ((corner >> 1) & 1) as f32, ((corner >> 2) & 1) as f32);
+        let k = base + o;
+        let weight = (if o.x > 0.0 { w.x } else { 1.0 - w.x })
+            * (if o.y > 0.0 { w.y } else { 1.0 - w.y })
+            * (if o.z > 0.0 { w.z } else { 1.0 - w.z });
+        let mut h = (k.x as i32 as u32 as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (k.y as i32 as u32 as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (k.z as i32 as u32 as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
+        let mut next = || {
+            h ^= h >> 33;
+            h = h.wrapping_mul(0xFF51_AFD7_ED55_8CCD);
+            h ^= h >> 33;
+            (h >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        sum += Vec3::new(next(), next(), next()) * weight;
+    }
+    sum
 }
 
 #[cfg(test)]
@@ -1033,6 +1085,41 @@ mod tests {
             let dots: Vec<Dot> = got.iter().map(|d| Dot { x: d.0, y: d.1, value: d.2, len: d.3 }).collect();
             assert_bilinear_is_scalar(&dots);
         }
+    }
+
+    #[test]
+    fn the_crown_is_lit_by_the_sun_and_mottled_by_its_leaves() {
+        // Points 2 cm apart along a 4 m crown's meridians, under a sun from +x at 30°.
+        let sun = LightAt::Direction(Vec3::new(30f32.to_radians().cos(), 30f32.to_radians().sin(), 0.0));
+        let zenith = Vec3::new(0.35, 0.5, 0.8);
+        let tilt = 25f32.to_radians().tan();
+        let meridian = |azimuth: f32| -> Vec<Vec3> {
+            (0..200)
+                .map(|k| {
+                    let e = 0.1 + 0.005 * k as f32;
+                    Vec3::new(e.cos() * azimuth.cos(), e.sin(), e.cos() * azimuth.sin())
+                })
+                .collect()
+        };
+        let light = |n: &[Vec3], tilt: f32| -> Vec<f32> {
+            n.iter().map(|&n| crown_light(n * 4.0, n, tilt, sun, zenith).element_sum()).collect()
+        };
+        let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+        let (towards, away) = (meridian(0.0), meridian(std::f32::consts::PI));
+        let (lit, dark) = (mean(&light(&towards, tilt)), mean(&light(&away, tilt)));
+        assert!(lit > 2.0 * dark, "the sunward side {lit} is not brighter than the far side {dark}");
+        // The leaves' own normals: tilted by up to the spread (25°) from the crown's, they
+        // change a Lambert term of a sun ~40-90° off the normal by ~sin θ · 0.4 rad, tens
+        // of per cent from clump to clump; their ratio to the smooth crown's light varies
+        // along the meridian by more than 5 %, and changes little over 2 cm (smooth clumps,
+        // not per-pixel noise).
+        let (leafy, smooth) = (light(&towards, tilt), light(&towards, 0.0));
+        let ratio: Vec<f32> = leafy.iter().zip(&smooth).map(|(a, b)| a / b).collect();
+        let m = mean(&ratio);
+        let spread = (ratio.iter().map(|r| (r - m) * (r - m)).sum::<f32>() / ratio.len() as f32).sqrt() / m;
+        let step = ratio.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>() / (ratio.len() - 1) as f32 / m;
+        assert!(spread > 0.05, "the leaves vary the light by {spread} only");
+        assert!(step < 0.25 * spread, "from point to point 2 cm apart the light changes by {step} (noise)");
     }
 
     #[test]

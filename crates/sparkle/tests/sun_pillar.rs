@@ -187,6 +187,7 @@ fn quantile(sorted: &[(f64, f64)], q: f64) -> f64 {
 
 /// The span from the 10th to the 90th percentile of the light within `band_deg` of the
 /// sun's azimuth, degrees: (bottom, top) measured and (bottom, top) analytic.
+#[allow(clippy::print_stdout)]
 fn pillar(glints: &[(f64, f64, f64)], band_deg: f64) -> ((f64, f64), (f64, f64)) {
     let band = band_deg.to_radians();
     let mut seen: Vec<(f64, f64)> = glints.iter().filter(|g| g.1.abs() < band).map(|g| (g.0, g.2)).collect();
