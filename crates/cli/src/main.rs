@@ -216,6 +216,10 @@ enum ExportWhat {
     /// The snow of a snow scene as a mesh (closed solids per snow patch, with normals)
     /// after simulating it to `--time-h` hours (default: all the scene's frames).
     SnowMesh(SnowMeshArgs),
+    /// A snow scene as its renderer draws it, as one GLB for another renderer or a DCC:
+    /// the scene's objects, the snow (after `--time-h` hours), the camera and the sun,
+    /// with the light settings in the scene's extras.
+    SnowScene(SnowSceneArgs),
     /// The blackbody colour table (paper Fig 1): CIE 1931 xy and normalised linear sRGB.
     Blackbody(BlackbodyArgs),
 }
@@ -448,6 +452,18 @@ struct SnowMeshArgs {
 }
 
 #[derive(clap::Args, Debug)]
+struct SnowSceneArgs {
+    /// The snow scene file.
+    scene: PathBuf,
+    /// Simulated time, hours.
+    #[arg(long)]
+    time_h: Option<f64>,
+    /// Output file (GLB).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
 struct BlackbodyArgs {
     /// Lowest temperature, K.
     #[arg(long, default_value_t = 1000.0)]
@@ -566,6 +582,9 @@ impl ExportWhat {
             ExportWhat::Atmosphere(a) => export::atmosphere(&a.out),
             ExportWhat::AuroraProfile(a) => a.run(),
             ExportWhat::SnowMesh(a) => a.run(),
+            ExportWhat::SnowScene(a) => {
+                export::scene_export(&a.scene, "snow-scene", "glb", snow_steps(a.time_h), &a.out)
+            }
             ExportWhat::Particles(a) => {
                 export::scene_export(&a.scene, "particles", "csv", |s| after_frame(s, a.frame), &a.out)
             }
@@ -599,17 +618,20 @@ impl SnowMeshArgs {
             MeshFormat::Obj => "obj",
             MeshFormat::Ply => "ply",
         };
-        let time_h = self.time_h;
-        // Hours to frames by the scene's own frame time (one snow step per frame).
-        let steps = |s: &phenomena_scene::Scene| {
-            let dt_h = s.frame_time_s() / 3600.0;
-            let time = time_h.unwrap_or(f64::from(s.settings().frames) * dt_h);
-            if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
-                anyhow::bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
-            }
-            Ok((time / dt_h).round() as u32)
-        };
-        export::scene_export(&self.scene, "snow-mesh", format, steps, &self.out)
+        export::scene_export(&self.scene, "snow-mesh", format, snow_steps(self.time_h), &self.out)
+    }
+}
+
+/// The frames to simulate for `--time-h` hours (default: all the scene's frames), by the
+/// scene's own frame time (one snow step per frame).
+fn snow_steps(time_h: Option<f64>) -> impl Fn(&phenomena_scene::Scene) -> anyhow::Result<u32> {
+    move |s: &phenomena_scene::Scene| {
+        let dt_h = s.frame_time_s() / 3600.0;
+        let time = time_h.unwrap_or(f64::from(s.settings().frames) * dt_h);
+        if !(time.is_finite() && (0.0..=1e5).contains(&time)) {
+            anyhow::bail!("--time-h {time} is out of range: expected hours in [0, 100000]");
+        }
+        Ok((time / dt_h).round() as u32)
     }
 }
 

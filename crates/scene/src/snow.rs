@@ -169,11 +169,18 @@ impl Phenomenon for SnowScene {
         View { name: "scene", about: "the scene and its snow through the camera" },
         View { name: "probability", about: "the snow probability P_a of each map from above (§2.2)" },
     ];
-    const EXPORTS: &'static [ExportKind] = &[ExportKind {
-        name: "snow-mesh",
-        about: "the snow as closed solids per snow patch, with normals",
-        formats: &["glb", "obj", "ply"],
-    }];
+    const EXPORTS: &'static [ExportKind] = &[
+        ExportKind {
+            name: "snow-mesh",
+            about: "the snow as closed solids per snow patch, with normals",
+            formats: &["glb", "obj", "ply"],
+        },
+        ExportKind {
+            name: "snow-scene",
+            about: "the scene's objects, the snow, the camera and the sun as the renderer draws them",
+            formats: &["glb"],
+        },
+    ];
     const STARTER: &'static str = include_str!("../starters/snow.toml");
     type Sim = SnowSim;
     type Renderer = SnowRenderer;
@@ -325,8 +332,20 @@ impl Phenomenon for SnowScene {
 
     fn export(built: &Built<Self>, name: &str, format: &str) -> Result<Exported, String> {
         use phenomena_snow::export::{snow_mesh, to_glb, to_obj, to_ply};
+        if name == "snow-scene" {
+            if format != "glb" {
+                return Err(format!("a snow scene is exported as glb, not {format}"));
+            }
+            let bytes = built.renderer.scene_glb(&built.sim);
+            let summary = format!(
+                "{} scene triangles, the snow after {:.2} h, the camera and the sun",
+                built.sim.mesh().len(),
+                built.sim.time_h()
+            );
+            return Ok(Exported { bytes, summary });
+        }
         if name != "snow-mesh" {
-            return Err(format!("snow scenes export snow-mesh, not `{name}`"));
+            return Err(format!("snow scenes export snow-mesh or snow-scene, not `{name}`"));
         }
         let tris = snow_mesh(&built.sim);
         let bytes = match format {

@@ -418,6 +418,188 @@ pub fn to_glb(mesh: &TriMesh) -> Vec<u8> {
     glb_chunks(json.into_bytes(), &bin)
 }
 
+/// One mesh of a scene GLB with its material.
+#[derive(Clone, Copy, Debug)]
+pub struct GlbPart<'a> {
+    /// The mesh's (and its node's) name.
+    pub name: &'a str,
+    /// The triangles.
+    pub mesh: &'a TriMesh,
+    /// Base colour (linear RGB), a rough dielectric.
+    pub colour: Vec3,
+}
+
+/// The camera and the sun of a scene GLB.
+#[derive(Clone, Debug)]
+pub struct GlbView {
+    /// The camera (perspective or orthographic; another projection is left out).
+    pub camera: phenomena_core::camera::Camera,
+    /// Image width over height.
+    pub aspect: f32,
+    /// Direction towards the sun (a directional light of `KHR_lights_punctual`).
+    pub sun: Vec3,
+    /// The sun's colour and intensity (as the renderer uses them).
+    pub sun_rgb: Vec3,
+    /// The sun's strength.
+    pub sun_intensity: f32,
+    /// A JSON object put in the scene's `extras` (the renderer's light settings).
+    pub extras: String,
+}
+
+/// A GLB of several meshes, the camera and the sun, for another renderer (the Cycles
+/// reference) or a DCC: meshes with per-vertex normals and a rough material each, a
+/// `camera` node looking down its −Z as the camera does, and a `sun` node whose
+/// directional light shines down its −Z, away from the sun.
+pub fn to_glb_scene(parts: &[GlbPart<'_>], view: &GlbView) -> Vec<u8> {
+    let mut bin = Vec::new();
+    let (mut views, mut accessors, mut materials, mut meshes, mut nodes) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for part in parts.iter().filter(|p| !p.mesh.indices.is_empty()) {
+        let m = part.mesh;
+        let (lo, hi) = m
+            .positions
+            .iter()
+            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        let first = accessors.len();
+        for (data, target, accessor) in [
+            (
+                m.positions.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect::<Vec<u8>>(),
+                34962,
+                format!(
+                    r#""componentType":5126,"count":{},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]"#,
+                    m.positions.len(),
+                    lo.x,
+                    lo.y,
+                    lo.z,
+                    hi.x,
+                    hi.y,
+                    hi.z
+                ),
+            ),
+            (
+                m.normals.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect(),
+                34962,
+                format!(r#""componentType":5126,"count":{},"type":"VEC3""#, m.normals.len()),
+            ),
+            (
+                m.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+                34963,
+                format!(r#""componentType":5125,"count":{},"type":"SCALAR""#, m.indices.len()),
+            ),
+        ] {
+            views.push(format!(
+                r#"{{"buffer":0,"byteOffset":{},"byteLength":{},"target":{target}}}"#,
+                bin.len(),
+                data.len()
+            ));
+            accessors.push(format!(r#"{{"bufferView":{},{accessor}}}"#, views.len() - 1));
+            bin.extend_from_slice(&data);
+        }
+        let c = part.colour;
+        materials.push(format!(
+            r#"{{"name":"{}","pbrMetallicRoughness":{{"baseColorFactor":[{},{},{},1.0],"metallicFactor":0.0,"roughnessFactor":1.0}}}}"#,
+            part.name, c.x, c.y, c.z
+        ));
+        meshes.push(format!(
+            r#"{{"name":"{}","primitives":[{{"attributes":{{"POSITION":{first},"NORMAL":{}}},"indices":{},"material":{}}}]}}"#,
+            part.name,
+            first + 1,
+            first + 2,
+            materials.len() - 1
+        ));
+        nodes.push(format!(r#"{{"mesh":{},"name":"{}"}}"#, meshes.len() - 1, part.name));
+    }
+    let (cameras, lights) = view_nodes(view, &mut nodes);
+    let roots: Vec<String> = (0..nodes.len()).map(|k| k.to_string()).collect();
+    let buffers = if bin.is_empty() {
+        String::new()
+    } else {
+        format!(
+            r#""buffers":[{{"byteLength":{}}}],"bufferViews":[{}],"accessors":[{}],"#,
+            bin.len(),
+            views.join(","),
+            accessors.join(",")
+        )
+    };
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0","generator":"phenomena"}},{lights}{}{buffers}"materials":[{}],"meshes":[{}],"nodes":[{}],"scene":0,"scenes":[{{"nodes":[{}],"extras":{}}}]}}"#,
+        cameras,
+        materials.join(","),
+        meshes.join(","),
+        nodes.join(","),
+        roots.join(","),
+        view.extras
+    );
+    glb_chunks(json.into_bytes(), &bin)
+}
+
+/// The camera node (when the projection has a glTF form) and the sun's node, onto
+/// `nodes`; returns the JSON members `"cameras"` and the light extension.
+fn view_nodes(view: &GlbView, nodes: &mut Vec<String>) -> (String, String) {
+    let quat = |q: glam::Quat| format!("[{},{},{},{}]", q.x, q.y, q.z, q.w);
+    let cam = &view.camera;
+    let forward = (cam.look_at - cam.position).normalize_or(Vec3::NEG_Z);
+    let right = forward.cross(cam.up).normalize_or(Vec3::X);
+    let up = right.cross(forward);
+    let rotation = glam::Quat::from_mat3(&glam::Mat3::from_cols(right, up, -forward)).normalize();
+    let projection = match cam.projection {
+        phenomena_core::camera::Projection::Perspective { fov_y_deg } => Some(format!(
+            r#"{{"type":"perspective","perspective":{{"yfov":{},"aspectRatio":{},"znear":0.05}}}}"#,
+            fov_y_deg.to_radians(),
+            view.aspect
+        )),
+        phenomena_core::camera::Projection::Orthographic { height_m } => Some(format!(
+            r#"{{"type":"orthographic","orthographic":{{"xmag":{},"ymag":{},"znear":0.0,"zfar":10000.0}}}}"#,
+            0.5 * height_m * view.aspect,
+            0.5 * height_m
+        )),
+        _ => None,
+    };
+    let cameras = projection.map_or_else(String::new, |p| {
+        let p0 = cam.position;
+        nodes.push(format!(
+            r#"{{"camera":0,"name":"camera","translation":[{},{},{}],"rotation":{}}}"#,
+            p0.x,
+            p0.y,
+            p0.z,
+            quat(rotation)
+        ));
+        format!(r#""cameras":[{p}],"#)
+    });
+    let sun = glam::Quat::from_rotation_arc(Vec3::Z, view.sun.normalize_or(Vec3::Y));
+    nodes.push(format!(
+        r#"{{"name":"sun","rotation":{},"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}}"#,
+        quat(sun)
+    ));
+    // glTF's light colour lies in [0, 1]: the brightest channel's excess moves to the
+    // intensity.
+    let peak = view.sun_rgb.max_element().max(1e-6);
+    let s = view.sun_rgb / peak;
+    let lights = format!(
+        r#""extensionsUsed":["KHR_lights_punctual"],"extensions":{{"KHR_lights_punctual":{{"lights":[{{"type":"directional","name":"sun","color":[{},{},{}],"intensity":{}}}]}}}},"#,
+        s.x,
+        s.y,
+        s.z,
+        view.sun_intensity * peak
+    );
+    (cameras, lights)
+}
+
+/// The triangles of `mesh` whose object `keep` accepts, flat-shaded (each its own three
+/// vertices with the face normal).
+pub fn flat_mesh(mesh: &crate::mesh::Mesh, keep: impl Fn(u32) -> bool) -> TriMesh {
+    let mut out = TriMesh::default();
+    for (t, tri) in mesh.triangles.iter().enumerate().filter(|(t, _)| keep(mesh.object[*t])) {
+        let n = mesh.normal(t);
+        if n == Vec3::ZERO {
+            continue;
+        }
+        let v = tri.map(|p| out.vertex(p, n));
+        out.indices.extend_from_slice(&v);
+    }
+    out
+}
+
 /// A GLB file: header, the JSON chunk padded with spaces, and the BIN chunk when `bin`
 /// is not empty (already 4-byte aligned).
 fn glb_chunks(mut json: Vec<u8>, bin: &[u8]) -> Vec<u8> {

@@ -23,6 +23,7 @@
 
 pub mod export;
 mod flood;
+pub mod glitter;
 pub mod groups;
 pub mod load;
 pub mod mesh;
@@ -33,6 +34,7 @@ mod sim;
 
 #[doc(hidden)]
 pub use flood::Counts as FloodCounts;
+pub use glitter::Glitter;
 pub use phenomena_core::phenomenon::RenderError;
 pub use render::{Background, Flakes, Seen, SnowRenderSettings, SnowRenderer, SnowView};
 pub use sim::{

@@ -11,7 +11,8 @@ use phenomena_core::validate::{InvalidConfig, Issue, Issues};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::export::snow_mesh;
+use crate::export::{GlbPart, GlbView, TriMesh, snow_mesh, to_glb_scene};
+use crate::glitter::{Glitter, Viewing, glints};
 use crate::sim::SnowSim;
 
 /// What the frames show.
@@ -68,6 +69,9 @@ pub struct SnowRenderSettings {
     pub sky_strength: f32,
     /// Pixels along each side of the sun's shadow map (0: no cast shadows).
     pub shadow_map_px: u32,
+    /// The glints of the snow's ice grains in the sun (`[render.glitter]`; an
+    /// extension: the sparkle model of Hwang and Noma on the snow, see [`crate::glitter`]).
+    pub glitter: Glitter,
 }
 
 /// Snowflakes falling through the scene view along the snowfall directions: flake k
@@ -105,6 +109,7 @@ impl Default for SnowRenderSettings {
             sun_strength: SUN,
             sky_strength: AMBIENT,
             shadow_map_px: 512,
+            glitter: Glitter::default(),
         }
     }
 }
@@ -124,6 +129,7 @@ impl SnowRenderSettings {
         i.range("sun_strength", self.sun_strength, 0.0..=1e6);
         i.range("sky_strength", self.sky_strength, 0.0..=1e6);
         i.count("shadow_map_px", u64::from(self.shadow_map_px), 0..=8192);
+        self.glitter.validate(&mut i, "glitter");
         i.count("flakes.count", u64::from(self.flakes.count), 0..=1_000_000);
         i.range("flakes.fall_m_per_s", self.flakes.fall_m_per_s, 0.0..=100.0);
         i.range("flakes.radius_px", self.flakes.radius_px, 0.1..=50.0);
@@ -148,14 +154,16 @@ const SNOW_ALBEDO: f32 = 0.9;
 const SUN: f32 = 1.1;
 const AMBIENT: f32 = 0.35;
 
+/// The scene objects' albedos (greys and a brown), by object id modulo their number.
+const PALETTE: [Vec3; 4] = [
+    Vec3::new(0.30, 0.28, 0.25),
+    Vec3::new(0.35, 0.22, 0.12),
+    Vec3::new(0.45, 0.45, 0.47),
+    Vec3::new(0.25, 0.32, 0.22),
+];
+
 /// Albedo of scene object `o` (greys and a brown, cycling).
 fn object_albedo(o: u32) -> Vec3 {
-    const PALETTE: [Vec3; 4] = [
-        Vec3::new(0.30, 0.28, 0.25),
-        Vec3::new(0.35, 0.22, 0.12),
-        Vec3::new(0.45, 0.45, 0.47),
-        Vec3::new(0.25, 0.32, 0.22),
-    ];
     PALETTE[o as usize % PALETTE.len()]
 }
 
@@ -272,6 +280,43 @@ impl SnowRenderer {
         })
     }
 
+    /// The scene as this renderer draws it, as one GLB for another renderer: the
+    /// scene's objects (one mesh per colour of the palette), the snow, the camera (the
+    /// settings' or the framing one) and the sun, with the light settings in the
+    /// scene's `extras` (`sun_strength`, `sky_strength`, `sun_rgb`, `sky_rgb`,
+    /// `background_rgb`). The Cycles comparison in CI renders it.
+    pub fn scene_glb(&self, sim: &SnowSim) -> Vec<u8> {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        let s = &self.settings;
+        let objects: Vec<(String, TriMesh, Vec3)> = (0..PALETTE.len() as u32)
+            .map(|k| {
+                let mesh = crate::export::flat_mesh(sim.mesh(), |o| o % PALETTE.len() as u32 == k);
+                (format!("objects-{k}"), mesh, object_albedo(k))
+            })
+            .collect();
+        let snow = snow_mesh(sim);
+        let mut parts: Vec<GlbPart<'_>> =
+            objects.iter().map(|(name, mesh, colour)| GlbPart { name, mesh, colour: *colour }).collect();
+        parts.push(GlbPart { name: "snow", mesh: &snow, colour: Vec3::splat(SNOW_ALBEDO) });
+        let v = |c: Vec3| format!("[{},{},{}]", c.x, c.y, c.z);
+        let view = GlbView {
+            camera: camera_of(s, sim, w, h),
+            aspect: w as f32 / h as f32,
+            sun: s.sun_direction.normalize_or_zero(),
+            sun_rgb: SUN_RGB,
+            sun_intensity: s.sun_strength,
+            extras: format!(
+                r#"{{"sun_strength":{},"sky_strength":{},"sun_rgb":{},"sky_rgb":{},"background_rgb":{},"width":{w},"height":{h}}}"#,
+                s.sun_strength,
+                s.sky_strength,
+                v(SUN_RGB),
+                v(SKY_RGB),
+                v(SKY)
+            ),
+        };
+        to_glb_scene(&parts, &view)
+    }
+
     /// What each pixel of the last scene view shows (row-major; empty before the first).
     pub fn seen(&self) -> &[Seen] {
         &self.seen
@@ -295,6 +340,14 @@ impl phenomena_core::phenomenon::Renderer<SnowSim> for SnowRenderer {
     }
 }
 
+/// The settings' camera, or one framing the scene's geometry.
+fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height: usize) -> Camera {
+    settings.camera.unwrap_or_else(|| {
+        let (lo, hi) = bounds(&sim.mesh().triangles);
+        Camera::framing(lo, hi, width, height)
+    })
+}
+
 fn render_scene(
     sim: &SnowSim,
     settings: &SnowRenderSettings,
@@ -306,10 +359,7 @@ fn render_scene(
     let mut frame = Frame::new(width, height);
     let none = || (vec![f32::INFINITY; width * height], vec![Seen::Background; width * height]);
     let scene = &sim.mesh().triangles;
-    let camera = settings.camera.unwrap_or_else(|| {
-        let (lo, hi) = bounds(scene);
-        Camera::framing(lo, hi, width, height)
-    });
+    let camera = camera_of(settings, sim, width, height);
     let Some(view) = camera.view(width, height) else {
         let (d, seen) = none();
         return (frame, d, seen);
@@ -364,10 +414,88 @@ fn render_scene(
     for (k, c) in colours.into_iter().enumerate() {
         frame.set_pixel(k % width, k / width, c);
     }
+    draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame);
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
     draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
     (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
+}
+
+/// The glints of the snow's grains (`snow`: the snow's triangles) where the sun reaches
+/// them and the eye sees that snow, each lighting its pixel by its face's share of the
+/// pixel's footprint, with 12 % of that on the four pixels around that show the scene
+/// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
+/// snow's own light).
+fn draw_glitter(
+    seed: u64,
+    settings: &SnowRenderSettings,
+    lighting: &Lighting<'_>,
+    (view, eye): (&CameraView, Vec3),
+    buf: &crate::raster::DepthBuffer,
+    snow: &[[Vec3; 3]],
+    frame: &mut Frame,
+) {
+    let g = &settings.glitter;
+    if !(g.grains_per_m2 > 0.0 && g.mirror_radiance > 0.0) || lighting.sun == Vec3::ZERO {
+        return;
+    }
+    // The snow's upper faces that face the eye, reach into the frame and get some sun:
+    // only their grains can be drawn (the depth test below would drop the others').
+    let (fw, fh) = (frame.width() as f32, frame.height() as f32);
+    let in_view = |t: &[Vec3; 3]| {
+        let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
+        for p in t {
+            let Some(q) = view.project(*p) else { return true };
+            lo = lo.min(glam::Vec2::new(q.x_px, q.y_px));
+            hi = hi.max(glam::Vec2::new(q.x_px, q.y_px));
+        }
+        hi.x >= -2.0 && hi.y >= -2.0 && lo.x <= fw + 2.0 && lo.y <= fh + 2.0
+    };
+    // A face whose corners and centre the sun does not reach at all (every shadow-map
+    // sample shadowed) has no lit grain, short of a shadow's gap smaller than the face.
+    let in_full_shadow = |t: &[Vec3; 3]| {
+        lighting.shadows.as_ref().is_some_and(|m| {
+            let centre = (t[0] + t[1] + t[2]) / 3.0;
+            [t[0], t[1], t[2], centre].iter().all(|&p| m.lit(p, 1.0) == 0.0)
+        })
+    };
+    let up: Vec<[Vec3; 3]> = snow
+        .iter()
+        .copied()
+        .filter(|t| {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            n.y > 0.0 && n.dot(eye - t[0]) > 0.0 && in_view(t) && !in_full_shadow(t)
+        })
+        .collect();
+    let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
+    let face_m2 = (1e-3 * g.grain_mm).powi(2);
+    let (w, h) = (frame.width() as i64, frame.height() as i64);
+    for glint in glints(&up, Viewing { eye, sun: lighting.sun }, g, seed) {
+        let Some(q) = view.project(glint.position) else { continue };
+        let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+        if x < 0 || y < 0 || x >= w || y >= h {
+            continue;
+        }
+        // The snow there is what the pixel shows (not hidden behind something nearer).
+        let seen = buf.depth_at(x as usize, y as usize);
+        if q.depth > seen + 0.02 + 0.01 * seen {
+            continue;
+        }
+        let lit = lighting.shadows.as_ref().map_or(1.0, |m| m.lit(glint.position, 1.0));
+        let fog = (-settings.fog_per_m * q.depth).exp();
+        // The face's share of the pixel's footprint at that depth.
+        let share = face_m2 * q.px_per_m * q.px_per_m;
+        let c = colour * (glint.intensity * lit * fog * share);
+        let halo = 0.12;
+        for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {
+            let (px, py) = (x + dx, y + dy);
+            // Only onto the scene's surfaces (the snow's image covers nothing else).
+            if px >= 0 && py >= 0 && px < w && py < h && buf.id_at(px as usize, py as usize) != NO_ID {
+                let at = frame.pixel(px as usize, py as usize);
+                frame.set_pixel(px as usize, py as usize, at + c * weight);
+            }
+        }
+    }
 }
 
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.

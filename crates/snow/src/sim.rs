@@ -238,6 +238,8 @@ pub struct SnowSim {
     time_h: f64,
     steps: u64,
     top_y: f32,
+    /// The seed it was made with (the snow's glitter draws its grains from it).
+    seed: u64,
 }
 
 /// The polygon groups and footprint of a scene, before any map is drawn.
@@ -324,6 +326,7 @@ impl SnowSim {
             time_h: 0.0,
             steps: 0,
             top_y,
+            seed,
         };
         sim.update_probability()?;
         Ok(sim)
@@ -347,6 +350,11 @@ impl SnowSim {
     /// The grid of the maps.
     pub fn footprint(&self) -> Footprint {
         self.footprint
+    }
+
+    /// The seed the simulation was made with.
+    pub fn seed(&self) -> u64 {
+        self.seed
     }
 
     /// The snow maps, one per group.

@@ -1,0 +1,328 @@
+//! Snow glitter: the sparkle model (Hwang and Noma, §2) on the snow's surface. Sunlit snow
+//! is full of ice grains whose flat faces mirror the sun; a grain glints when its face
+//! normal N lies within the Phong cone around the half vector H between the sun and the
+//! eye, (|N·H|)^n ≥ I_e (two-sided faces, k_s I_l = 1), and shines (|N·H|)^n.
+//!
+//! **The full system.** Grains lie on the snow's triangles as a Poisson process of
+//! `grains_per_m2`, positions uniform over each triangle, face normals uniform over the
+//! sphere. The grains stay where they are: the same snow seen from elsewhere, or under a
+//! moved sun, glints elsewhere, as real snow does (no per-frame noise).
+//!
+//! **Only the grains that can glint are made.** The sphere of normals is cut into
+//! [`CELLS`] cells of equal solid angle (bands of equal height in z, equal sectors in
+//! azimuth). The grains of a triangle whose normals fall in one cell are a Poisson count
+//! of mean ρ A / [`CELLS`] with positions and normals uniform in the triangle and the
+//! cell, drawn from a random stream keyed by the triangle's place and the cell: so each
+//! cell's grains are fixed, frame after frame, and only the cells that meet the cone
+//! around ±H (widened by how much H turns across the triangle) are ever drawn, a few of
+//! the 512. A Poisson process restricted to disjoint cells is independent Poisson
+//! processes on them, so the glints have exactly the full system's distribution;
+//! `tests/glitter_matches_brute_force.rs` checks it against [`brute_force`], which draws
+//! every grain of every triangle.
+
+use glam::Vec3;
+use phenomena_core::rng::{Purpose, Stream};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use phenomena_core::validate::Issues;
+
+/// Bands of equal height in z of the sphere of normals.
+const Z_BANDS: usize = 16;
+/// Azimuth sectors per band.
+const SECTORS: usize = 32;
+/// Cells of equal solid angle, 4π / 512 sr each (about 9° across).
+pub const CELLS: usize = Z_BANDS * SECTORS;
+
+const GRAINS: Purpose = Purpose::named("snow.glitter.grains");
+const BRUTE: Purpose = Purpose::named("snow.glitter.brute-force");
+
+/// Snow glitter settings (`[render.glitter]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Glitter {
+    /// Ice grains per square metre of snow surface (0: no glitter).
+    pub grains_per_m2: f32,
+    /// Phong exponent n of a grain's face.
+    pub exponent_n: f32,
+    /// Visibility threshold I_e (relative to k_s I_l = 1).
+    pub threshold_i_e: f32,
+    /// Radiance of a grain's face mirroring the sun, relative to sunlit white snow's
+    /// (2,000: ice reflects 2-5 % of the sun's radiance, some 10⁵ times a white
+    /// surface's under the same sun, before the sun's disc outgrows the cone).
+    pub mirror_radiance: f32,
+    /// Size of a grain's face, mm: a glint lights a pixel by its face's share of the
+    /// pixel's footprint, so near grains sparkle and far ones fade into the snow.
+    pub grain_mm: f32,
+}
+
+impl Default for Glitter {
+    fn default() -> Self {
+        // n = 10,000 and I_e = 0.0025: a cone of 1.98° (the sparkle default), so
+        // 1 - cos θ = 6·10⁻⁴ of two-sided grains glint: ~60 per m² of sunlit snow.
+        Self {
+            grains_per_m2: 1.0e5,
+            exponent_n: 10_000.0,
+            threshold_i_e: 0.0025,
+            mirror_radiance: 2000.0,
+            grain_mm: 1.0,
+        }
+    }
+}
+
+impl Glitter {
+    /// The settings' problems, fields under `prefix`.
+    pub(crate) fn validate(&self, i: &mut Issues, prefix: &str) {
+        i.range(&format!("{prefix}.grains_per_m2"), self.grains_per_m2, 0.0..=1e8);
+        i.range(&format!("{prefix}.exponent_n"), self.exponent_n, 1.0..=1e7);
+        i.range_open_low(&format!("{prefix}.threshold_i_e"), self.threshold_i_e, 0.0, 0.999);
+        i.range(&format!("{prefix}.mirror_radiance"), self.mirror_radiance, 0.0..=1e9);
+        i.range_open_low(&format!("{prefix}.grain_mm"), self.grain_mm, 0.0, 1000.0);
+    }
+
+    /// Half-angle of the cone of normals that glint, radians.
+    fn cone_rad(&self) -> f32 {
+        self.threshold_i_e.powf(1.0 / self.exponent_n).clamp(-1.0, 1.0).acos()
+    }
+
+    /// The brightness of a grain of face normal `n` under half vector `h`, if it glints.
+    fn intensity(&self, n: Vec3, h: Vec3) -> Option<f32> {
+        let i = n.dot(h).abs().powf(self.exponent_n);
+        (i >= self.threshold_i_e).then_some(i)
+    }
+}
+
+/// A glinting grain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Glint {
+    /// Where, metres.
+    pub position: Vec3,
+    /// Brightness (|N·H|)^n, in [I_e, 1].
+    pub intensity: f32,
+}
+
+/// The light's geometry: the eye, and the unit direction towards the sun.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Viewing {
+    /// The eye, metres.
+    pub eye: Vec3,
+    /// Unit direction towards the sun.
+    pub sun: Vec3,
+}
+
+impl Viewing {
+    /// The half vector at `p`.
+    fn half(&self, p: Vec3) -> Vec3 {
+        (self.sun + (self.eye - p).normalize_or_zero()).normalize_or_zero()
+    }
+}
+
+/// A triangle's key for its grains' streams: its place (centroid to the millimetre, and
+/// which half-metre of height), so its grains stay when the snow beneath it deepens a
+/// little and the mesh is rebuilt.
+fn key(tri: &[Vec3; 3]) -> u64 {
+    let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+    let q = |v: f32, step: f32| (v / step).floor() as i64 as u64;
+    q(c.x, 1e-3).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ q(c.z, 1e-3).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ q(c.y, 0.5).wrapping_mul(0x1656_67B1_9E37_79F9)
+}
+
+/// A cell's ranges: z in [z0, z1), azimuth in [φ0, φ1).
+fn cell_bounds(cell: usize) -> (f32, f32, f32, f32) {
+    let (band, sector) = (cell / SECTORS, cell % SECTORS);
+    let dz = 2.0 / Z_BANDS as f32;
+    let dphi = std::f32::consts::TAU / SECTORS as f32;
+    let z0 = -1.0 + band as f32 * dz;
+    (z0, z0 + dz, sector as f32 * dphi, (sector + 1) as f32 * dphi)
+}
+
+/// Pushes onto `out` the cells that may hold a normal within `alpha` of unit `axis`.
+fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) {
+    let theta = axis.z.clamp(-1.0, 1.0).acos();
+    let (lo, hi) = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
+    let dz = 2.0 / Z_BANDS as f32;
+    let band_of = |z: f32| (((z + 1.0) / dz).floor() as i64).clamp(0, Z_BANDS as i64 - 1) as usize;
+    // The cap's azimuth half-width; all azimuths when it holds a pole.
+    let s = theta.sin();
+    let all = theta <= alpha || theta + alpha >= std::f32::consts::PI || alpha.sin() >= s;
+    let dphi = std::f32::consts::TAU / SECTORS as f32;
+    for band in band_of(lo)..=band_of(hi) {
+        if all {
+            out.extend((0..SECTORS).map(|k| band * SECTORS + k));
+            continue;
+        }
+        let half = (alpha.sin() / s).asin();
+        let phi = axis.y.atan2(axis.x).rem_euclid(std::f32::consts::TAU);
+        let first = ((phi - half) / dphi).floor() as i64;
+        let last = ((phi + half) / dphi).floor() as i64;
+        for k in first..=last {
+            out.push(band * SECTORS + k.rem_euclid(SECTORS as i64) as usize);
+        }
+    }
+}
+
+/// A point uniform over the triangle.
+fn in_triangle(tri: &[Vec3; 3], s: &mut Stream) -> Vec3 {
+    let (mut u, mut v) = (s.next_f32(), s.next_f32());
+    if u + v > 1.0 {
+        (u, v) = (1.0 - u, 1.0 - v);
+    }
+    tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v
+}
+
+/// A Poisson count of mean `mean`, with `e` = exp(−mean) given (a triangle's cells share
+/// it): by inversion of the distribution function below a mean of 30 (about mean + 1
+/// uniforms' worth of steps, one uniform), by `rand_distr` above.
+fn poisson(s: &mut Stream, mean: f64, e: f64) -> u64 {
+    if mean < 30.0 {
+        let u = s.next_f64();
+        let (mut k, mut p, mut cdf) = (0u64, e, e);
+        while u >= cdf && p > 0.0 {
+            k += 1;
+            p *= mean / k as f64;
+            cdf += p;
+        }
+        return k;
+    }
+    match rand_distr::Poisson::new(mean) {
+        Ok(d) => s.sample::<f64, _>(&d) as u64,
+        Err(_) => 0,
+    }
+}
+
+/// The glints of the grains on `tris` (the snow's surface) seen under `viewing`, made
+/// only in the cells of normals that can glint. In triangle order, the same for any
+/// thread count.
+pub fn glints(tris: &[[Vec3; 3]], viewing: Viewing, g: &Glitter, seed: u64) -> Vec<Glint> {
+    if !(g.grains_per_m2 > 0.0) {
+        return Vec::new();
+    }
+    let cone = g.cone_rad();
+    // A cheap first test (a little wider than the threshold, for rounding).
+    let cos_cone = (cone + 1e-4).cos();
+    // Chunks of triangles in parallel, each with its own buffers, joined in order.
+    tris.par_chunks(1024)
+        .flat_map_iter(|chunk| {
+            let (mut out, mut cells) = (Vec::new(), Vec::new());
+            for tri in chunk {
+                triangle_glints(tri, viewing, g, seed, (cone, cos_cone), &mut cells, &mut out);
+            }
+            out
+        })
+        .collect()
+}
+
+/// The glints of one triangle's grains, onto `out` (`cells`: a scratch buffer).
+fn triangle_glints(
+    tri: &[Vec3; 3],
+    viewing: Viewing,
+    g: &Glitter,
+    seed: u64,
+    (cone, cos_cone): (f32, f32),
+    cells: &mut Vec<usize>,
+    out: &mut Vec<Glint>,
+) {
+    let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
+    let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
+    let h = viewing.half(centre);
+    if !(area > 0.0) || h == Vec3::ZERO {
+        return;
+    }
+    // H turns by at most half the angle the triangle spans from the eye.
+    let reach = tri.iter().map(|p| (*p - centre).length()).fold(0.0, f32::max);
+    let distance = (viewing.eye - centre).length();
+    let turn =
+        if distance > reach { 0.5 * (reach / (distance - reach)).atan() } else { std::f32::consts::PI };
+    let alpha = cone + turn + 1e-4;
+    cells.clear();
+    cells_near(h, alpha, cells);
+    // The cone around −H: the antipodal cells (the partition is symmetric).
+    let n = cells.len();
+    for k in 0..n {
+        let (band, sector) = (cells[k] / SECTORS, cells[k] % SECTORS);
+        cells.push((Z_BANDS - 1 - band) * SECTORS + (sector + SECTORS / 2) % SECTORS);
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    let mean = f64::from(g.grains_per_m2) * f64::from(area) / CELLS as f64;
+    let e = (-mean).exp();
+    // The heights z a normal within α of H can have (those near −H: the negated).
+    let theta = h.z.clamp(-1.0, 1.0).acos();
+    let z_cap = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
+    let k = key(tri);
+    for &cell in cells.iter() {
+        let mut s = Stream::new(seed, GRAINS, k.wrapping_mul(CELLS as u64).wrapping_add(cell as u64));
+        let (z0, z1, p0, p1) = cell_bounds(cell);
+        for _ in 0..poisson(&mut s, mean, e) {
+            // Every grain draws its four numbers, seen or not: its stream is
+            // its own whatever the view.
+            let x = in_triangle(tri, &mut s);
+            let z = s.uniform(z0, z1);
+            let phi = s.uniform(p0, p1);
+            // Outside both caps' heights: cannot glint (no trigonometry spent).
+            let near = (z_cap.0..=z_cap.1).contains(&z) || (-z_cap.1..=-z_cap.0).contains(&z);
+            if !near {
+                continue;
+            }
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let (sin, cos) = phi.sin_cos();
+            let n = Vec3::new(r * cos, r * sin, z);
+            let h = viewing.half(x);
+            if n.dot(h).abs() >= cos_cone
+                && let Some(intensity) = g.intensity(n, h)
+            {
+                out.push(Glint { position: x, intensity });
+            }
+        }
+    }
+}
+
+/// The reference: every grain of every triangle (a Poisson count of mean ρ A, positions
+/// uniform, normals uniform on the sphere), kept when it glints. Slow; for tests.
+pub fn brute_force(tris: &[[Vec3; 3]], viewing: Viewing, g: &Glitter, seed: u64) -> Vec<Glint> {
+    let mut out = Vec::new();
+    for (t, tri) in tris.iter().enumerate() {
+        let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
+        let mut s = Stream::new(seed, BRUTE, t as u64);
+        let mean = f64::from(g.grains_per_m2) * f64::from(area);
+        for _ in 0..poisson(&mut s, mean, (-mean).exp()) {
+            let x = in_triangle(tri, &mut s);
+            let n = s.on_unit_sphere();
+            if let Some(intensity) = g.intensity(n, viewing.half(x)) {
+                out.push(Glint { position: x, intensity });
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cells_near_an_axis_hold_every_normal_within_the_angle() {
+        // Normals drawn near many axes: each lies in a listed cell.
+        let mut s = Stream::new(1, Purpose::named("test"), 0);
+        for _ in 0..2000 {
+            let axis = s.on_unit_sphere();
+            let alpha = 0.2 * s.next_f32();
+            let mut cells = Vec::new();
+            cells_near(axis, alpha, &mut cells);
+            for _ in 0..20 {
+                let n = s.on_unit_sphere();
+                if n.dot(axis) < alpha.cos() {
+                    continue;
+                }
+                let band = (((n.z + 1.0) / (2.0 / Z_BANDS as f32)).floor() as usize).min(Z_BANDS - 1);
+                let sector = ((n.y.atan2(n.x).rem_euclid(std::f32::consts::TAU))
+                    / (std::f32::consts::TAU / SECTORS as f32))
+                    .floor() as usize
+                    % SECTORS;
+                assert!(cells.contains(&(band * SECTORS + sector)), "axis {axis:?} α {alpha}: {n:?} missed");
+            }
+            assert!(cells.len() < CELLS / 4 || alpha > 0.1, "{} cells for α {alpha}", cells.len());
+        }
+    }
+}
