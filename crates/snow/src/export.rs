@@ -456,45 +456,7 @@ pub fn to_glb_scene(parts: &[GlbPart<'_>], view: &GlbView) -> Vec<u8> {
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for part in parts.iter().filter(|p| !p.mesh.indices.is_empty()) {
         let m = part.mesh;
-        let (lo, hi) = m
-            .positions
-            .iter()
-            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-        let first = accessors.len();
-        for (data, target, accessor) in [
-            (
-                m.positions.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect::<Vec<u8>>(),
-                34962,
-                format!(
-                    r#""componentType":5126,"count":{},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]"#,
-                    m.positions.len(),
-                    lo.x,
-                    lo.y,
-                    lo.z,
-                    hi.x,
-                    hi.y,
-                    hi.z
-                ),
-            ),
-            (
-                m.normals.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect(),
-                34962,
-                format!(r#""componentType":5126,"count":{},"type":"VEC3""#, m.normals.len()),
-            ),
-            (
-                m.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-                34963,
-                format!(r#""componentType":5125,"count":{},"type":"SCALAR""#, m.indices.len()),
-            ),
-        ] {
-            views.push(format!(
-                r#"{{"buffer":0,"byteOffset":{},"byteLength":{},"target":{target}}}"#,
-                bin.len(),
-                data.len()
-            ));
-            accessors.push(format!(r#"{{"bufferView":{},{accessor}}}"#, views.len() - 1));
-            bin.extend_from_slice(&data);
-        }
+        let first = push_arrays(m, &mut bin, &mut views, &mut accessors);
         let c = part.colour;
         materials.push(format!(
             r#"{{"name":"{}","pbrMetallicRoughness":{{"baseColorFactor":[{},{},{},1.0],"metallicFactor":0.0,"roughnessFactor":1.0}}}}"#,
@@ -531,6 +493,56 @@ pub fn to_glb_scene(parts: &[GlbPart<'_>], view: &GlbView) -> Vec<u8> {
         view.extras
     );
     glb_chunks(json.into_bytes(), &bin)
+}
+
+/// Appends a mesh's positions, normals and indices to `bin` with a buffer view and an
+/// accessor each; returns the positions' accessor (normals and indices follow it).
+fn push_arrays(
+    m: &TriMesh,
+    bin: &mut Vec<u8>,
+    views: &mut Vec<String>,
+    accessors: &mut Vec<String>,
+) -> usize {
+    let (lo, hi) = m
+        .positions
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let first = accessors.len();
+    for (data, target, accessor) in [
+        (
+            m.positions.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect::<Vec<u8>>(),
+            34962,
+            format!(
+                r#""componentType":5126,"count":{},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]"#,
+                m.positions.len(),
+                lo.x,
+                lo.y,
+                lo.z,
+                hi.x,
+                hi.y,
+                hi.z
+            ),
+        ),
+        (
+            m.normals.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect(),
+            34962,
+            format!(r#""componentType":5126,"count":{},"type":"VEC3""#, m.normals.len()),
+        ),
+        (
+            m.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+            34963,
+            format!(r#""componentType":5125,"count":{},"type":"SCALAR""#, m.indices.len()),
+        ),
+    ] {
+        views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{},"byteLength":{},"target":{target}}}"#,
+            bin.len(),
+            data.len()
+        ));
+        accessors.push(format!(r#"{{"bufferView":{},{accessor}}}"#, views.len() - 1));
+        bin.extend_from_slice(&data);
+    }
+    first
 }
 
 /// The camera node (when the projection has a glTF form) and the sun's node, onto
