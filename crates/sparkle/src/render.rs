@@ -56,13 +56,18 @@ pub enum GlareShape {
     Cross,
     /// Six rays (a star).
     Star,
+    /// A lens (an extension): each glint's light spread as a camera lens spreads a point
+    /// of light: over a defocus disc (`aperture_f_number`, `focus_m`) and, for bright
+    /// glints, a round bloom of `glare_length_px` · √(I / k_s I_l), so a glint's size
+    /// follows its brightness and its distance from the plane of focus.
+    Lens,
 }
 
 impl GlareShape {
     /// Unit directions of the rays, in pixels (y down).
     fn rays(self) -> &'static [(f32, f32)] {
         match self {
-            GlareShape::None => &[],
+            GlareShape::None | GlareShape::Lens => &[],
             GlareShape::Cross => &[(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)],
             GlareShape::Star => &[
                 (1.0, 0.0),
@@ -106,6 +111,18 @@ pub struct RenderSettings {
     /// as (distance / this)⁻², as the light a point reflector sends to the eye does;
     /// 0 keeps the paper's distance-independent brightness. Metres.
     pub falloff_from_m: f32,
+    /// With `glare = "lens"`: the aperture's f-number on a 35 mm full-frame camera
+    /// (sensor 24 mm high, the focal length the field of view gives); 0: a pinhole, no
+    /// defocus.
+    pub aperture_f_number: f32,
+    /// With `glare = "lens"`: the distance in focus, metres.
+    pub focus_m: f32,
+    /// An extension (0: off, the paper's constant k_s): the facets' refractive index
+    /// (ice: 1.31); each glint is weighted by its Fresnel reflectance at its angle of
+    /// incidence relative to normal incidence (Schlick), so facets that mirror the sun
+    /// at grazing incidence (seen towards the sun) outshine those seen with the sun
+    /// behind the eye, up to 1 / F0 = 56 times for ice.
+    pub fresnel_ior: f32,
 }
 
 impl Default for RenderSettings {
@@ -123,6 +140,9 @@ impl Default for RenderSettings {
             ground_rgb: [0.55, 0.58, 0.62],
             crown_rgb: [0.05, 0.16, 0.04],
             falloff_from_m: 0.0,
+            aperture_f_number: 0.0,
+            focus_m: 10.0,
+            fresnel_ior: 0.0,
         }
     }
 }
@@ -136,6 +156,13 @@ impl RenderSettings {
         i.range("glare_strength", self.glare_strength, 0.0..=100.0);
         i.range("glare_threshold", self.glare_threshold, 0.0..=1.0);
         i.range("falloff_from_m", self.falloff_from_m, 0.0..=1e6);
+        if self.aperture_f_number != 0.0 {
+            i.range("aperture_f_number", self.aperture_f_number, 0.5..=64.0);
+        }
+        i.range_open_low("focus_m", self.focus_m, 0.0, 1e6);
+        if self.fresnel_ior != 0.0 {
+            i.range("fresnel_ior", self.fresnel_ior, 1.01..=4.0);
+        }
         for (name, v) in [
             ("light_rgb", self.light_rgb),
             ("sky_zenith_rgb", self.sky_zenith_rgb),
@@ -309,7 +336,7 @@ fn project_glints(
     window: Option<DepthWindow<'_>>,
 ) -> Vec<Filed<Dot>> {
     let g = sim.glints();
-    let glare = !s.glare.rays().is_empty();
+    let glare = !s.glare.rays().is_empty() || s.glare == GlareShape::Lens;
     let screen = Screen {
         pinhole: view.pinhole(),
         eye: sim.config().camera.position,
@@ -317,15 +344,26 @@ fn project_glints(
         peak: sim.config().phong.specular_k_s * sim.config().phong.light_intensity,
         glare_length: if glare { s.glare_length_px } else { 0.0 },
         glare_threshold: s.glare_threshold,
+        lens: (s.glare == GlareShape::Lens).then(|| Lens::of(s, view, height_px)).flatten(),
         size: (width_px as f32, height_px as f32),
         last_band: bands as u32 - 1,
         window,
     };
+    let light = sim.config().light.at(sim.time_s());
     g.position_m
         .par_chunks(PROJECT_CHUNK)
         .zip(g.intensity.par_chunks(PROJECT_CHUNK))
-        .map(|(xs, is)| {
+        .zip(g.normal.par_chunks(PROJECT_CHUNK))
+        .map(|((xs, is), ns)| {
             let mut dots = Vec::with_capacity(xs.len());
+            let weighted: Vec<f32>;
+            let is = if s.fresnel_ior > 0.0 {
+                weighted =
+                    (0..xs.len()).map(|k| is[k] * fresnel_gain(s.fresnel_ior, light, xs[k], ns[k])).collect();
+                &weighted[..]
+            } else {
+                is
+            };
             for (xc, ic) in xs.chunks(LANES).zip(is.chunks(LANES)) {
                 screen.place(view, xc, ic, |d, lo, hi| dots.push((d, lo, hi)));
             }
@@ -349,6 +387,10 @@ struct Glare<'a> {
     strength: f32x8,
     /// Steps 1..=8 along a ray, px.
     first_steps: f32x8,
+    /// A lens's round spread instead of rays.
+    lens: bool,
+    /// Glare brightness relative to the glint's.
+    strength_1: f32,
 }
 
 impl<'a> Glare<'a> {
@@ -361,6 +403,8 @@ impl<'a> Glare<'a> {
             whole_rays: rays.iter().map(|&(dx, dy)| (dx as i64, dy as i64)).collect(),
             strength: f32x8::splat(s.glare_strength),
             first_steps: f32x8::from([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]),
+            lens: s.glare == GlareShape::Lens,
+            strength_1: s.glare_strength,
         }
     }
 
@@ -421,12 +465,58 @@ impl BandRows {
                     if d.len == 0.0 {
                         continue;
                     }
+                    if glare.lens {
+                        self.add_lens(sum, d, glare.strength_1);
+                        continue;
+                    }
                     let n = glare.falloff(d.len, d.value, &mut fall);
                     if glare.axis_rays {
                         self.add_axis_rays(sum, d, &glare.whole_rays, &fall[..n]);
                     } else {
                         self.add_rays(sum, d, glare.rays, &fall[..n]);
                     }
+                }
+            }
+        }
+    }
+
+    /// A lens's spread of `dot`: a defocused glint (radius ≥ 1 px) as a uniform disc of
+    /// its defocus radius holding all its light, each pixel weighted by how much of it
+    /// the disc covers (its centre within the radius ± half a pixel); a sharp one's
+    /// bloom as a halo of its footprint radius adding `strength` times its light,
+    /// falling off as (1 − r / radius)². Each spread's weights sum to one over the whole
+    /// footprint (also where the band or the image clips it).
+    fn add_lens(&self, sum: &mut [f32], dot: &Dot, strength: f32) {
+        let (radius, total, weight): (f32, f32, fn(f32, f32) -> f32) = if dot.blur >= 1.0 {
+            (dot.blur, dot.value, |r, radius| (radius + 0.5 - r).clamp(0.0, 1.0))
+        } else {
+            (dot.len, strength * dot.value, |r, radius| {
+                let t = 1.0 - r / radius;
+                if r > 0.0 && t > 0.0 { t * t } else { 0.0 }
+            })
+        };
+        let reach = radius.ceil() as i64 + 1;
+        let (xi, yi) = (floor_i64(dot.x), floor_i64(dot.y));
+        let at = |i: i64, j: i64| {
+            let (dx, dy) = (i as f32 + 0.5 - dot.x, j as f32 + 0.5 - dot.y);
+            weight((dx * dx + dy * dy).sqrt(), radius)
+        };
+        let mut norm = 0.0;
+        for j in yi - reach..=yi + reach {
+            for i in xi - reach..=xi + reach {
+                norm += at(i, j);
+            }
+        }
+        if !(norm > 0.0) {
+            return;
+        }
+        let scale = total / norm;
+        let (j0, j1) = ((yi - reach).max(self.row0), (yi + reach).min(self.row0 + self.rows - 1));
+        for j in j0..=j1 {
+            for i in (xi - reach).max(0)..=(xi + reach).min(self.width as i64 - 1) {
+                let w = at(i, j);
+                if w > 0.0 {
+                    self.add(sum, i, j, w * scale);
                 }
             }
         }
@@ -516,7 +606,7 @@ impl Bilinear {
             }
             f32x8::from(a)
         };
-        let (x, y, v) = (lanes(|d| d.x), lanes(|d| d.y), lanes(|d| d.value));
+        let (x, y, v) = (lanes(|d| d.x), lanes(|d| d.y), lanes(|d| d.core));
         let (half, one) = (f32x8::splat(0.5), f32x8::ONE);
         let (fx, fy) = (x - half, y - half);
         let inside = (fx.simd_ge(-one) & fy.simd_ge(-one)).to_bitmask() & ((1u32 << dots.len()) - 1);
@@ -543,13 +633,16 @@ fn floor_i64(x: f32) -> i64 {
     t - i64::from((t as f32) > x)
 }
 
-/// A glint on screen: position (px), brightness, glare length (px, 0 for none).
+/// A glint on screen: position (px), brightness, the part of it drawn at its point,
+/// glare length or lens footprint radius (px, 0 for none) and defocus radius (px).
 #[derive(Clone, Copy, Debug, Default)]
 struct Dot {
     x: f32,
     y: f32,
     value: f32,
+    core: f32,
     len: f32,
+    blur: f32,
 }
 
 /// What places glints on screen: the view, the brightness rules and the image's bands.
@@ -564,6 +657,8 @@ struct Screen<'w> {
     /// Glare length of the brightest glint, px (0: no glare).
     glare_length: f32,
     glare_threshold: f32,
+    /// The lens's defocus, with `glare = "lens"` and a perspective view.
+    lens: Option<Lens>,
     /// Image width and height, px.
     size: (f32, f32),
     last_band: u32,
@@ -657,6 +752,9 @@ impl Screen<'_> {
         } else {
             f32x8::ZERO
         };
+        // The defocus disc's radius, px (0 without a lens); the footprint is the larger.
+        let blur = self.lens.map_or(f32x8::ZERO, |lens| lens.radius_px(f32x8::from(depth)));
+        let len = len.max(blur);
         let m = len + one;
         let (w, h) = (f32x8::splat(self.size.0), f32x8::splat(self.size.1));
         let inside = px.simd_gt(-m) & py.simd_gt(-m) & px.simd_lt(w + m) & py.simd_lt(h + m);
@@ -669,7 +767,8 @@ impl Screen<'_> {
         let lo = band((py - len - one).max(f32x8::ZERO));
         let hi = band((py + len + one).max(f32x8::ZERO).min(h - one));
         let mut kept = ok & inside.to_bitmask() & ((1u32 << xc.len()) - 1);
-        let (px, py, value, len) = (px.to_array(), py.to_array(), value.to_array(), len.to_array());
+        let (px, py, value, len, blur) =
+            (px.to_array(), py.to_array(), value.to_array(), len.to_array(), blur.to_array());
         while kept != 0 {
             let i = kept.trailing_zeros() as usize;
             kept &= kept - 1;
@@ -678,9 +777,56 @@ impl Screen<'_> {
             {
                 continue;
             }
-            keep(Dot { x: px[i], y: py[i], value: value[i], len: len[i] }, lo[i], hi[i]);
+            // A defocused glint's light is all in its disc; a sharp one's in its pixel.
+            let core = if blur[i] >= 1.0 { 0.0 } else { value[i] };
+            keep(Dot { x: px[i], y: py[i], value: value[i], core, len: len[i], blur: blur[i] }, lo[i], hi[i]);
         }
     }
+}
+
+/// A thin lens's defocus: a point at depth d, with the plane at `focus` m in focus,
+/// spreads over a disc of radius k |d − focus| / d px.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Lens {
+    k: f32,
+    focus: f32,
+}
+
+impl Lens {
+    /// The lens of `s` on a 35 mm full-frame camera (sensor 24 mm high) with the view's
+    /// field of view: focal length f = 0.024 m · f_px / height_px, aperture A = f / N,
+    /// and the circle of confusion's diameter C = A f_px |d − s| / (d (s − f)) px (the
+    /// thin-lens formula, in pixels through f_px / f). `None` for a pinhole (N = 0), a
+    /// view other than perspective, or a focus nearer than the focal length.
+    fn of(s: &RenderSettings, view: &CameraView, height_px: usize) -> Option<Self> {
+        let ph = view.pinhole().filter(|p| p.perspective)?;
+        if !(s.aperture_f_number > 0.0) {
+            return None;
+        }
+        let f_m = 0.024 * ph.scale / height_px as f32;
+        let aperture = f_m / s.aperture_f_number;
+        (s.focus_m > f_m).then(|| Self { k: 0.5 * aperture * ph.scale / (s.focus_m - f_m), focus: s.focus_m })
+    }
+
+    /// The defocus radius at `depth` m, px (at most [`MAX_RAY_PX`]).
+    #[inline]
+    fn radius_px(&self, depth: f32x8) -> f32x8 {
+        let r =
+            f32x8::splat(self.k) * (depth - f32x8::splat(self.focus)).abs() / depth.max(f32x8::splat(NEAR_M));
+        r.min(f32x8::splat(MAX_RAY_PX as f32))
+    }
+}
+
+/// Schlick's Fresnel reflectance of a facet of index `ior` and normal `n` at `x` lit
+/// from `light`, over its value at normal incidence: 1 + (1/F0 − 1)(1 − |N·L|)⁵.
+fn fresnel_gain(ior: f32, light: LightAt, x: Vec3, n: Vec3) -> f32 {
+    let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    let l = match light {
+        LightAt::Direction(d) => d,
+        LightAt::Position(p) => (p - x).normalize_or_zero(),
+    };
+    let c = (1.0 - n.dot(l).abs()).clamp(0.0, 1.0);
+    1.0 + (1.0 / f0 - 1.0) * c.powi(5)
 }
 
 /// Glints per parallel projection chunk (fixed: the frame does not depend on threads).
@@ -1027,7 +1173,7 @@ mod tests {
                 }
                 let (i0, j0) = ((fx + 1.0) as i64 - 1, (fy + 1.0) as i64 - 1);
                 let (tx, ty) = (fx - i0 as f32, fy - j0 as f32);
-                let v = d.value;
+                let v = d.core;
                 let shares = [
                     v * ((1.0 - tx) * (1.0 - ty)),
                     v * (tx * (1.0 - ty)),
@@ -1063,6 +1209,7 @@ mod tests {
                 peak: 1.0,
                 glare_length: 9.0,
                 glare_threshold: 0.4,
+                lens: None,
                 size: (w as f32, h as f32),
                 last_band: (h.div_ceil(BAND_ROWS) - 1) as u32,
                 window: None,
@@ -1082,7 +1229,10 @@ mod tests {
             };
             assert_eq!(bits(&got), bits(&want), "{projection:?}");
             // The bilinear shares of the placed dots, in lanes and one at a time.
-            let dots: Vec<Dot> = got.iter().map(|d| Dot { x: d.0, y: d.1, value: d.2, len: d.3 }).collect();
+            let dots: Vec<Dot> = got
+                .iter()
+                .map(|d| Dot { x: d.0, y: d.1, value: d.2, core: d.2, len: d.3, blur: 0.0 })
+                .collect();
             assert_bilinear_is_scalar(&dots);
         }
     }
@@ -1120,6 +1270,65 @@ mod tests {
         let step = ratio.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>() / (ratio.len() - 1) as f32 / m;
         assert!(spread > 0.05, "the leaves vary the light by {spread} only");
         assert!(step < 0.25 * spread, "from point to point 2 cm apart the light changes by {step} (noise)");
+    }
+
+    #[test]
+    fn a_lens_spreads_light_by_the_thin_lens_and_keeps_it() {
+        // f/2 focused at 10 m, 60° over 720 rows: a point 1 m away. The circle of
+        // confusion in millimetres on the 24 mm sensor, f = 12 / tan 30° mm:
+        // C = f² / (N (s − f)) · |d − s| / d, then 720 / 24 px per mm.
+        let camera = phenomena_core::camera::Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::NEG_Z,
+            up: Vec3::Y,
+            projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 60.0 },
+        };
+        let view = camera.view(1280, 720).unwrap();
+        let s = RenderSettings {
+            glare: GlareShape::Lens,
+            aperture_f_number: 2.0,
+            focus_m: 10.0,
+            ..Default::default()
+        };
+        let lens = Lens::of(&s, &view, 720).unwrap();
+        let f_mm = 12.0 / 30f64.to_radians().tan();
+        for d in [0.5f64, 1.0, 4.0, 10.0, 40.0] {
+            let c_mm = f_mm * f_mm / (2.0 * (10_000.0 - f_mm)) * (d - 10.0).abs() / d;
+            let expected = 0.5 * c_mm * 720.0 / 24.0;
+            let got = f64::from(lens.radius_px(f32x8::splat(d as f32)).to_array()[0]);
+            assert!(
+                (got - expected).abs() <= 1e-4 * expected.max(1.0),
+                "{d} m: radius {got} px vs {expected}"
+            );
+        }
+        // A defocused glint keeps all its light in its disc, a sharp one's bloom adds
+        // `strength` times its light, wherever the band cuts them.
+        for (dot, total) in [
+            (Dot { x: 30.3, y: 20.7, value: 2.0, core: 0.0, len: 5.2, blur: 5.2 }, 2.0),
+            (Dot { x: 30.3, y: 33.9, value: 2.0, core: 2.0, len: 6.0, blur: 0.0 }, 0.35 * 2.0),
+        ] {
+            let mut added = 0.0;
+            for row0 in (0..64i64).step_by(BAND_ROWS) {
+                let band = BandRows { width: 64, row0, rows: BAND_ROWS as i64 };
+                let mut sum = vec![0.0f32; 64 * BAND_ROWS];
+                band.add_lens(&mut sum, &dot, 0.35);
+                added += sum.iter().sum::<f32>();
+            }
+            assert!((added - total).abs() < 1e-5, "{dot:?}: {added} vs {total}");
+        }
+    }
+
+    #[test]
+    fn fresnel_gain_runs_from_one_at_normal_incidence_to_one_over_f0_at_grazing() {
+        // Ice, n = 1.31: F0 = (0.31 / 2.31)² = 0.01801, 1 / F0 = 55.5.
+        let f0 = (0.31f32 / 2.31).powi(2);
+        let sun = LightAt::Direction(Vec3::Y);
+        let at = |n: Vec3| fresnel_gain(1.31, sun, Vec3::ZERO, n);
+        assert!((at(Vec3::Y) - 1.0).abs() < 1e-6 && (at(Vec3::NEG_Y) - 1.0).abs() < 1e-6);
+        assert!((at(Vec3::X) - 1.0 / f0).abs() < 1e-3 / f0, "{}", at(Vec3::X));
+        // 60° incidence: 1 + (1/F0 − 1) / 32 (Schlick's (1 − cos θ)⁵ = 2⁻⁵).
+        let n60 = Vec3::new(60f32.to_radians().sin(), 0.5, 0.0);
+        assert!((at(n60) - (1.0 + (1.0 / f0 - 1.0) / 32.0)).abs() < 1e-3);
     }
 
     #[test]
