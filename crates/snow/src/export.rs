@@ -483,11 +483,15 @@ pub fn to_glb_scene(parts: &[GlbPart<'_>], view: &GlbView) -> Vec<u8> {
             accessors.join(",")
         )
     };
+    // glTF forbids empty arrays: no materials or meshes when every part is empty.
+    let meshes = if meshes.is_empty() {
+        String::new()
+    } else {
+        format!(r#""materials":[{}],"meshes":[{}],"#, materials.join(","), meshes.join(","))
+    };
     let json = format!(
-        r#"{{"asset":{{"version":"2.0","generator":"phenomena"}},{lights}{}{buffers}"materials":[{}],"meshes":[{}],"nodes":[{}],"scene":0,"scenes":[{{"nodes":[{}],"extras":{}}}]}}"#,
+        r#"{{"asset":{{"version":"2.0","generator":"phenomena"}},{lights}{}{buffers}{meshes}"nodes":[{}],"scene":0,"scenes":[{{"nodes":[{}],"extras":{}}}]}}"#,
         cameras,
-        materials.join(","),
-        meshes.join(","),
         nodes.join(","),
         roots.join(","),
         view.extras

@@ -14,7 +14,7 @@
 //! of mean ρ A / [`CELLS`] with positions and normals uniform in the triangle and the
 //! cell, drawn from a random stream keyed by the triangle's place and the cell: so each
 //! cell's grains are fixed, frame after frame, and only the cells that meet the cone
-//! around ±H (widened by how much H turns across the triangle) are ever drawn, a few of
+//! around ±H (widened by how much H can turn across the triangle) are ever drawn, a few of
 //! the 512. A Poisson process restricted to disjoint cells is independent Poisson
 //! processes on them, so the glints have exactly the full system's distribution;
 //! `tests/glitter_matches_brute_force.rs` checks it against [`brute_force`], which draws
@@ -118,14 +118,17 @@ impl Viewing {
 }
 
 /// A triangle's key for its grains' streams: its place (centroid to the millimetre, and
-/// which half-metre of height), so its grains stay when the snow beneath it deepens a
-/// little and the mesh is rebuilt.
+/// which tenth of a metre of height), so its grains stay while the snow beneath it
+/// deepens by less than that and the mesh is rebuilt; snow on two maps at one place
+/// (a bench over the ground) differs in height by more, so its grains differ. A
+/// triangle's grains are drawn anew when its snow crosses a tenth of a metre (about
+/// every two hours at 5 cm/h) or its edge moves.
 fn key(tri: &[Vec3; 3]) -> u64 {
     let c = (tri[0] + tri[1] + tri[2]) / 3.0;
     let q = |v: f32, step: f32| (v / step).floor() as i64 as u64;
     q(c.x, 1e-3).wrapping_mul(0x9E37_79B9_7F4A_7C15)
         ^ q(c.z, 1e-3).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
-        ^ q(c.y, 0.5).wrapping_mul(0x1656_67B1_9E37_79F9)
+        ^ q(c.y, 0.1).wrapping_mul(0x1656_67B1_9E37_79F9)
 }
 
 /// A cell's ranges: z in [z0, z1), azimuth in [φ0, φ1).
@@ -223,18 +226,12 @@ fn triangle_glints(
     cells: &mut Vec<usize>,
     out: &mut Vec<Glint>,
 ) {
-    let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
     let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
     let h = viewing.half(centre);
-    if !(area > 0.0) || h == Vec3::ZERO {
+    if h == Vec3::ZERO {
         return;
     }
-    // H turns by at most half the angle the triangle spans from the eye.
-    let reach = tri.iter().map(|p| (*p - centre).length()).fold(0.0, f32::max);
-    let distance = (viewing.eye - centre).length();
-    let turn =
-        if distance > reach { 0.5 * (reach / (distance - reach)).atan() } else { std::f32::consts::PI };
-    let alpha = cone + turn + 1e-4;
+    let alpha = cone + half_vector_turn(tri, viewing) + 1e-4;
     cells.clear();
     cells_near(h, alpha, cells);
     // The cone around −H: the antipodal cells (the partition is symmetric).
@@ -245,13 +242,48 @@ fn triangle_glints(
     }
     cells.sort_unstable();
     cells.dedup();
-    let mean = f64::from(g.grains_per_m2) * f64::from(area) / CELLS as f64;
-    let e = (-mean).exp();
     // The heights z a normal within α of H can have (those near −H: the negated).
     let theta = h.z.clamp(-1.0, 1.0).acos();
     let z_cap = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
+    grains_in(tri, (viewing, g, seed), cos_cone, cells, z_cap, out);
+}
+
+/// How far H may turn over the triangle from its value at the centre, radians: the eye's
+/// direction V turns by at most δ = asin(reach / distance) (the triangle's angular
+/// radius), and H = (L + V)/|L + V| turns by at most δ / |L + V| (most when the eye
+/// looks towards the sun and |L + V| is small), with |L + V| ≥ |L + V_c| − δ; all the
+/// sphere (π) when that bound fails.
+fn half_vector_turn(tri: &[Vec3; 3], viewing: Viewing) -> f32 {
+    let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
+    let reach = tri.iter().map(|p| (*p - centre).length()).fold(0.0, f32::max);
+    let to_eye = viewing.eye - centre;
+    let distance = to_eye.length();
+    if !(distance > reach) {
+        return std::f32::consts::PI;
+    }
+    let delta = (reach / distance).asin();
+    let sum = (viewing.sun + to_eye / distance).length() - delta;
+    if sum > 1e-3 { (delta / sum).min(std::f32::consts::PI) } else { std::f32::consts::PI }
+}
+
+/// The glints of the grains of `tri` whose normals lie in `cells` (normals outside the
+/// heights `z_cap` or their negation cannot glint and are not looked at), onto `out`.
+fn grains_in(
+    tri: &[Vec3; 3],
+    (viewing, g, seed): (Viewing, &Glitter, u64),
+    cos_cone: f32,
+    cells: &[usize],
+    z_cap: (f32, f32),
+    out: &mut Vec<Glint>,
+) {
+    let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
+    if !(area > 0.0) {
+        return;
+    }
+    let mean = f64::from(g.grains_per_m2) * f64::from(area) / CELLS as f64;
+    let e = (-mean).exp();
     let k = key(tri);
-    for &cell in cells.iter() {
+    for &cell in cells {
         let mut s = Stream::new(seed, GRAINS, k.wrapping_mul(CELLS as u64).wrapping_add(cell as u64));
         let (z0, z1, p0, p1) = cell_bounds(cell);
         for _ in 0..poisson(&mut s, mean, e) {
@@ -300,6 +332,33 @@ pub fn brute_force(tris: &[[Vec3; 3]], viewing: Viewing, g: &Glitter, seed: u64)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_cells_drawn_hold_every_glint_of_all_the_cells() {
+        // The default narrow cone, the sun low and ahead (the eye looks towards it, where
+        // H turns most over a triangle): the cells chosen give exactly the glints that
+        // drawing every cell gives, triangle by triangle, for near and far, small and
+        // large triangles.
+        let g = Glitter { grains_per_m2: 2.0e6, ..Glitter::default() };
+        let cone = g.cone_rad();
+        let cos_cone = (cone + 1e-4).cos();
+        let all: Vec<usize> = (0..CELLS).collect();
+        let mut s = Stream::new(3, Purpose::named("test"), 0);
+        let (mut found, mut cells) = (0, Vec::new());
+        for t in 0..400 {
+            let sun = Vec3::new(0.0, (2.0 + 10.0 * s.next_f32()).to_radians().sin(), -1.0).normalize();
+            let viewing = Viewing { eye: Vec3::new(0.0, 1.6, 0.0), sun };
+            let size = 0.02 + 0.5 * s.next_f32();
+            let c = Vec3::new(4.0 * s.next_f32() - 2.0, 0.0, -1.0 - 12.0 * s.next_f32());
+            let tri = [c, c + Vec3::new(size, 0.0, 0.0), c + Vec3::new(0.0, 0.02 * size, -size)];
+            let (mut chosen, mut every) = (Vec::new(), Vec::new());
+            triangle_glints(&tri, viewing, &g, t, (cone, cos_cone), &mut cells, &mut chosen);
+            grains_in(&tri, (viewing, &g, t), cos_cone, &all, (-1.0, 1.0), &mut every);
+            assert_eq!(chosen, every, "triangle {t}: {tri:?}");
+            found += every.len();
+        }
+        assert!(found > 1000, "{found} glints: too few to tell");
+    }
 
     #[test]
     fn the_cells_near_an_axis_hold_every_normal_within_the_angle() {

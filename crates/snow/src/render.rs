@@ -288,9 +288,21 @@ impl SnowRenderer {
     pub fn scene_glb(&self, sim: &SnowSim) -> Vec<u8> {
         let (w, h) = (self.frame.width(), self.frame.height());
         let s = &self.settings;
+        // The objects with the corner normals the renderer shades them with.
+        let scene = sim.mesh();
+        let corners = smooth_normals(&scene.triangles);
         let objects: Vec<(String, TriMesh, Vec3)> = (0..PALETTE.len() as u32)
             .map(|k| {
-                let mesh = crate::export::flat_mesh(sim.mesh(), |o| o % PALETTE.len() as u32 == k);
+                let mut mesh = TriMesh::default();
+                for (t, tri) in scene.triangles.iter().enumerate() {
+                    if scene.object[t] % PALETTE.len() as u32 == k && scene.normal(t) != Vec3::ZERO {
+                        for (p, n) in tri.iter().zip(corners[t]) {
+                            mesh.indices.push(mesh.positions.len() as u32);
+                            mesh.positions.push(*p);
+                            mesh.normals.push(n);
+                        }
+                    }
+                }
                 (format!("objects-{k}"), mesh, object_albedo(k))
             })
             .collect();
@@ -439,8 +451,8 @@ fn draw_glitter(
     if !(g.grains_per_m2 > 0.0 && g.mirror_radiance > 0.0) || lighting.sun == Vec3::ZERO {
         return;
     }
-    // The snow's upper faces that face the eye, reach into the frame and get some sun:
-    // only their grains can be drawn (the depth test below would drop the others').
+    // The snow's upper faces that face the eye and the sun, reach into the frame and
+    // are not wholly in shadow: only their grains can glint where the eye sees them.
     let (fw, fh) = (frame.width() as f32, frame.height() as f32);
     let in_view = |t: &[Vec3; 3]| {
         let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
@@ -464,7 +476,11 @@ fn draw_glitter(
         .copied()
         .filter(|t| {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
-            n.y > 0.0 && n.dot(eye - t[0]) > 0.0 && in_view(t) && !in_full_shadow(t)
+            n.y > 0.0
+                && n.dot(eye - t[0]) > 0.0
+                && n.dot(lighting.sun) > 0.0
+                && in_view(t)
+                && !in_full_shadow(t)
         })
         .collect();
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
@@ -484,7 +500,7 @@ fn draw_glitter(
         let lit = lighting.shadows.as_ref().map_or(1.0, |m| m.lit(glint.position, 1.0));
         let fog = (-settings.fog_per_m * q.depth).exp();
         // The face's share of the pixel's footprint at that depth.
-        let share = face_m2 * q.px_per_m * q.px_per_m;
+        let share = (face_m2 * q.px_per_m * q.px_per_m).min(1.0);
         let c = colour * (glint.intensity * lit * fog * share);
         let halo = 0.12;
         for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {

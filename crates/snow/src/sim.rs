@@ -699,8 +699,9 @@ impl SnowSim {
 
 /// The four neighbours of texel `k` of map `mi`: where snow would go and the height
 /// it is compared with. Inside the map's region: the neighbour's surface. Past the
-/// region's edge: the source's own ground (snow stands up to the repose slope at an
-/// edge) and the destination is the highest lower map at that texel, or off the scene.
+/// region's edge (or the grid's): the edge's height, [`edge_height`] (snow stands up to
+/// the repose slope at an edge), and the destination is the highest lower map at that
+/// texel, or off the scene.
 /// `rise` is tan(repose) times the texel size, m; the maps share an `n`×`n` grid.
 pub(crate) fn neighbours(
     maps: &[SnowMap],
@@ -715,7 +716,7 @@ pub(crate) fn neighbours(
     [(0i64, -1i64), (1, 0), (0, 1), (-1, 0)].into_iter().map(move |(dx, dz)| {
         let (ni, nj) = (i as i64 + dx, j as i64 + dz);
         if ni < 0 || nj < 0 || ni >= n as i64 || nj >= n as i64 {
-            return (Target::Off, map.ground_m[k]);
+            return (Target::Off, edge_height(map, n, (i, j), (dx, dz)));
         }
         let nk = nj as usize * n + ni as usize;
         if map.possible(nk) {
@@ -758,23 +759,37 @@ pub(crate) fn neighbours(
         // same height: the two behave as one surface; measuring to the own ground
         // there sent snow back and forth between the two edges for ever, found on
         // the Stanford bunny).
-        // A slope that reaches the edge goes on past it: the edge's height drops below the
-        // own ground by as much as the ground rises from the opposite neighbour, so a
-        // surface steeper than the repose (a sphere's side near its silhouette) holds no
-        // snow at its edge, while a flat top (a table) keeps its cornice. (Measured to the
-        // own ground alone, every edge texel of a steep surface held one rise of snow: a
-        // ring of texel-sized blocks around the primitives' sphere.)
-        let (oi, oj) = (i as i64 - dx, j as i64 - dz);
-        let inner = (oi >= 0 && oj >= 0 && oi < n as i64 && oj < n as i64)
-            .then(|| oj as usize * n + oi as usize)
-            .filter(|&ok| map.possible(ok))
-            .map_or(g, |ok| map.ground_m[ok]);
-        let edge = g - (inner - g).max(0.0);
+        let edge = edge_height(map, n, (i, j), (dx, dz));
         match lower {
             Some((o, m)) => (Target::Map(o as u32, nk as u32), edge.max(m.surface(nk))),
             None => (Target::Off, edge),
         }
     })
+}
+
+/// The height snow at texel (i, j) of `map` is compared with past its region's edge in
+/// direction (dx, dz): its own ground, lowered by the slope that reaches the edge. A
+/// slope goes on past the edge: by the smaller of the ground's last two rises towards
+/// it, from the two texels behind (so a surface steeper than the repose, a sphere's side
+/// near its silhouette, holds no snow at its edge), and not at all when either is flat
+/// or missing (a table's top and a stair's tread keep their cornice: a riser behind a
+/// tread is a step, not a slope, as the flat tread above it shows). Measured to the own
+/// ground alone, every edge texel of a steep surface held one rise of snow: a ring of
+/// texel-sized blocks round the primitives' sphere.
+fn edge_height(map: &SnowMap, n: usize, (i, j): (usize, usize), (dx, dz): (i64, i64)) -> f32 {
+    let ground_at = |back: i64| {
+        let (a, b) = (i as i64 - back * dx, j as i64 - back * dz);
+        (a >= 0 && b >= 0 && a < n as i64 && b < n as i64)
+            .then(|| b as usize * n + a as usize)
+            .filter(|&k| map.possible(k))
+            .map(|k| map.ground_m[k])
+    };
+    let g = map.ground_m[j * n + i];
+    let slope = match (ground_at(1), ground_at(2)) {
+        (Some(g1), Some(g2)) => (g1 - g).min(g2 - g1).max(0.0),
+        _ => 0.0,
+    };
+    g - slope
 }
 
 /// How far past the repose a slope may be before snow moves, as a height over one texel:

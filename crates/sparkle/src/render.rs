@@ -480,41 +480,20 @@ impl BandRows {
         }
     }
 
-    /// A lens's spread of `dot`: a defocused glint (radius ≥ 1 px) as a uniform disc of
-    /// its defocus radius holding all its light, each pixel weighted by how much of it
-    /// the disc covers (its centre within the radius ± half a pixel); a sharp one's
-    /// bloom as a halo of its footprint radius adding `strength` times its light,
-    /// falling off as (1 − r / radius)². Each spread's weights sum to one over the whole
-    /// footprint (also where the band or the image clips it).
+    /// A lens's spread of `dot` ([`LensSpread`]), its weights scaled to their sum over
+    /// the whole footprint (`dot.norm`, worked out once per glint), so the band or the
+    /// image clipping it drops light but never adds any.
     fn add_lens(&self, sum: &mut [f32], dot: &Dot, strength: f32) {
-        let (radius, total, weight): (f32, f32, fn(f32, f32) -> f32) = if dot.blur >= 1.0 {
-            (dot.blur, dot.value, |r, radius| (radius + 0.5 - r).clamp(0.0, 1.0))
-        } else {
-            (dot.len, strength * dot.value, |r, radius| {
-                let t = 1.0 - r / radius;
-                if r > 0.0 && t > 0.0 { t * t } else { 0.0 }
-            })
-        };
-        let reach = radius.ceil() as i64 + 1;
-        let (xi, yi) = (floor_i64(dot.x), floor_i64(dot.y));
-        let at = |i: i64, j: i64| {
-            let (dx, dy) = (i as f32 + 0.5 - dot.x, j as f32 + 0.5 - dot.y);
-            weight((dx * dx + dy * dy).sqrt(), radius)
-        };
-        let mut norm = 0.0;
-        for j in yi - reach..=yi + reach {
-            for i in xi - reach..=xi + reach {
-                norm += at(i, j);
-            }
-        }
-        if !(norm > 0.0) {
+        let Some(spread) = LensSpread::of(dot, strength) else { return };
+        if !(dot.norm > 0.0) {
             return;
         }
-        let scale = total / norm;
+        let scale = spread.total / dot.norm;
+        let (xi, yi, reach) = spread.window(dot);
         let (j0, j1) = ((yi - reach).max(self.row0), (yi + reach).min(self.row0 + self.rows - 1));
         for j in j0..=j1 {
             for i in (xi - reach).max(0)..=(xi + reach).min(self.width as i64 - 1) {
-                let w = at(i, j);
+                let w = spread.weight(dot, i, j);
                 if w > 0.0 {
                     self.add(sum, i, j, w * scale);
                 }
@@ -634,7 +613,8 @@ fn floor_i64(x: f32) -> i64 {
 }
 
 /// A glint on screen: position (px), brightness, the part of it drawn at its point,
-/// glare length or lens footprint radius (px, 0 for none) and defocus radius (px).
+/// its footprint's reach for the rays or the lens (px, 0 for none); with a lens, its
+/// defocus radius and glare length (px) and the sum of its spread's weights.
 #[derive(Clone, Copy, Debug, Default)]
 struct Dot {
     x: f32,
@@ -643,6 +623,8 @@ struct Dot {
     core: f32,
     len: f32,
     blur: f32,
+    bloom: f32,
+    norm: f32,
 }
 
 /// What places glints on screen: the view, the brightness rules and the image's bands.
@@ -752,9 +734,13 @@ impl Screen<'_> {
         } else {
             f32x8::ZERO
         };
-        // The defocus disc's radius, px (0 without a lens); the footprint is the larger.
-        let blur = self.lens.map_or(f32x8::ZERO, |lens| lens.radius_px(f32x8::from(depth)));
-        let len = len.max(blur);
+        // With a lens: the defocus disc's radius, px, and the glare (bloom) length capped
+        // as the rays are; the footprint reaches the larger.
+        let (bloom, blur) = match self.lens {
+            Some(lens) => (len.min(f32x8::splat(MAX_RAY_PX as f32)), lens.radius_px(f32x8::from(depth))),
+            None => (f32x8::ZERO, f32x8::ZERO),
+        };
+        let len = if self.lens.is_some() { bloom.max(blur) } else { len };
         let m = len + one;
         let (w, h) = (f32x8::splat(self.size.0), f32x8::splat(self.size.1));
         let inside = px.simd_gt(-m) & py.simd_gt(-m) & px.simd_lt(w + m) & py.simd_lt(h + m);
@@ -767,8 +753,8 @@ impl Screen<'_> {
         let lo = band((py - len - one).max(f32x8::ZERO));
         let hi = band((py + len + one).max(f32x8::ZERO).min(h - one));
         let mut kept = ok & inside.to_bitmask() & ((1u32 << xc.len()) - 1);
-        let (px, py, value, len, blur) =
-            (px.to_array(), py.to_array(), value.to_array(), len.to_array(), blur.to_array());
+        let (px, py, value, len) = (px.to_array(), py.to_array(), value.to_array(), len.to_array());
+        let (blur, bloom) = (blur.to_array(), bloom.to_array());
         while kept != 0 {
             let i = kept.trailing_zeros() as usize;
             kept &= kept - 1;
@@ -779,7 +765,20 @@ impl Screen<'_> {
             }
             // A defocused glint's light is all in its disc; a sharp one's in its pixel.
             let core = if blur[i] >= 1.0 { 0.0 } else { value[i] };
-            keep(Dot { x: px[i], y: py[i], value: value[i], core, len: len[i], blur: blur[i] }, lo[i], hi[i]);
+            let mut dot = Dot {
+                x: px[i],
+                y: py[i],
+                value: value[i],
+                core,
+                len: len[i],
+                blur: blur[i],
+                bloom: bloom[i],
+                norm: 0.0,
+            };
+            if self.lens.is_some() {
+                dot.norm = LensSpread::of(&dot, 1.0).map_or(0.0, |spread| spread.norm(&dot));
+            }
+            keep(dot, lo[i], hi[i]);
         }
     }
 }
@@ -827,6 +826,57 @@ fn fresnel_gain(ior: f32, light: LightAt, x: Vec3, n: Vec3) -> f32 {
     };
     let c = (1.0 - n.dot(l).abs()).clamp(0.0, 1.0);
     1.0 + (1.0 / f0 - 1.0) * c.powi(5)
+}
+
+/// How a lens spreads one glint: a defocused glint (defocus radius ≥ 1 px) as a uniform
+/// disc of that radius holding all its light, each pixel weighted by how much of it the
+/// disc covers (its centre within the radius ± half a pixel); a sharp glint bright
+/// enough for glare as a bloom of radius max(glare length, 1) px adding `strength` times
+/// its light, falling off as (1 − r / radius)²; a sharp dim glint not at all.
+struct LensSpread {
+    radius: f32,
+    total: f32,
+    disc: bool,
+}
+
+impl LensSpread {
+    fn of(dot: &Dot, strength: f32) -> Option<Self> {
+        if dot.blur >= 1.0 {
+            Some(Self { radius: dot.blur, total: dot.value, disc: true })
+        } else if dot.bloom > 0.0 {
+            Some(Self { radius: dot.bloom.max(1.0), total: strength * dot.value, disc: false })
+        } else {
+            None
+        }
+    }
+
+    /// The pixel of the glint and how far the footprint reaches from it, px.
+    fn window(&self, dot: &Dot) -> (i64, i64, i64) {
+        (floor_i64(dot.x), floor_i64(dot.y), self.radius.ceil() as i64 + 1)
+    }
+
+    fn weight(&self, dot: &Dot, i: i64, j: i64) -> f32 {
+        let (dx, dy) = (i as f32 + 0.5 - dot.x, j as f32 + 0.5 - dot.y);
+        let r = (dx * dx + dy * dy).sqrt();
+        if self.disc {
+            (self.radius + 0.5 - r).clamp(0.0, 1.0)
+        } else {
+            let t = 1.0 - r / self.radius;
+            if r > 0.0 && t > 0.0 { t * t } else { 0.0 }
+        }
+    }
+
+    /// The sum of the weights over the whole footprint.
+    fn norm(&self, dot: &Dot) -> f32 {
+        let (xi, yi, reach) = self.window(dot);
+        let mut norm = 0.0;
+        for j in yi - reach..=yi + reach {
+            for i in xi - reach..=xi + reach {
+                norm += self.weight(dot, i, j);
+            }
+        }
+        norm
+    }
 }
 
 /// Glints per parallel projection chunk (fixed: the frame does not depend on threads).
@@ -904,8 +954,9 @@ fn sky(s: &RenderSettings, view: &CameraView, light: LightAt, population: &Popul
 const CLUMP_M: f32 = 0.3;
 
 /// The light on the crown at `p` (outward normal `n0`): leaves in clumps, each clump's
-/// normal tilted from the crown's by a smooth random field of the leaves' spread
-/// (`tilt` = tan of it), lit by the sun (Lambert), by the sky (the half of it a normal
+/// normal tilted from the crown's by a smooth random field times `tilt` (tan of the
+/// leaves' spread; the field's sideways part is mostly under 1, at most about 2.1, so
+/// clumps tilt mostly within the spread and at most about 44° for 25°), lit by the sun (Lambert), by the sky (the half of it a normal
 /// sees, in the sky's zenith colour, darker in a clump's hollows) and, from behind, by
 /// the sun through the leaves (translucency). An extension: §3.2 draws only the glints.
 fn crown_light(p: Vec3, n0: Vec3, tilt: f32, light: LightAt, zenith: Vec3) -> Vec3 {
@@ -1231,7 +1282,7 @@ mod tests {
             // The bilinear shares of the placed dots, in lanes and one at a time.
             let dots: Vec<Dot> = got
                 .iter()
-                .map(|d| Dot { x: d.0, y: d.1, value: d.2, core: d.2, len: d.3, blur: 0.0 })
+                .map(|d| Dot { x: d.0, y: d.1, value: d.2, core: d.2, len: d.3, ..Dot::default() })
                 .collect();
             assert_bilinear_is_scalar(&dots);
         }
@@ -1258,7 +1309,7 @@ mod tests {
         let (towards, away) = (meridian(0.0), meridian(std::f32::consts::PI));
         let (lit, dark) = (mean(&light(&towards, tilt)), mean(&light(&away, tilt)));
         assert!(lit > 2.0 * dark, "the sunward side {lit} is not brighter than the far side {dark}");
-        // The leaves' own normals: tilted by up to the spread (25°) from the crown's, they
+        // The leaves' own normals: tilted mostly within the spread (25°) of the crown's, they
         // change a Lambert term of a sun ~40-90° off the normal by ~sin θ · 0.4 rad, tens
         // of per cent from clump to clump; their ratio to the smooth crown's light varies
         // along the meridian by more than 5 %, and changes little over 2 cm (smooth clumps,
@@ -1303,10 +1354,16 @@ mod tests {
         }
         // A defocused glint keeps all its light in its disc, a sharp one's bloom adds
         // `strength` times its light, wherever the band cuts them.
-        for (dot, total) in [
-            (Dot { x: 30.3, y: 20.7, value: 2.0, core: 0.0, len: 5.2, blur: 5.2 }, 2.0),
-            (Dot { x: 30.3, y: 33.9, value: 2.0, core: 2.0, len: 6.0, blur: 0.0 }, 0.35 * 2.0),
+        for (mut dot, total) in [
+            (Dot { x: 30.3, y: 20.7, value: 2.0, len: 5.2, blur: 5.2, ..Dot::default() }, 2.0),
+            (
+                Dot { x: 30.3, y: 33.9, value: 2.0, core: 2.0, len: 6.0, bloom: 6.0, ..Dot::default() },
+                0.35 * 2.0,
+            ),
+            // Sharp (under a pixel of defocus) and too dim for glare: its pixel only.
+            (Dot { x: 30.3, y: 33.9, value: 2.0, core: 2.0, len: 0.6, blur: 0.6, ..Dot::default() }, 0.0),
         ] {
+            dot.norm = LensSpread::of(&dot, 1.0).map_or(0.0, |spread| spread.norm(&dot));
             let mut added = 0.0;
             for row0 in (0..64i64).step_by(BAND_ROWS) {
                 let band = BandRows { width: 64, row0, rows: BAND_ROWS as i64 };
