@@ -763,23 +763,25 @@ impl Screen<'_> {
             {
                 continue;
             }
-            // A defocused glint's light is all in its disc; a sharp one's in its pixel.
-            let core = if blur[i] >= 1.0 { 0.0 } else { value[i] };
-            let mut dot = Dot {
-                x: px[i],
-                y: py[i],
-                value: value[i],
-                core,
-                len: len[i],
-                blur: blur[i],
-                bloom: bloom[i],
-                norm: 0.0,
-            };
-            if self.lens.is_some() {
-                dot.norm = LensSpread::of(&dot, 1.0).map_or(0.0, |spread| spread.norm(&dot));
-            }
-            keep(dot, lo[i], hi[i]);
+            let dot =
+                Dot { x: px[i], y: py[i], value: value[i], core: value[i], len: len[i], ..Dot::default() };
+            keep(self.with_lens(dot, blur[i], bloom[i]), lo[i], hi[i]);
         }
+    }
+
+    /// `dot` with the lens's defocus radius `blur` and bloom length `bloom` (px): a
+    /// defocused glint's light is all in its disc, a sharp one's in its pixel; and the sum
+    /// of its spread's weights. Unchanged without a lens.
+    fn with_lens(&self, mut dot: Dot, blur: f32, bloom: f32) -> Dot {
+        if self.lens.is_none() {
+            return dot;
+        }
+        (dot.blur, dot.bloom) = (blur, bloom);
+        if blur >= 1.0 {
+            dot.core = 0.0;
+        }
+        dot.norm = LensSpread::of(&dot, 1.0).map_or(0.0, |spread| spread.norm(&dot));
+        dot
     }
 }
 
