@@ -73,7 +73,10 @@ impl Default for Glitter {
 impl Glitter {
     /// The settings' problems, fields under `prefix`.
     pub(crate) fn validate(&self, i: &mut Issues, prefix: &str) {
-        i.range(&format!("{prefix}.grains_per_m2"), self.grains_per_m2, 0.0..=1e8);
+        // Up to 10x the default: every visible face draws its grains in the cells near
+        // the cone each frame (~1/100 of them), so 10⁸ per m² on the village's ~10³ m²
+        // would draw ~10⁹ grains a frame.
+        i.range(&format!("{prefix}.grains_per_m2"), self.grains_per_m2, 0.0..=1e6);
         i.range(&format!("{prefix}.exponent_n"), self.exponent_n, 1.0..=1e7);
         i.range_open_low(&format!("{prefix}.threshold_i_e"), self.threshold_i_e, 0.0, 0.999);
         i.range(&format!("{prefix}.mirror_radiance"), self.mirror_radiance, 0.0..=1e9);
