@@ -22,6 +22,8 @@ pub struct Shipped {
     pub name: &'static str,
     /// Its phenomenon's table name.
     pub phenomenon: &'static str,
+    /// What it looks like, for people choosing a preset ("Campfire at dusk").
+    pub title: &'static str,
     /// The file's text.
     pub text: &'static str,
     /// Its part of `phenomena demo`, if any.
@@ -36,18 +38,20 @@ impl Shipped {
 }
 
 macro_rules! shipped {
-    ($name:literal, $phenomenon:literal) => {
+    ($name:literal, $phenomenon:literal, $title:literal) => {
         Shipped {
             name: $name,
             phenomenon: $phenomenon,
+            title: $title,
             text: include_str!(concat!("../../../scenes/", $name, ".toml")),
             demo: None,
         }
     };
-    ($name:literal, $phenomenon:literal, demo $a:literal .. $b:literal at $w:literal x $h:literal) => {
+    ($name:literal, $phenomenon:literal, $title:literal, demo $a:literal .. $b:literal at $w:literal x $h:literal) => {
         Shipped {
             name: $name,
             phenomenon: $phenomenon,
+            title: $title,
             text: include_str!(concat!("../../../scenes/", $name, ".toml")),
             demo: Some(Demo { frames: $a..$b, size: ($w, $h) }),
         }
@@ -57,24 +61,24 @@ macro_rules! shipped {
 /// Every scene in `scenes/`; the first of each phenomenon is the one the studio's tab
 /// opens with. `phenomena demo` renders those with a [`Demo`], in this order.
 pub static SHIPPED: [Shipped; 18] = [
-    shipped!("flame-paper", "flame", demo 120..121 at 640 x 360),
-    shipped!("flame-campfire", "flame", demo 30..150 at 960 x 540),
-    shipped!("flame-wind-left", "flame", demo 120..121 at 640 x 360),
-    shipped!("flame-wind-right", "flame", demo 120..121 at 640 x 360),
-    shipped!("aurora-scene2", "aurora", demo 230..231 at 640 x 360),
-    shipped!("aurora-scene1", "aurora"),
-    shipped!("aurora-scene3", "aurora"),
-    shipped!("aurora-scene4", "aurora"),
-    shipped!("aurora-scene5", "aurora"),
-    shipped!("snow-table", "snow", demo 59..60 at 640 x 480),
-    shipped!("snow-primitives", "snow"),
-    shipped!("snow-village", "snow"),
-    shipped!("snow-yard", "snow"),
-    shipped!("sparkle-diamond-dust", "sparkle", demo 0..30 at 960 x 540),
-    shipped!("sparkle-leaf-glitter", "sparkle", demo 60..61 at 960 x 540),
-    shipped!("sparkle-sun-pillar", "sparkle"),
-    shipped!("sparkle-paper", "sparkle"),
-    shipped!("winter-night", "shot", demo 200..201 at 960 x 540),
+    shipped!("flame-campfire", "flame", "Campfire at dusk", demo 30..150 at 960 x 540),
+    shipped!("flame-paper", "flame", "Paper flame (Inagaki et al., Fig 8)", demo 120..121 at 640 x 360),
+    shipped!("flame-wind-left", "flame", "Flame in a wind from the right (Fig 9)", demo 120..121 at 640 x 360),
+    shipped!("flame-wind-right", "flame", "Flame in a wind from the left (Fig 10)", demo 120..121 at 640 x 360),
+    shipped!("aurora-scene2", "aurora", "Green curtain with a red top, splitting in two", demo 230..231 at 640 x 360),
+    shipped!("aurora-scene1", "aurora", "Curtain peeling back on itself"),
+    shipped!("aurora-scene3", "aurora", "Two curtains merging into one long arc"),
+    shipped!("aurora-scene4", "aurora", "Folding curtain, split in three, two layers"),
+    shipped!("aurora-scene5", "aurora", "Four folding curtains across the sky"),
+    shipped!("snow-village", "snow", "Snowy village"),
+    shipped!("snow-table", "snow", "Snow on and under a garden table", demo 59..60 at 640 x 480),
+    shipped!("snow-primitives", "snow", "Snow on simple shapes (paper Fig 8)"),
+    shipped!("snow-yard", "snow", "Yard with snow sliding off a steep roof"),
+    shipped!("sparkle-diamond-dust", "sparkle", "Diamond dust in low sun", demo 0..30 at 960 x 540),
+    shipped!("sparkle-leaf-glitter", "sparkle", "Sunlit leaves glittering", demo 60..61 at 960 x 540),
+    shipped!("sparkle-sun-pillar", "sparkle", "Sun pillar over ice plates"),
+    shipped!("sparkle-paper", "sparkle", "Paper diamond dust (Table 1)"),
+    shipped!("winter-night", "shot", "Winter night: village, aurora, dust and campfire", demo 200..201 at 960 x 540),
 ];
 
 /// The shipped scene `name`.

@@ -9,7 +9,9 @@
 //! binary and served from that fixed set only.
 
 mod controls;
+mod final_render;
 mod session;
+mod timeline;
 
 use std::collections::HashMap;
 use std::hash::BuildHasher;

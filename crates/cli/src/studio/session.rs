@@ -1,38 +1,52 @@
-//! One studio session (one browser tab): its scene, its simulation and the thread that
-//! steps, renders and encodes the preview.
+//! One studio session (one browser tab): its scenes (one per phenomenon tab), their
+//! simulations and timelines, and the thread that steps, renders and encodes the
+//! preview.
 //!
 //! Protocol. The page sends JSON text messages with a `type` ([`Incoming`]). The
-//! session answers with JSON text (`hello`, `scene`, `frame`, `notice`, `error`,
-//! `saved`, `progress`, `rendered`) and binary preview frames: a header of four
+//! session answers with JSON text (`hello`, `scene`, `time`, `frame`, `notice`,
+//! `error`, `saved`, `progress`, `rendered`) and binary preview frames: a header of four
 //! little-endian `u32` (generation, frame, width, height) followed by a JPEG. A
 //! `frame` text message with the frame's timings and counters precedes each image.
 //!
+//! Time. A tab's preview is a timeline of the scene's frames, numbered as final renders
+//! number them (frame `f` is the state after `f + 1` steps). It plays at the scene's
+//! own rate ([`preview_fps`]), loops or stops at the scene's length, and any frame can
+//! be shown (`seek`): simulation states are kept in memory ([`Timeline`]) so going back
+//! does not simulate again from frame 0. A change keeps the frame shown: when only how
+//! frames are drawn changed (the checkpoint identity of the simulation is the same:
+//! `[scene]` and `[render]`), the new renderer takes over the running simulation's
+//! state; otherwise the simulation runs again from frame 0 to that frame, and the
+//! `time` message says which (`change`).
+//!
 //! Every accepted scene change increments the generation; the page ignores frames of
 //! older generations, and the thread drains every queued command before it renders, so
-//! no stale frame is computed after a change arrives.
+//! no stale frame is computed after a change arrives. Each tab keeps its own undo and
+//! redo history and the scene it was loaded or saved as (`dirty`).
 //!
 //! The scene, its simulation and its frames all come from the scene layer
 //! (`phenomena_scene`): the preview and the final renders run its [`Runner`], and every
 //! file a scene reads comes through its sandbox ([`Assets::Sandbox`]): only the files
 //! uploaded to this session, by plain name.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
 use phenomena_aurora::editor::{self, Drawn, EditOp};
 use phenomena_scene::aurora::AuroraScene;
-use phenomena_scene::job::Job;
-use phenomena_scene::output::{ensure_dir, to_srgb8, write_bytes_atomic};
+use phenomena_scene::output::to_srgb8;
 use phenomena_scene::{
-    Assets, Format, FrameRecord, FrameSink, Limits, Observer, Output, Runner, Scene, SinkError, Steer,
+    Assets, Format, FrameRecord, FrameSink, Limits, Output, Runner, Scene, Simulate, SinkError, Steer,
     registry, shipped,
 };
 use serde::Deserialize;
 use serde_json::{Value, json};
+
+use super::final_render::{self, Request};
+use super::timeline::Timeline;
 
 /// A message to the page.
 pub(crate) enum Out {
@@ -42,26 +56,41 @@ pub(crate) enum Out {
     Binary(Vec<u8>),
 }
 
-/// The preview's frame-rate cap (frames per second): enough for a live view, and the
-/// rest of the machine stays free for the other tabs and final renders.
-const MAX_PREVIEW_FPS: f64 = 30.0;
-
 /// Largest preview, pixels per side.
 const MAX_PREVIEW_SIDE: u32 = 1920;
+
+/// Edits a tab remembers for undo.
+const MAX_UNDO: usize = 200;
+
+/// The preview's rate, frames per second: the scene's own (1 / its frame time) for
+/// phenomena shown in real time (frame times from 1/60 s to 1 s: the flame at 60, the
+/// aurora and sparkle at 30), 30 for time-lapse scenes (the snow's frames are hours).
+/// Never over 60: the rest of the machine stays free for other tabs and final renders.
+pub(crate) fn preview_fps(scene: &Scene) -> f64 {
+    let t = scene.frame_time_s();
+    if !t.is_finite() || t <= 0.0 || t > 1.0 { 30.0 } else { (1.0 / t).min(60.0) }
+}
 
 /// What the page may send.
 #[derive(Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub(crate) enum Incoming {
+    /// Open a phenomenon's tab: its scene, simulation and frame as they were left, or
+    /// its first shipped scene the first time.
+    Tab {
+        phenomenon: String,
+    },
     /// Load a shipped scene by name (see `hello.builtins`).
     Builtin {
         name: String,
     },
-    /// Load a scene in its JSON form (what `scene` messages carry), e.g. when the page
-    /// returns to a tab.
+    /// Load a scene in its JSON form (what `scene` messages carry: a preset the page
+    /// kept), named `name`.
     Scene {
         phenomenon: String,
         scene: Value,
+        #[serde(default)]
+        name: Option<String>,
     },
     /// Load a scene file's text (errors come back with line and column).
     Toml {
@@ -75,8 +104,22 @@ pub(crate) enum Incoming {
     },
     Play,
     Pause,
+    /// One frame on (pauses).
     Step,
+    /// Show frame `frame` (pauses): from the nearest state kept at or before it.
+    Seek {
+        frame: u32,
+    },
+    /// Loop at the scene's end (`true`, the default) or stop there.
+    Loop {
+        on: bool,
+    },
+    /// Back to frame 0 of the same scene.
     Reset,
+    /// Undo the tab's last edit.
+    Undo,
+    /// Redo the last edit undone.
+    Redo,
     /// The preview size in pixels.
     Preview {
         width: u32,
@@ -88,16 +131,14 @@ pub(crate) enum Incoming {
     },
     /// An aurora editing operation (thesis §3.1; `phenomena_aurora::editor`).
     Aurora(EditOp),
-    /// Ask for the scene as TOML (for download).
-    Save,
-    /// Render the scene at its own size to the studio's output folder.
-    RenderFinal {
-        frames: Option<u32>,
-        /// `png` (the default), `exr`, `vdb`, `ply` or `flipbook`, as the phenomenon
-        /// writes (see `hello.phenomena[].formats`).
+    /// Ask for the scene as TOML (for download), saved as `name` (default: the
+    /// scene's name).
+    Save {
         #[serde(default)]
-        format: Option<String>,
+        name: Option<String>,
     },
+    /// Render the scene at its own size to the studio's output folder.
+    RenderFinal(Request),
     /// Tests only: a command that fails inside the session thread.
     #[cfg(test)]
     Panic,
@@ -131,7 +172,10 @@ pub(crate) fn hello(id: &str, controls: &super::controls::Catalogue) -> String {
                 json!({"name": p.name(), "about": p.about(), "formats": formats})
             })
             .collect::<Vec<_>>(),
-        "builtins": shipped::SHIPPED.iter().map(|b| json!({"name": b.name, "phenomenon": b.phenomenon})).collect::<Vec<_>>(),
+        "builtins": shipped::SHIPPED
+            .iter()
+            .map(|b| json!({"name": b.name, "phenomenon": b.phenomenon, "title": b.title}))
+            .collect::<Vec<_>>(),
         "featured": controls.featured(),
         "limits": { "upload_bytes": super::MAX_UPLOAD_BYTES, "message_bytes": super::MAX_MESSAGE_BYTES },
     })
@@ -160,24 +204,104 @@ fn sandbox(dir: &Path) -> Assets {
     Assets::Sandbox { dir: dir.to_path_buf(), max_bytes: super::MAX_UPLOAD_BYTES as u64 }
 }
 
+/// A tab's scene at one point of its history.
+#[derive(Clone)]
+struct Snapshot {
+    scene: Scene,
+    drawn: Drawn,
+    name: String,
+}
+
+/// One phenomenon tab: its scene, simulation, timeline and edit history.
+struct Tab {
+    scene: Scene,
+    /// The aurora editor's record of the sheets the artist drew.
+    drawn: Drawn,
+    /// The scene's name (final renders' folders, saving): the shipped scene's, the
+    /// uploaded file's, or what it was saved as.
+    name: String,
+    /// What the scene was when loaded or last saved (the page's dirty marker).
+    baseline: Scene,
+    runner: Option<Runner>,
+    timeline: Timeline,
+    /// The frame shown (as final renders number them).
+    frame: u32,
+    /// The frame being reached (simulating or restoring), if not shown yet.
+    target: Option<u32>,
+    /// The preview size the runner renders at.
+    size: (u32, u32),
+    undo: Vec<Snapshot>,
+    redo: Vec<Snapshot>,
+    /// What the last undo entry stands for when consecutive edits make one (`wind`).
+    coalesce: Option<&'static str>,
+}
+
+impl Tab {
+    fn new(scene: Scene, name: String, budget: usize) -> Self {
+        Self {
+            drawn: scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default(),
+            baseline: scene.clone(),
+            scene,
+            name,
+            runner: None,
+            timeline: Timeline::new(budget),
+            frame: 0,
+            target: None,
+            size: (0, 0),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            coalesce: None,
+        }
+    }
+
+    /// The scene's frames (the timeline's length).
+    fn length(&self) -> u32 {
+        self.scene.settings().frames.max(1)
+    }
+
+    fn snapshot(&self) -> Snapshot {
+        Snapshot { scene: self.scene.clone(), drawn: self.drawn.clone(), name: self.name.clone() }
+    }
+
+    /// Take `s` as the tab's scene.
+    fn take(&mut self, s: Snapshot) {
+        self.scene = s.scene;
+        self.drawn = s.drawn;
+        self.name = s.name;
+    }
+
+    /// Record the scene now for undo before an edit; consecutive edits with the same
+    /// `coalesce` make one entry (a wind drag's many messages).
+    fn remember(&mut self, coalesce: Option<&'static str>) {
+        if coalesce.is_none() || self.coalesce != coalesce {
+            self.undo.push(self.snapshot());
+            if self.undo.len() > MAX_UNDO {
+                self.undo.remove(0);
+            }
+        }
+        self.coalesce = coalesce;
+        self.redo.clear();
+    }
+}
+
 struct Session {
     dir: tempfile::TempDir,
     out_root: PathBuf,
     out: tokio::sync::mpsc::Sender<Out>,
-    scene: Option<Scene>,
-    /// The aurora editor's record of the sheets the artist drew.
-    drawn: Drawn,
-    runner: Option<Runner>,
+    /// The tab shown.
+    tab: Option<Tab>,
+    /// The other tabs, as they were left, by phenomenon.
+    stash: HashMap<&'static str, Tab>,
     generation: u32,
     playing: bool,
+    looping: bool,
     preview: (u32, u32),
     next_due: Instant,
+    /// When the page last saw a frame of a catch-up (`None`: a catch-up starts).
+    told: Option<Instant>,
     render_cancel: Option<Arc<AtomicBool>>,
     /// The final render running, if any (one at a time per session).
     render_thread: Option<std::thread::JoinHandle<()>>,
-    /// The scene's name for its final renders' folders: the shipped scene's or the
-    /// uploaded file's (the phenomenon's for a scene from the page).
-    scene_name: String,
     /// This session's share of the memory budget (previews and final renders).
     limits: Limits,
     encoder: std::sync::mpsc::SyncSender<EncodeJob>,
@@ -197,8 +321,10 @@ struct EncodeJob {
 /// encoder thread (which overlaps the next step).
 struct PreviewSink<'a> {
     generation: u32,
-    /// Frames simulated when this one was rendered (0: the initial state).
+    /// The frame shown (as final renders number them).
     shown: u32,
+    /// The scene's frames.
+    length: u32,
     encoder: &'a std::sync::mpsc::SyncSender<EncodeJob>,
 }
 
@@ -212,6 +338,7 @@ impl FrameSink for PreviewSink<'_> {
             "type": "frame",
             "generation": self.generation,
             "frame": self.shown,
+            "length": self.length,
             "step_ms": r.step_ms,
             "render_ms": r.render_ms,
             "tonemap_ms": t.elapsed().as_secs_f64() * 1e3,
@@ -221,7 +348,6 @@ impl FrameSink for PreviewSink<'_> {
         self.encoder.send(job).map_err(|_| SinkError("the page went away".into()))
     }
 }
-
 /// Encode preview frames as JPEG and send them, each after its `frame` message, until
 /// the session drops its sender or the page goes away.
 fn encode_frames(jobs: Receiver<EncodeJob>, out: tokio::sync::mpsc::Sender<Out>) {
@@ -282,16 +408,16 @@ pub(crate) fn run(
         dir,
         out_root,
         out,
-        scene: None,
-        drawn: Drawn::default(),
-        runner: None,
+        tab: None,
+        stash: HashMap::new(),
         generation: 0,
         playing: true,
+        looping: true,
         preview: (640, 360),
         next_due: Instant::now(),
+        told: None,
         render_cancel: None,
         render_thread: None,
-        scene_name: String::new(),
         limits,
     };
     let _ = s.loop_until_closed(&inbox);
@@ -315,27 +441,43 @@ fn joined(problems: &[phenomena_core::validate::Issue]) -> String {
     problems.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ")
 }
 
+/// The page's error message for `problems`, with their fields.
+fn problems_message(prefix: &str, problems: &[phenomena_core::validate::Issue]) -> Value {
+    json!({
+        "type": "error",
+        "message": format!("{prefix}{}", joined(problems)),
+        "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
+    })
+}
+
+/// What the session does next.
+enum Next {
+    /// Wait for a command (nothing to simulate).
+    Wait,
+    /// Simulate one more frame toward the frame asked for.
+    CatchUp,
+    /// Play: the next frame when due.
+    PlayAt(Instant),
+}
+
 impl Session {
     fn loop_until_closed(&mut self, inbox: &Receiver<Command>) -> Result<(), Closed> {
         loop {
             // Every queued command first, so nothing stale is rendered.
-            let command = if self.playing && self.runner.is_some() {
-                let wait = self.next_due.saturating_duration_since(Instant::now());
-                if wait.is_zero() {
-                    match inbox.try_recv() {
+            let command = match self.next() {
+                Next::Wait => Some(inbox.recv().map_err(|_| Closed)?),
+                Next::CatchUp => match inbox.try_recv() {
+                    Ok(c) => Some(c),
+                    Err(TryRecvError::Empty) => None,
+                    Err(TryRecvError::Disconnected) => return Err(Closed),
+                },
+                Next::PlayAt(due) => {
+                    match inbox.recv_timeout(due.saturating_duration_since(Instant::now())) {
                         Ok(c) => Some(c),
-                        Err(TryRecvError::Empty) => None,
-                        Err(TryRecvError::Disconnected) => return Err(Closed),
-                    }
-                } else {
-                    match inbox.recv_timeout(wait) {
-                        Ok(c) => Some(c),
-                        Err(RecvTimeoutError::Timeout) => continue,
+                        Err(RecvTimeoutError::Timeout) => None,
                         Err(RecvTimeoutError::Disconnected) => return Err(Closed),
                     }
                 }
-            } else {
-                Some(inbox.recv().map_err(|_| Closed)?)
             };
             match command {
                 Some(c) => self.guarded(|s| s.command(c))?,
@@ -344,14 +486,34 @@ impl Session {
         }
     }
 
-    /// One preview frame when it is due: step, then handle what came in during the
-    /// step (a change makes this frame stale, and the change's own frame is then the
-    /// next shown), then show it.
+    fn next(&self) -> Next {
+        match &self.tab {
+            Some(Tab { runner: Some(_), target: Some(_), .. }) => Next::CatchUp,
+            Some(Tab { runner: Some(_), .. }) if self.playing => Next::PlayAt(self.next_due),
+            _ => Next::Wait,
+        }
+    }
+
+    /// Work when no command waits: one step toward the frame asked for, or the next
+    /// frame of play when it is due.
     fn tick(&mut self, inbox: &Receiver<Command>) -> Result<(), Closed> {
-        self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / MAX_PREVIEW_FPS);
+        let catching_up = self.tab.as_ref().and_then(|t| t.target).is_some();
+        if catching_up {
+            return self.catch_up();
+        }
+        let Some(tab) = &self.tab else { return Ok(()) };
+        self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / preview_fps(&tab.scene));
+        if tab.frame + 1 >= tab.length() {
+            // The end of the scene: loop, or stop there.
+            if self.looping {
+                return self.go_to(0);
+            }
+            self.playing = false;
+            return self.send_time(None);
+        }
         let generation = self.generation;
         let Some(mut record) = self.step()? else { return Ok(()) };
-        let stepped = self.runner.as_ref().map(Runner::frames_done);
+        let stepped = self.frames_done();
         loop {
             match inbox.try_recv() {
                 Ok(c) => self.command(c)?,
@@ -359,9 +521,14 @@ impl Session {
                 Err(TryRecvError::Disconnected) => return Err(Closed),
             }
         }
-        // Shown unless a command changed the scene or stepped (and showed) again.
-        let same = self.generation == generation && self.runner.as_ref().map(Runner::frames_done) == stepped;
+        // Shown unless a command changed the scene or moved in time (and showed).
+        let same = self.generation == generation && self.frames_done() == stepped;
         if same { self.show(&mut record) } else { Ok(()) }
+    }
+
+    /// Frames the active tab's simulation has done.
+    fn frames_done(&self) -> Option<u32> {
+        self.tab.as_ref().and_then(|t| t.runner.as_ref()).map(Runner::frames_done)
     }
 
     /// Run `f`; if it panics (a bug), stop the simulation, keep the scene and tell the
@@ -376,7 +543,10 @@ impl Session {
                     .or_else(|| payload.downcast_ref::<String>().cloned())
                     .unwrap_or_else(|| "no message".into());
                 tracing::error!("a studio session recovered from a panic: {what}");
-                self.runner = None;
+                if let Some(tab) = &mut self.tab {
+                    tab.runner = None;
+                    tab.target = None;
+                }
                 self.playing = false;
                 self.error(format!(
                     "the session hit an internal error and stopped its simulation ({what}); the scene is kept: press reset or load a scene to go on"
@@ -410,55 +580,362 @@ impl Session {
 
     fn handle(&mut self, m: Incoming) -> Result<(), Closed> {
         match m {
+            Incoming::Tab { phenomenon } => self.open_tab(&phenomenon),
             Incoming::Builtin { name } => self.load_builtin(name),
             Incoming::Toml { text, name } => {
                 self.load_toml(&text, name.unwrap_or_else(|| "uploaded.toml".into()))
             }
-            Incoming::Scene { phenomenon, scene } => self.load_json(phenomenon, scene),
+            Incoming::Scene { phenomenon, scene, name } => self.load_json(&phenomenon, scene, name),
             Incoming::Set { path, value } => self.set(&path, value),
             Incoming::Play => {
                 self.playing = true;
                 self.next_due = Instant::now();
-                Ok(())
+                self.send_time(None)
             }
             Incoming::Pause => {
                 self.playing = false;
-                Ok(())
+                self.send_time(None)
             }
             Incoming::Step => {
                 self.playing = false;
-                if let Some(mut record) = self.step()? {
-                    self.show(&mut record)?;
-                }
-                Ok(())
+                let next = self.tab.as_ref().map(|t| t.target.unwrap_or(t.frame) + 1);
+                next.map_or(Ok(()), |f| self.go_to(f))
             }
-            Incoming::Reset => self.rebuild(),
-            Incoming::Preview { width, height } => {
-                if !(16..=MAX_PREVIEW_SIDE).contains(&width) || !(16..=MAX_PREVIEW_SIDE).contains(&height) {
-                    return self.error(format!(
-                        "preview {width}x{height}: each side must be in [16, {MAX_PREVIEW_SIDE}] pixels"
-                    ));
-                }
-                self.preview = (width, height);
-                self.rebuild()
+            Incoming::Seek { frame } => {
+                self.playing = false;
+                self.go_to(frame)
             }
+            Incoming::Loop { on } => {
+                self.looping = on;
+                self.send_time(None)
+            }
+            // After a stop (an error), a new simulation; else frame 0 again.
+            Incoming::Reset if self.frames_done().is_none() => self.restart(),
+            Incoming::Reset => self.go_to(0),
+            Incoming::Undo => self.undo(false),
+            Incoming::Redo => self.undo(true),
+            Incoming::Preview { width, height } => self.resize(width, height),
             Incoming::Wind { force } => self.wind(force),
             Incoming::Aurora(op) => self.aurora(op),
-            Incoming::Save => self.save(),
-            Incoming::RenderFinal { frames, format } => self.render_final(frames, format.as_deref()),
+            Incoming::Save { name } => self.save(name),
+            Incoming::RenderFinal(request) => self.render_final(&request),
             #[cfg(test)]
             Incoming::Panic => panic!("a test asked for a panic"),
         }
+    }
+
+    fn resize(&mut self, width: u32, height: u32) -> Result<(), Closed> {
+        if !(16..=MAX_PREVIEW_SIDE).contains(&width) || !(16..=MAX_PREVIEW_SIDE).contains(&height) {
+            return self.error(format!(
+                "preview {width}x{height}: each side must be in [16, {MAX_PREVIEW_SIDE}] pixels"
+            ));
+        }
+        self.preview = (width, height);
+        self.restart()
+    }
+}
+/// Build the preview's runner of `scene` at `size`; the error is the page's message.
+fn build_runner(scene: &Scene, size: (u32, u32), assets: &Assets, limits: &Limits) -> Result<Runner, Value> {
+    let mut scene = scene.clone();
+    let s = scene.settings_mut();
+    (s.width, s.height) = size;
+    if let Some(a) = scene.get::<AuroraScene>()
+        && a.aurora.keyframes.first().is_none_or(|k| k.sheets.is_empty())
+    {
+        return Err(
+            json!({"type": "notice", "message": "draw a sheet on the source canvas to start the aurora"}),
+        );
+    }
+    let problems = scene.validate();
+    if !problems.is_empty() {
+        return Err(problems_message("the preview waits for a valid scene: ", &problems));
+    }
+    match Runner::with_limits(&scene, assets, limits) {
+        Ok(mut runner) => {
+            runner.set_preview(true);
+            runner.set_clock(crate::render::wall_clock());
+            Ok(runner)
+        }
+        Err(e) => {
+            let issues = e.key().map(|k| json!([{"field": k, "message": e.to_string()}]));
+            Err(json!({
+                "type": "error",
+                "message": format!("cannot start the simulation: {e}"),
+                "issues": issues.unwrap_or(json!([])),
+            }))
+        }
+    }
+}
+
+/// Whether two runners simulate the same thing (their checkpoints are interchangeable).
+fn same_simulation(a: &Runner, b: &Runner) -> bool {
+    let (a, b) = (a.checkpoint_header(), b.checkpoint_header());
+    (a.phenomenon, a.identity, a.seed) == (b.phenomenon, b.identity, b.seed)
+}
+
+impl Session {
+    /// The memory a tab's timeline may hold: a quarter of the session's share.
+    fn timeline_budget(&self) -> usize {
+        usize::try_from(self.limits.memory_bytes / 4).unwrap_or(usize::MAX)
+    }
+
+    /// Make frame `frame` of the active tab the one to show (within the scene's
+    /// length): from the latest state kept at or before it when that saves steps, else
+    /// from the state now or a new simulation; the steps left run in [`Self::catch_up`].
+    fn go_to(&mut self, frame: u32) -> Result<(), Closed> {
+        let assets = sandbox(self.dir.path());
+        let (limits, preview) = (self.limits, self.preview);
+        let Some(tab) = &mut self.tab else { return Ok(()) };
+        let frame = frame.min(tab.length() - 1);
+        let Some(runner) = &mut tab.runner else { return Ok(()) };
+        let (want, done) = (frame + 1, runner.frames_done());
+        let jump = tab.timeline.at_or_before(want).filter(|(f, _)| *f > done || want < done);
+        let restored = jump.map(|(_, bytes)| runner.restore(bytes).is_ok());
+        if restored == Some(false) {
+            tab.timeline.clear();
+        }
+        if restored != Some(true) && want < done {
+            match build_runner(&tab.scene, preview, &assets, &limits) {
+                Ok(fresh) => *runner = fresh,
+                Err(message) => {
+                    tab.runner = None;
+                    return self.send(message);
+                }
+            }
+        }
+        tab.target = Some(frame);
+        self.told = None;
+        self.send_time(None)
+    }
+
+    /// One step toward the frame asked for; shown when reached, and now and then on the
+    /// way (the first step at once, then every half second) so the page sees progress.
+    fn catch_up(&mut self) -> Result<(), Closed> {
+        let Some(target) = self.tab.as_ref().and_then(|t| t.target) else { return Ok(()) };
+        if self.frames_done().is_some_and(|done| done > target) {
+            if let Some(tab) = &mut self.tab {
+                tab.target = None;
+            }
+            self.show(&mut FrameRecord::default())?;
+            return self.send_time(None);
+        }
+        let Some(mut record) = self.step()? else { return Ok(()) };
+        let reached = record.frame >= target;
+        let progress = !reached && self.told.is_none_or(|t| t.elapsed() > Duration::from_millis(500));
+        if reached || progress {
+            self.show(&mut record)?;
+        } else if let Some(runner) = self.tab.as_mut().and_then(|t| t.runner.as_mut())
+            && runner.render_memory().is_some()
+        {
+            // A frame that depends on the renders before it: rendered, not shown.
+            runner.output(&mut record, &mut Simulate).map_err(|_| Closed)?;
+        }
+        if reached {
+            if let Some(tab) = &mut self.tab {
+                tab.target = None;
+            }
+            return self.send_time(None);
+        }
+        if progress {
+            self.told = Some(Instant::now());
+            self.send(json!({"type": "time", "catching_up": {"frame": record.frame, "target": target}}))?;
+        }
+        Ok(())
+    }
+
+    /// The active tab's simulation built again for its scene now, keeping the frame
+    /// shown: the page hears the scene, then how time was kept (`change`).
+    fn restart(&mut self) -> Result<(), Closed> {
+        self.generation = self.generation.wrapping_add(1);
+        self.send_scene()?;
+        let Some(mut tab) = self.tab.take() else { return Ok(()) };
+        let result = self.rebuild(&mut tab);
+        let warnings: Vec<String> = tab.runner.as_ref().map(|r| r.warnings().to_vec()).unwrap_or_default();
+        let frame = tab.frame;
+        self.tab = Some(tab);
+        match result {
+            Ok(change) => {
+                for w in warnings {
+                    self.notice(format!("warning: {w}"))?;
+                }
+                self.next_due = Instant::now();
+                self.told = None;
+                self.send_time(Some(change))?;
+                // A state already at the frame is shown at once.
+                if self.frames_done() == Some(frame + 1) { self.catch_up() } else { Ok(()) }
+            }
+            Err(message) => self.send(message),
+        }
+    }
+
+    /// Build `tab`'s runner for its scene; returns `"render"` when the simulation's state
+    /// carried over (only how frames are drawn changed) or `"simulation"` when it runs
+    /// again from frame 0.
+    fn rebuild(&self, tab: &mut Tab) -> Result<&'static str, Value> {
+        let old = tab.runner.take();
+        tab.target = None;
+        let mut runner = build_runner(&tab.scene, self.preview, &sandbox(self.dir.path()), &self.limits)?;
+        tab.size = self.preview;
+        tab.frame = tab.frame.min(tab.length() - 1);
+        let kept = old
+            .filter(|o| same_simulation(o, &runner))
+            .and_then(|o| o.checkpoint().ok())
+            .is_some_and(|bytes| runner.restore(&bytes).is_ok());
+        if !kept {
+            tab.timeline.clear();
+        }
+        let frame = tab.frame;
+        tab.runner = Some(runner);
+        // Past the frame (a shorter scene): back to it through the states kept.
+        if let Some(r) = &mut tab.runner
+            && r.frames_done() > frame + 1
+        {
+            let restored = tab.timeline.at_or_before(frame + 1).is_some_and(|(_, b)| r.restore(b).is_ok());
+            if !restored {
+                *r = build_runner(&tab.scene, self.preview, &sandbox(self.dir.path()), &self.limits)?;
+            }
+        }
+        tab.target = Some(frame);
+        Ok(if kept { "render" } else { "simulation" })
+    }
+
+    /// Where the active tab is in time.
+    fn send_time(&self, change: Option<&'static str>) -> Result<(), Closed> {
+        let Some(tab) = &self.tab else { return Ok(()) };
+        let mut msg = json!({
+            "type": "time",
+            "generation": self.generation,
+            "frame": tab.frame,
+            "target": tab.target,
+            "length": tab.length(),
+            "fps": preview_fps(&tab.scene),
+            "playing": self.playing,
+            "looping": self.looping,
+            // States kept, as the frames they show.
+            "kept": tab.timeline.kept().iter().map(|f| f - 1).collect::<Vec<_>>(),
+            "kept_every": tab.timeline.every(),
+            "kept_bytes": tab.timeline.bytes(),
+        });
+        if let Some(c) = change {
+            msg["change"] = json!(c);
+        }
+        self.send(msg)
+    }
+
+    fn send_scene(&self) -> Result<(), Closed> {
+        let Some(tab) = &self.tab else { return Ok(()) };
+        let mut msg = json!({
+            "type": "scene",
+            "generation": self.generation,
+            "phenomenon": tab.scene.phenomenon().name(),
+            "scene": tab.scene.to_json(),
+            "name": tab.name,
+            "dirty": tab.scene != tab.baseline,
+            "undo": tab.undo.len(),
+            "redo": tab.redo.len(),
+        });
+        if let Some(a) = tab.scene.get::<AuroraScene>() {
+            msg["editor"] = serde_json::to_value(editor::view(&a.aurora, &tab.drawn)).unwrap_or(Value::Null);
+        }
+        self.send(msg)
+    }
+
+    /// One step of the active tab; `None` without a simulation or when it stopped (the
+    /// page is told). The state is offered to the timeline.
+    fn step(&mut self) -> Result<Option<FrameRecord>, Closed> {
+        let Some(tab) = &mut self.tab else { return Ok(None) };
+        let Some(runner) = &mut tab.runner else { return Ok(None) };
+        match runner.step() {
+            Ok(record) => {
+                tab.timeline.offer(runner);
+                Ok(Some(record))
+            }
+            Err(e) => {
+                tab.runner = None;
+                tab.target = None;
+                self.playing = false;
+                self.error(format!("{e}"))?;
+                Ok(None)
+            }
+        }
+    }
+
+    /// Render the active tab's state now and send it to the page.
+    fn show(&mut self, record: &mut FrameRecord) -> Result<(), Closed> {
+        let generation = self.generation;
+        let Some(tab) = &mut self.tab else { return Ok(()) };
+        let length = tab.length();
+        let Some(runner) = &mut tab.runner else { return Ok(()) };
+        let Some(frame) = runner.frames_done().checked_sub(1) else { return Ok(()) };
+        tab.frame = frame;
+        record.frame = frame;
+        let mut sink = PreviewSink { generation, shown: frame, length, encoder: &self.encoder };
+        runner.output(record, &mut sink).map_err(|_| Closed)
+    }
+}
+impl Session {
+    /// Put the active tab aside as it is.
+    fn stash_active(&mut self) {
+        if let Some(tab) = self.tab.take() {
+            self.stash.insert(tab.scene.phenomenon().name(), tab);
+        }
+    }
+
+    /// Show `phenomenon`'s tab: as it was left, or with its first shipped scene.
+    fn open_tab(&mut self, phenomenon: &str) -> Result<(), Closed> {
+        let Some(entry) = registry::phenomenon(phenomenon) else {
+            return self.error(format!("unknown phenomenon `{phenomenon}`: use {}", registry::names()));
+        };
+        let active = self.tab.as_ref().is_some_and(|t| t.scene.phenomenon() == entry);
+        if !active {
+            self.stash_active();
+            self.tab = self.stash.remove(entry.name());
+        }
+        match &self.tab {
+            // Same size: the runner goes on where it was.
+            Some(t) if t.runner.is_some() && t.size == self.preview => {
+                self.generation = self.generation.wrapping_add(1);
+                self.send_scene()?;
+                let frame = t.target.unwrap_or(t.frame);
+                self.go_to(frame)
+            }
+            Some(_) => self.restart(),
+            None => match shipped::SHIPPED.iter().find(|s| s.phenomenon == entry.name()) {
+                Some(first) => self.load_builtin(first.name.to_string()),
+                None => self.error(format!("no shipped scene of {phenomenon}")),
+            },
+        }
+    }
+
+    /// Open `scene` named `name` in its phenomenon's tab at frame 0 (undo goes back to
+    /// the scene before).
+    fn open(&mut self, scene: Scene, name: String) -> Result<(), Closed> {
+        let entry = scene.phenomenon();
+        if self.tab.as_ref().is_none_or(|t| t.scene.phenomenon() != entry) {
+            self.stash_active();
+            self.tab = self.stash.remove(entry.name());
+        }
+        let budget = self.timeline_budget();
+        match &mut self.tab {
+            Some(tab) => {
+                tab.remember(None);
+                let drawn = scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default();
+                tab.take(Snapshot { scene: scene.clone(), drawn, name });
+                tab.baseline = scene;
+                tab.runner = None;
+                tab.timeline.clear();
+                tab.frame = 0;
+            }
+            None => self.tab = Some(Tab::new(scene, name, budget)),
+        }
+        self.restart()
     }
 
     /// Open the shipped scene `name`.
     fn load_builtin(&mut self, name: String) -> Result<(), Closed> {
         match shipped::shipped(&name) {
             Some(b) => match b.scene() {
-                Ok(scene) => {
-                    self.scene_name = name;
-                    self.replace(scene)
-                }
+                Ok(scene) => self.open(scene, name),
                 Err(e) => self.error(format!("shipped scene {name} is invalid: {e}")),
             },
             None => self.error(format!("no shipped scene `{name}`")),
@@ -469,9 +946,9 @@ impl Session {
     fn load_toml(&mut self, text: &str, name: String) -> Result<(), Closed> {
         match phenomena_scene::parse(text, &name) {
             Ok(scene) => {
-                self.scene_name =
+                let stem =
                     Path::new(&name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name);
-                self.replace(scene)
+                self.open(scene, stem)
             }
             Err(e) => self.send(json!({
                 "type": "error",
@@ -481,10 +958,9 @@ impl Session {
         }
     }
 
-    /// Open a scene in its JSON form (the page returning to a tab); the scene keeps its
-    /// name while it is of the same phenomenon.
-    fn load_json(&mut self, phenomenon: String, scene: Value) -> Result<(), Closed> {
-        let s = match scene_from_json(&phenomenon, scene) {
+    /// Open a scene in its JSON form (a preset the page kept).
+    fn load_json(&mut self, phenomenon: &str, scene: Value, name: Option<String>) -> Result<(), Closed> {
+        let s = match scene_from_json(phenomenon, scene) {
             Ok(s) => s,
             Err(e) => return self.error(format!("scene refused: {e}")),
         };
@@ -492,123 +968,48 @@ impl Session {
         if !problems.is_empty() {
             return self.error(format!("scene refused: {}", joined(&problems)));
         }
-        let same = self.scene.as_ref().is_some_and(|old| old.phenomenon().name() == phenomenon);
-        if !same || self.scene_name.is_empty() {
-            self.scene_name = phenomenon;
-        }
-        self.replace(s)
+        self.open(s, name.unwrap_or_else(|| phenomenon.to_string()))
     }
 
-    /// The scene as TOML for the page to download.
-    fn save(&mut self) -> Result<(), Closed> {
-        let Some(scene) = &self.scene else { return self.error("no scene to save: load one first") };
-        match scene_toml(scene) {
+    /// The scene as TOML for the page to download, as `name` (a plain file name) if
+    /// given; what is saved becomes the scene the dirty marker compares with.
+    fn save(&mut self, name: Option<String>) -> Result<(), Closed> {
+        let Some(tab) = &mut self.tab else { return self.error("no scene to save: load one first") };
+        if let Some(n) = name {
+            let n = n.trim().trim_end_matches(".toml");
+            let plain = !n.is_empty()
+                && n.len() <= 64
+                && n.chars().all(|c| c.is_ascii_alphanumeric() || " ._-".contains(c))
+                && !n.starts_with('.');
+            if !plain {
+                return self.error(format!(
+                    "save as {n:?}: use 1 to 64 letters, digits, spaces, dots, - and _ (not starting with a dot)"
+                ));
+            }
+            tab.name = n.to_string();
+        }
+        match scene_toml(&tab.scene) {
             Ok(text) => {
-                let problems = scene.validate();
-                self.send(json!({
+                tab.baseline = tab.scene.clone();
+                let problems = tab.scene.validate();
+                let msg = json!({
                     "type": "saved",
-                    "name": format!("{}.toml", scene.phenomenon().name()),
+                    "name": format!("{}.toml", tab.name),
+                    "scene_name": tab.name,
                     "toml": text,
+                    "dirty": false,
                     "valid": problems.is_empty(),
                     "problems": problems.iter().map(ToString::to_string).collect::<Vec<_>>(),
-                }))
+                });
+                self.send(msg)
             }
             Err(e) => self.error(format!("cannot write the scene as TOML: {e}")),
         }
     }
 
-    /// Take a new scene (already valid) and start it.
-    fn replace(&mut self, scene: Scene) -> Result<(), Closed> {
-        self.drawn = scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default();
-        self.scene = Some(scene);
-        self.rebuild()
-    }
-
-    /// A new generation: the scene to the page, the simulation rebuilt, its first frame.
-    fn rebuild(&mut self) -> Result<(), Closed> {
-        self.generation = self.generation.wrapping_add(1);
-        self.runner = None;
-        let Some(mut scene) = self.scene.clone() else {
-            return Ok(());
-        };
-        self.send_scene()?;
-        // The preview runs the authored scene at the preview's size.
-        let s = scene.settings_mut();
-        (s.width, s.height) = self.preview;
-        if let Some(a) = scene.get::<AuroraScene>()
-            && a.aurora.keyframes.first().is_none_or(|k| k.sheets.is_empty())
-        {
-            return self.notice("draw a sheet on the source canvas to start the aurora");
-        }
-        let problems = scene.validate();
-        if !problems.is_empty() {
-            return self.send(json!({
-                "type": "error",
-                "message": format!("the preview waits for a valid scene: {}", joined(&problems)),
-                "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
-            }));
-        }
-        match Runner::with_limits(&scene, &sandbox(self.dir.path()), &self.limits) {
-            Ok(mut runner) => {
-                runner.set_preview(true);
-                runner.set_clock(crate::render::wall_clock());
-                for w in runner.warnings() {
-                    self.notice(format!("warning: {w}"))?;
-                }
-                self.runner = Some(runner);
-            }
-            Err(e) => {
-                let issues = e.key().map(|k| json!([{"field": k, "message": e.to_string()}]));
-                return self.send(json!({
-                    "type": "error",
-                    "message": format!("cannot start the simulation: {e}"),
-                    "issues": issues.unwrap_or(json!([])),
-                }));
-            }
-        }
-        self.next_due = Instant::now();
-        self.show(&mut FrameRecord::default())
-    }
-
-    fn send_scene(&self) -> Result<(), Closed> {
-        let Some(scene) = &self.scene else { return Ok(()) };
-        let mut msg = json!({
-            "type": "scene",
-            "generation": self.generation,
-            "phenomenon": scene.phenomenon().name(),
-            "scene": scene.to_json(),
-        });
-        if let Some(a) = scene.get::<AuroraScene>() {
-            msg["editor"] = serde_json::to_value(editor::view(&a.aurora, &self.drawn)).unwrap_or(Value::Null);
-        }
-        self.send(msg)
-    }
-
-    /// One step; `None` without a simulation or when it stopped (the page is told).
-    fn step(&mut self) -> Result<Option<FrameRecord>, Closed> {
-        let Some(runner) = &mut self.runner else { return Ok(None) };
-        match runner.step() {
-            Ok(record) => Ok(Some(record)),
-            Err(e) => {
-                self.playing = false;
-                self.runner = None;
-                self.error(format!("{e}"))?;
-                Ok(None)
-            }
-        }
-    }
-
-    /// Render the current state and send it to the page.
-    fn show(&mut self, record: &mut FrameRecord) -> Result<(), Closed> {
-        let Some(runner) = &mut self.runner else { return Ok(()) };
-        let shown = runner.frames_done();
-        let mut sink = PreviewSink { generation: self.generation, shown, encoder: &self.encoder };
-        runner.output(record, &mut sink).map_err(|_| Closed)
-    }
-
     fn set(&mut self, path: &str, value: Value) -> Result<(), Closed> {
-        let Some(scene) = &self.scene else { return self.error("no scene yet: load one first") };
-        let candidate = match scene.with_value(path, value.clone()) {
+        let Some(tab) = &self.tab else { return self.error("no scene yet: load one first") };
+        let candidate = match tab.scene.with_value(path, value.clone()) {
             Ok(c) => c,
             Err(e) => {
                 self.send(json!({"type": "error", "message": format!("{path} = {value}: {e}"), "issues": [{"field": path, "message": e}]}))?;
@@ -617,120 +1018,114 @@ impl Session {
         };
         let problems = studio_problems(&candidate);
         if !problems.is_empty() {
-            self.send(json!({
-                "type": "error",
-                "message": joined(&problems),
-                "issues": problems.iter().map(|i| json!({"field": i.field, "message": i.to_string()})).collect::<Vec<_>>(),
-            }))?;
+            self.send(problems_message("", &problems))?;
             return self.send_scene(); // the page's controls go back to the scene's values
         }
-        self.scene = Some(candidate);
-        self.rebuild()
+        if let Some(tab) = &mut self.tab {
+            tab.remember(None);
+            tab.scene = candidate;
+        }
+        self.restart()
+    }
+
+    /// Undo the last edit (or redo the last undone): the scene before it, at the same
+    /// frame.
+    fn undo(&mut self, redo: bool) -> Result<(), Closed> {
+        let Some(tab) = &mut self.tab else { return Ok(()) };
+        let Some(back) = (if redo { tab.redo.pop() } else { tab.undo.pop() }) else {
+            return self.notice(if redo { "nothing to redo" } else { "nothing to undo" });
+        };
+        let now = tab.snapshot();
+        if redo {
+            tab.undo.push(now)
+        } else {
+            tab.redo.push(now)
+        }
+        tab.coalesce = None;
+        tab.take(back);
+        self.restart()
     }
 
     /// The flame's wind, steered live: the same simulation continues (no new
-    /// generation), and the scene keeps the new wind.
+    /// generation), the scene keeps the new wind, and the states kept after this frame
+    /// (simulated in the old wind) are forgotten. A drag is one edit for undo.
     fn wind(&mut self, force: [f32; 3]) -> Result<(), Closed> {
         use phenomena_scene::flame::WIND_PATH;
-        let Some(scene) = &self.scene else { return self.error("wind applies to flame scenes") };
+        let Some(tab) = &mut self.tab else { return self.error("wind applies to flame scenes") };
         let value = json!({ "force_n_m3": force });
-        let Ok(updated) = scene.with_value(WIND_PATH, value.clone()) else {
+        let Ok(updated) = tab.scene.with_value(WIND_PATH, value.clone()) else {
             return self.error("wind applies to flame scenes");
         };
-        if let Some(runner) = &mut self.runner {
+        if let Some(runner) = &mut tab.runner {
             match runner.steer(WIND_PATH, &value) {
-                Steer::Applied => {}
+                Steer::Applied => tab.timeline.forget_after(runner.frames_done()),
                 Steer::NotLive => return self.error("wind applies to flame scenes"),
                 Steer::Refused(e) => return self.error(format!("wind {force:?} refused: {e}")),
             }
         }
-        self.scene = Some(updated);
-        self.send(json!({"type": "wind", "force": force}))
+        tab.remember(Some("wind"));
+        tab.scene = updated;
+        let (undo, dirty) = (tab.undo.len(), tab.scene != tab.baseline);
+        self.send(json!({"type": "wind", "force": force, "path": WIND_PATH, "undo": undo, "dirty": dirty}))
     }
 
     fn snow_glb(&self) -> Result<Vec<u8>, String> {
-        match &self.runner {
-            Some(runner) if self.scene.as_ref().is_some_and(|s| s.phenomenon().name() == "snow") => {
+        match self.tab.as_ref().and_then(|t| t.runner.as_ref()) {
+            Some(runner) if runner.phenomenon().name() == "snow" => {
                 runner.export("snow-mesh", "glb").map(|e| e.bytes)
             }
             _ => Err("the session is not running a snow scene".into()),
         }
     }
 
-    fn render_final(&mut self, frames: Option<u32>, format: Option<&str>) -> Result<(), Closed> {
-        let Some(mut scene) = self.scene.clone() else { return self.error("no scene to render") };
+    fn render_final(&mut self, request: &Request) -> Result<(), Closed> {
+        let Some(tab) = &self.tab else { return self.error("no scene to render") };
+        let scene = tab.scene.clone();
         let problems = scene.validate();
         if !problems.is_empty() {
             return self.error(format!("the scene is not valid: {}", joined(&problems)));
         }
-        let name = format.unwrap_or("png");
-        let Some(format) = Format::named(name) else {
-            let all: Vec<&str> = registry::FORMATS.iter().map(|f| f.name()).collect();
-            return self.error(format!("render final: no format `{name}`: use {}", all.join(", ")));
+        let plan = match request.plan(&scene) {
+            Ok(plan) => plan,
+            Err(e) => return self.error(format!("render final: {e}")),
         };
-        if let Err(e) = format.check(scene.phenomenon()) {
-            return self.error(format!("render final: {e}"));
-        }
-        let total = frames.unwrap_or(scene.settings().frames);
-        if !(1..=100_000).contains(&total) {
-            return self.error(format!("render final: frames = {total}: expected [1, 100000]"));
-        }
-        // The count asked for is the scene's length (the saved scene says so).
-        scene.settings_mut().frames = total;
         if self.render_thread.as_ref().is_some_and(|t| !t.is_finished()) {
             return self.error("a final render is still running: wait for it to finish");
         }
-        let dir = match render_folder(&self.out_root, &self.scene_name, format) {
+        let dir = match final_render::render_folder(&self.out_root, &tab.name, plan.format) {
             Ok(dir) => dir,
             Err(e) => return self.error(format!("render final: {e:#}")),
         };
         let cancel = Arc::new(AtomicBool::new(false));
         self.render_cancel = Some(cancel.clone());
         let out = self.out.clone();
-        let assets = sandbox(self.dir.path());
-        let limits = self.limits;
-        let spawned = std::thread::Builder::new().name("studio-render".into()).spawn(move || {
-            let send = |v: Value| out.blocking_send(Out::Text(v.to_string())).is_ok();
-            let shown = dir.display().to_string();
-            let mut progress = FinalProgress { send: &send, cancel: &cancel, total, dir: &shown };
-            // A bug in a render ends that render with a message, not silently.
-            let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                render_to(&scene, &assets, &limits, &dir, total, format, &mut progress)
-            }));
-            match rendered {
-                Ok(Ok(())) => {
-                    send(json!({"type": "rendered", "dir": shown, "frames": total}));
-                }
-                Ok(Err(e)) => {
-                    send(json!({"type": "error", "message": format!("render final failed: {e:#}")}));
-                }
-                Err(_) => {
-                    send(json!({"type": "error", "message": "render final failed: an internal error stopped it"}));
-                }
-            }
-        });
-        match spawned {
+        let send = move |v: Value| out.blocking_send(Out::Text(v.to_string())).is_ok();
+        let (first, last) = (plan.frames.start, plan.frames.end - 1);
+        let shown = dir.display().to_string();
+        match final_render::spawn(scene, plan, sandbox(self.dir.path()), self.limits, dir, cancel, send) {
             Ok(thread) => {
                 self.render_thread = Some(thread);
-                self.notice(format!("rendering {total} frames to {}", self.out_root.display()))
+                self.notice(format!("rendering frames {first} to {last} to {shown}"))
             }
             Err(e) => self.error(format!("cannot start the render: {e}")),
         }
     }
 
     fn aurora(&mut self, op: EditOp) -> Result<(), Closed> {
-        let Some(a) = self.scene.as_ref().and_then(|s| s.get::<AuroraScene>()) else {
+        let Some(a) = self.tab.as_ref().and_then(|t| t.scene.get::<AuroraScene>()) else {
             return self.error("aurora editing needs an aurora scene: open the Aurora tab");
         };
         let mut config = a.aurora.clone();
-        let mut drawn = self.drawn.clone();
+        let Some(tab) = &mut self.tab else { return Ok(()) };
+        let mut drawn = tab.drawn.clone();
         match editor::edit(&mut config, &mut drawn, op) {
             Ok(message) => {
-                if let Some(a) = self.scene.as_mut().and_then(|s| s.get_mut::<AuroraScene>()) {
+                tab.remember(None);
+                if let Some(a) = tab.scene.get_mut::<AuroraScene>() {
                     a.aurora = config;
                 }
-                self.drawn = drawn;
-                self.rebuild()?;
+                tab.drawn = drawn;
+                self.restart()?;
                 if let Some(m) = message {
                     self.notice(m)?;
                 }
@@ -741,97 +1136,9 @@ impl Session {
     }
 }
 
-/// A new folder for one final render, its own: `OUT/SCENE-YYYY-MM-DD-HHMMSS-FORMAT`
-/// (local time; the scene's name with anything but letters, digits, `.`, `_` and `-`
-/// as `_`), created here so no other render (another tab, another studio on the same
-/// folder) can take it: when the name is taken, `-2`, `-3`, ... is added.
-pub(crate) fn render_folder(out_root: &Path, scene_name: &str, format: Format) -> Result<PathBuf> {
-    ensure_dir(out_root)?;
-    let mut name: String = scene_name
-        .chars()
-        .map(|c| if c.is_ascii_alphanumeric() || "._-".contains(c) { c } else { '_' })
-        .take(64)
-        .collect();
-    if name.is_empty() || name.starts_with('.') {
-        name.insert_str(0, "scene");
-    }
-    let stamp = chrono::Local::now().format("%Y-%m-%d-%H%M%S");
-    let base = format!("{name}-{stamp}-{}", format.name());
-    for n in 1..=1000 {
-        let dir = if n == 1 { out_root.join(&base) } else { out_root.join(format!("{base}-{n}")) };
-        match std::fs::create_dir(&dir) {
-            Ok(()) => return Ok(dir),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
-            Err(e) => anyhow::bail!("cannot create {}: {e}", dir.display()),
-        }
-    }
-    anyhow::bail!("cannot find a free folder name like {} in {}", base, out_root.display())
-}
-
-/// A final render's progress to the page; stops the render when cancelled or when the
-/// page is gone.
-struct FinalProgress<'a> {
-    send: &'a dyn Fn(Value) -> bool,
-    cancel: &'a AtomicBool,
-    total: u32,
-    dir: &'a str,
-}
-
-impl Observer for FinalProgress<'_> {
-    fn frame(&mut self, record: &FrameRecord) -> std::ops::ControlFlow<()> {
-        let done = record.frame + 1;
-        let told =
-            (self.send)(json!({"type": "progress", "done": done, "total": self.total, "dir": self.dir}));
-        if !told || self.cancel.load(Ordering::Relaxed) {
-            std::ops::ControlFlow::Break(())
-        } else {
-            std::ops::ControlFlow::Continue(())
-        }
-    }
-}
-
-/// Render `total` frames of `scene` at its own size into `dir` in `format` (with the
-/// scene file beside them) through the runner, its files from `assets`.
-fn render_to(
-    scene: &Scene,
-    assets: &Assets,
-    limits: &Limits,
-    dir: &Path,
-    total: u32,
-    format: Format,
-    progress: &mut FinalProgress<'_>,
-) -> Result<()> {
-    ensure_dir(dir)?;
-    let text = scene_toml(scene).map_err(anyhow::Error::msg)?;
-    write_bytes_atomic(&dir.join("scene.toml"), text.as_bytes())?;
-    let job = Job { frames: Some(0..total), ..Job::new(dir, format) };
-    phenomena_scene::job::render(scene.clone(), assets, limits, &job, progress)?;
-    Ok(())
-}
-
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-
-    /// Two final renders started in the same second (two tabs, or two formats of one
-    /// scene) get folders of their own, named by scene, date and time and format.
-    #[test]
-    fn each_final_render_gets_a_folder_of_its_own() {
-        let png = || Format::named("png").unwrap();
-        let root = tempfile::tempdir().unwrap();
-        let a = render_folder(root.path(), "flame-paper", png()).unwrap();
-        let b = render_folder(root.path(), "flame-paper", png()).unwrap();
-        let c = render_folder(root.path(), "flame-paper", Format::named("exr").unwrap()).unwrap();
-        assert!(a != b && a.is_dir() && b.is_dir() && c.is_dir());
-        let name = a.file_name().unwrap().to_string_lossy().into_owned();
-        assert!(name.starts_with("flame-paper-20") && name.ends_with("-png"), "{name}");
-        assert!(b.file_name().unwrap().to_string_lossy().starts_with(&name), "{}", b.display());
-        assert!(c.file_name().unwrap().to_string_lossy().ends_with("-exr"));
-        // A hostile name stays one plain folder inside the root.
-        let d = render_folder(root.path(), "../x\n/..", png()).unwrap();
-        assert_eq!(d.parent().unwrap(), root.path());
-        assert!(d.file_name().unwrap().to_string_lossy().starts_with("scene.._x__.."), "{}", d.display());
-    }
 
     #[test]
     fn saved_scenes_read_back_identically() {

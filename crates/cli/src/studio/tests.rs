@@ -468,3 +468,132 @@ fn render_final_writes_the_chosen_format() {
         );
     });
 }
+
+/// The next message of `kind` for which `pred` holds, skipping others; 60 s at most.
+async fn until_json(ws: &mut Client, kind: &str, pred: impl Fn(&Value) -> bool) -> Value {
+    loop {
+        let v = next_json(ws, kind).await;
+        if pred(&v) {
+            return v;
+        }
+    }
+}
+
+/// The next preview image of frame `frame` (its JPEG bytes and generation); 60 s at most.
+async fn image_of(ws: &mut Client, frame: u32) -> (u32, Vec<u8>) {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
+    loop {
+        let m = tokio::time::timeout_at(deadline, ws.next())
+            .await
+            .unwrap_or_else(|_| panic!("no image of frame {frame} within 60 s"))
+            .expect("socket open")
+            .expect("no socket error");
+        if let WsMessage::Binary(b) = m {
+            let word = |i: usize| u32::from_le_bytes(b[4 * i..4 * i + 4].try_into().unwrap());
+            if word(1) == frame {
+                return (word(0), b[16..].to_vec());
+            }
+        }
+    }
+}
+
+/// The `time` message of the next scene change: how time was kept.
+async fn change_of(ws: &mut Client) -> Value {
+    let scene = next_json(ws, "scene").await;
+    let generation = scene["generation"].clone();
+    until_json(ws, "time", |t| t["generation"] == generation && t.get("change").is_some()).await
+}
+
+/// The preview is a timeline: seeking shows that frame (the same image as playing to
+/// it, from a kept state), a render-only change keeps the frame from the running
+/// simulation, a simulation change simulates again up to it, undo and redo restore the
+/// values, and play loops at the scene's end or stops there.
+#[test]
+fn the_preview_keeps_time() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "preview", "width": 160, "height": 96})).await;
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        change_of(&mut ws).await;
+        send(&mut ws, json!({"type": "set", "path": "scene.frames", "value": 30})).await;
+        let t = change_of(&mut ws).await;
+        assert_eq!(t["change"], "render", "the length is not part of the simulation: {t}");
+        // Played through frame 12: the image of frame 12 as played.
+        let (_, played) = image_of(&mut ws, 12).await;
+        until_json(&mut ws, "frame", |f| f["frame"].as_u64() >= Some(20)).await;
+        send(&mut ws, json!({"type": "seek", "frame": 12})).await;
+        let t = until_json(&mut ws, "time", |t| t["target"].is_null() && t["frame"] == 12).await;
+        assert!(t["kept"].as_array().unwrap().iter().any(|k| k == 0), "frame 0's state is kept: {t}");
+        assert_eq!(t["playing"], false, "seeking pauses");
+        send(&mut ws, json!({"type": "seek", "frame": 12})).await;
+        let (_, sought) = image_of(&mut ws, 12).await;
+        assert_eq!(sought, played, "frame 12 from a kept state is the frame played");
+
+        // Render-only: the frame and the simulation's state stay.
+        send(&mut ws, json!({"type": "set", "path": "scene.exposure_ev", "value": 1.5})).await;
+        let t = change_of(&mut ws).await;
+        assert_eq!((t["change"].as_str(), t["frame"].as_u64()), (Some("render"), Some(12)), "{t}");
+        let (_, brighter) = image_of(&mut ws, 12).await;
+        assert_ne!(brighter, played);
+        // Simulation: simulated again up to the same frame.
+        send(&mut ws, json!({"type": "set", "path": "flame.emitter.rate_per_s", "value": 500.0})).await;
+        let t = change_of(&mut ws).await;
+        assert_eq!((t["change"].as_str(), t["frame"].as_u64()), (Some("simulation"), Some(12)), "{t}");
+        until_json(&mut ws, "time", |t| t["target"].is_null() && t["frame"] == 12).await;
+
+        // Undo, twice, and redo.
+        send(&mut ws, json!({"type": "undo"})).await;
+        let s = next_json(&mut ws, "scene").await;
+        assert_ne!(s["scene"]["flame"]["emitter"]["rate_per_s"], 500.0);
+        assert_eq!(s["scene"]["scene"]["exposure_ev"], 1.5);
+        send(&mut ws, json!({"type": "undo"})).await;
+        let s = next_json(&mut ws, "scene").await;
+        assert_eq!(s["scene"]["scene"]["exposure_ev"], 0.0);
+        assert_eq!(s["redo"], 2);
+        send(&mut ws, json!({"type": "redo"})).await;
+        let s = next_json(&mut ws, "scene").await;
+        assert_eq!(
+            (s["scene"]["scene"]["exposure_ev"].as_f64(), s["dirty"].as_bool()),
+            (Some(1.5), Some(true))
+        );
+
+        // Loop at the end; with the loop off, stop there.
+        send(&mut ws, json!({"type": "seek", "frame": 26})).await;
+        until_json(&mut ws, "time", |t| t["target"].is_null() && t["frame"] == 26).await;
+        send(&mut ws, json!({"type": "play"})).await;
+        until_json(&mut ws, "frame", |f| f["frame"] == 29).await;
+        let f = next_json(&mut ws, "frame").await;
+        assert_eq!(f["frame"], 0, "after the last frame comes the first: {f}");
+        send(&mut ws, json!({"type": "loop", "on": false})).await;
+        let t = until_json(&mut ws, "time", |t| t["playing"] == false).await;
+        assert_eq!((t["frame"].as_u64(), t["looping"].as_bool()), (Some(29), Some(false)), "{t}");
+    });
+}
+
+/// Render final takes the frames first..=last (those before are simulated and not
+/// written) and says which files it wrote where.
+#[test]
+fn render_final_writes_exactly_the_frames_asked_for() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        next_json(&mut ws, "scene").await;
+        send(&mut ws, json!({"type": "render_final", "first": 3, "last": 5, "format": "png"})).await;
+        let done = next_json(&mut ws, "rendered").await;
+        let files = ["frame_00003.png", "frame_00004.png", "frame_00005.png", "scene.toml"];
+        assert_eq!(done["files"], json!(files), "{done}");
+        assert_eq!((done["first"].as_u64(), done["last"].as_u64()), (Some(3), Some(5)));
+        let dir = std::path::PathBuf::from(done["dir"].as_str().unwrap());
+        let mut on_disk: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        on_disk.sort();
+        assert_eq!(on_disk, files);
+        send(&mut ws, json!({"type": "render_final", "first": 5, "last": 2})).await;
+        let e = next_json(&mut ws, "error").await;
+        assert!(e["message"].as_str().unwrap().contains("last frame 2 is before the first, 5"), "{e}");
+    });
+}
