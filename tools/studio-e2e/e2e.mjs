@@ -44,7 +44,8 @@ const browser = await chromium.launch({
   args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
     '--disable-component-update', '--disable-sync'],
 });
-const page = await browser.newPage({ viewport: { width: 1400, height: 1000 }, acceptDownloads: true });
+// The size of a laptop's browser window: every tab's preview must fit it.
+const page = await browser.newPage({ viewport: { width: 1280, height: 720 }, acceptDownloads: true });
 const consoleErrors = [];
 page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
 page.on('pageerror', (e) => consoleErrors.push(e.message));
@@ -150,6 +151,12 @@ for (const phenomenon of ['aurora', 'flame', 'snow', 'sparkle', 'shot']) {
     }, 20000);
     report.tabs[phenomenon] = { first_image_ms: Date.now() - t0 };
     assert.ok(s.sd > 3, JSON.stringify(s));
+    // The preview fits the 1280x720 window, above the fold, beside the panel.
+    const box = await page.locator('#preview').boundingBox();
+    const panel = await page.locator('#panel').boundingBox();
+    assert.ok(box.x >= 0 && box.y >= 0 && box.x + box.width <= 1280 && box.y + box.height <= 720, `preview at ${JSON.stringify(box)}`);
+    assert.ok(panel.x >= box.x + box.width, `the panel ${JSON.stringify(panel)} overlaps the preview ${JSON.stringify(box)}`);
+    assert.ok(await page.locator('#scrubber').boundingBox().then((b) => b.y + b.height <= 720), 'the scrubber is above the fold');
     await measure(phenomenon);
     report.tabs[phenomenon].first_image_ms = Date.now() - t0;
   });
@@ -167,6 +174,7 @@ await check('shot: each phenomenon has its own sections of controls', async () =
 async function kmToPage(canvasId, p) {
   return page.evaluate(([id, p]) => {
     const c = document.getElementById(id);
+    c.scrollIntoView({ block: 'nearest' }); // the editor sits below the preview
     const r = c.getBoundingClientRect();
     const [x, y] = window.studio.editor.toPx(c, p);
     return [r.left + (x * r.width) / c.width, r.top + (y * r.height) / c.height];
@@ -255,8 +263,16 @@ await check('aurora: keyframes can be added, moved and deleted', async () => {
 });
 
 // --- flame wind ---
-await check('flame: a drag on the preview moves the flame toward the drag', async () => {
+// A preset by its menu entry (the shipped scene's name).
+async function preset(name) {
+  const g = await generation();
+  await page.selectOption('#builtin', name);
+  await until(`the preset ${name}`, () => studio(`window.studio.generation > ${g} && window.studio.name === '${name}' && window.studio.lastFrame >= 0`));
+}
+
+await check('flame: a drag on the preview moves the flame toward the drag, and the wind control shows it', async () => {
   await openTab('flame');
+  await preset('flame-paper');
   await page.click('#play');
   await page.waitForTimeout(3000);
   const calm = await previewStats();
@@ -272,6 +288,9 @@ await check('flame: a drag on the preview moves the flame toward the drag', asyn
     return s.brightX > calm.brightX + 15 ? s : null;
   }, 15000);
   report.flame_wind = { calm_x: calm.brightX, windy_x: windy.brightX };
+  const wind = await page.$$eval('[id="ctl-flame-wind-force_n_m3"], .control[data-path="flame.wind.force_n_m3"] input', (is) => is.map((i) => Number(i.value)));
+  assert.ok(wind.length >= 3 && wind[0] > 0, `the wind control shows the wind blown: ${wind}`);
+  assert.ok(await page.locator('#scene-name.dirty').count() === 1, 'the scene is marked as changed');
 });
 
 // --- snow GLB download ---
@@ -353,7 +372,8 @@ await check('save scene, then phenomena render on the saved file works', async (
 await check('render final writes the frames with progress', async () => {
   await openTab('flame');
   const n = await studio('window.studio.messages.length');
-  await page.fill('#final-frames', '3');
+  await page.fill('#final-first', '0');
+  await page.fill('#final-last', '2');
   await page.click('#render-final');
   const done = await until('the render to finish', async () => {
     const m = await studio(`window.studio.messages.slice(${n}).find((x) => x.text.startsWith('render final:') || x.kind === 'error')`);
@@ -372,7 +392,8 @@ await check('render final writes volumes and flipbooks', async () => {
   for (const [format, files] of [['vdb', ['frame_00000.vdb', 'frame_00000.vdb.json', 'frame_00001.vdb', 'frame_00001.vdb.json', 'scene.toml']],
                                  ['flipbook', ['flipbook.json', 'flipbook.png', 'scene.toml']]]) {
     const n = await studio('window.studio.messages.length');
-    await page.fill('#final-frames', '2');
+    await page.fill('#final-first', '0');
+    await page.fill('#final-last', '1');
     await page.selectOption('#final-format', format);
     await page.click('#render-final');
     const done = await until(`the ${format} render to finish`, async () => {
@@ -385,6 +406,91 @@ await check('render final writes volumes and flipbooks', async () => {
   }
   await openTab('snow');
   assert.deepEqual(await page.$$eval('#final-format option', (os) => os.map((o) => o.value)), ['png', 'exr']);
+});
+
+
+// --- the timeline ---
+const time = () => studio('window.studio.time');
+await check('timeline: play loops at the scene\'s end, or stops there with the loop off', async () => {
+  await openTab('flame');
+  await preset('flame-paper');
+  // The [scene] table's controls.
+  await page.locator('details', { has: page.locator('summary', { hasText: /^\[scene\]$/ }) }).evaluate((d) => { d.open = true; });
+  await page.fill('#ctl-scene-frames', '20');
+  await page.dispatchEvent('#ctl-scene-frames', 'change');
+  await until('a 20-frame scene', async () => (await time())?.length === 20);
+  await page.click('#play');
+  await until('frame 19, then frame 0 again', () => studio(`(() => {
+    const f = window.studio.shownFrames; const i = f.lastIndexOf(19);
+    return i >= 0 && f.slice(i + 1).some((x) => x < 5);
+  })()`), 30000);
+  const shown = await studio('window.studio.shownFrames');
+  assert.ok(Math.max(...shown) <= 19, `no frame past the end: ${shown}`);
+  await page.uncheck('#loop');
+  await until('play to stop at the last frame', async () => {
+    const t = await time();
+    return t && !t.playing && t.frame === 19 && t.looping === false;
+  }, 30000);
+  assert.equal(await page.textContent('#frame-readout'), '19 / 19');
+});
+
+await check('timeline: the scrubber shows frame N, and a render-only change keeps it', async () => {
+  await page.$eval('#scrubber', (e) => { e.value = '7'; e.dispatchEvent(new Event('input')); e.dispatchEvent(new Event('change')); });
+  await until('frame 7 shown', async () => {
+    const t = await time();
+    return t && t.frame === 7 && t.target == null && (await studio('window.studio.lastFrame')) === 7;
+  });
+  assert.equal(await page.textContent('#frame-readout'), '7 / 19');
+  // The exposure control, found by its label.
+  const g = await generation();
+  await page.getByLabel('exposure', { exact: true }).fill('1.5');
+  await page.getByLabel('exposure', { exact: true }).dispatchEvent('change');
+  const c = await until('the render-only change', () => studio(`window.studio.lastChange && window.studio.lastChange.generation > ${g} && window.studio.lastChange`));
+  assert.deepEqual([c.change, c.frame], ['render', 7]);
+  await until('frame 7 drawn again', () => studio(`window.studio.generation > ${g} && window.studio.lastFrame === 7`));
+  assert.match(await page.textContent('#time-status'), /drawn again from the running simulation/);
+  assert.ok(await page.locator('#scene-name.dirty').count() === 1, 'the scene is marked as changed');
+});
+
+await check('undo restores the old value (Ctrl+Z), redo brings it back, Space plays and pauses', async () => {
+  await page.evaluate(() => document.activeElement && document.activeElement.blur());
+  await page.keyboard.press('Control+z');
+  await until('exposure 0 again', () => studio('window.studio.scene.scene.exposure_ev === 0'));
+  assert.equal(await page.getByLabel('exposure', { exact: true }).inputValue(), '0');
+  assert.equal((await time()).frame, 7, 'undo keeps the frame');
+  await page.keyboard.press('Control+Shift+Z');
+  await until('exposure 1.5 again', () => studio('window.studio.scene.scene.exposure_ev === 1.5'));
+  await page.keyboard.press('Space');
+  await until('playing', async () => (await time()).playing === true);
+  await page.keyboard.press('Space');
+  await until('paused', async () => (await time()).playing === false);
+  const at = (await time()).frame;
+  await page.keyboard.press('ArrowLeft');
+  await until('one frame back', async () => (await time()).frame === at - 1 && (await time()).target == null);
+});
+
+await check('render final writes exactly frames A..B and says where', async () => {
+  const n = await studio('window.studio.messages.length');
+  await page.selectOption('#final-format', 'png');
+  await page.fill('#final-first', '4');
+  await page.fill('#final-last', '6');
+  await page.click('#render-final');
+  await until('the render to finish', () => studio(`window.studio.messages.slice(${n}).some((x) => x.text.startsWith('render final:') || x.kind === 'error')`), 60000);
+  const r = await studio('window.studio.lastRender');
+  assert.ok(r, 'a rendered message');
+  assert.deepEqual(readdirSync(r.dir).sort(), ['frame_00004.png', 'frame_00005.png', 'frame_00006.png', 'scene.toml']);
+  assert.match(await page.textContent('#final-status'), new RegExp(`frames 4 to 6 in ${r.dir.replace(/[.*+?^${}()|[\]\\]/g, '\\$&')}`));
+});
+
+await check('numbers show as written and messages clear when resolved', async () => {
+  await openTab('sparkle');
+  assert.equal(await page.inputValue('#ctl-sparkle-phong-threshold_i_e'), '0.0025');
+  await page.fill('#seed', '-4');
+  await page.dispatchEvent('#seed', 'change');
+  await until('an error', () => studio(`document.querySelectorAll('#messages .error').length > 0`));
+  await page.fill('#seed', '4');
+  await page.dispatchEvent('#seed', 'change');
+  await until('the error gone', () => studio(`window.studio.scene.scene.seed === 4 && document.querySelectorAll('#messages .error').length === 0`));
 });
 
 await check('no console errors during the whole run', async () => {

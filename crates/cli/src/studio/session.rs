@@ -98,9 +98,13 @@ pub(crate) enum Incoming {
         name: Option<String>,
     },
     /// Set one parameter: a dotted path into the scene (`flame.emitter.rate_per_s`).
+    /// Setting the value it has does nothing, unless `reload` (a file of that name
+    /// was uploaded again).
     Set {
         path: String,
         value: Value,
+        #[serde(default)]
+        reload: bool,
     },
     Play,
     Pause,
@@ -586,7 +590,7 @@ impl Session {
                 self.load_toml(&text, name.unwrap_or_else(|| "uploaded.toml".into()))
             }
             Incoming::Scene { phenomenon, scene, name } => self.load_json(&phenomenon, scene, name),
-            Incoming::Set { path, value } => self.set(&path, value),
+            Incoming::Set { path, value, reload } => self.set(&path, value, reload),
             Incoming::Play => {
                 self.playing = true;
                 self.next_due = Instant::now();
@@ -1007,7 +1011,7 @@ impl Session {
         }
     }
 
-    fn set(&mut self, path: &str, value: Value) -> Result<(), Closed> {
+    fn set(&mut self, path: &str, value: Value, reload: bool) -> Result<(), Closed> {
         let Some(tab) = &self.tab else { return self.error("no scene yet: load one first") };
         let candidate = match tab.scene.with_value(path, value.clone()) {
             Ok(c) => c,
@@ -1016,6 +1020,9 @@ impl Session {
                 return self.send_scene();
             }
         };
+        if candidate == tab.scene && !reload {
+            return Ok(()); // nothing changes: no undo entry, no new simulation
+        }
         let problems = studio_problems(&candidate);
         if !problems.is_empty() {
             self.send(problems_message("", &problems))?;

@@ -1,16 +1,18 @@
 // phenomena studio: one WebSocket per tab; the server simulates and renders, this page
 // draws, controls and shows. Test hooks live on `window.studio`.
-import { buildForm, markIssues, getPath } from './form.js';
+import { buildForm, markIssues, getPath, showValue } from './form.js';
 import { AuroraEditor } from './aurora.js';
 
 const $ = (id) => document.getElementById(id);
 const studio = {
   session: null, phenomenon: null, generation: 0, scene: null, frames: 0, fps: 0,
   latencies: [], messages: [], counters: null, lastImage: null, editor: null,
+  time: null, name: '', dirty: false, undo: 0, redo: 0, lastRender: null,
+  shownFrames: [], // the frame numbers of the last 200 images shown (tests)
 };
 window.studio = studio;
 
-const scenes = {}; // last scene JSON per phenomenon, restored when a tab is revisited
+const PRESETS_KEY = 'phenomena-studio-presets'; // this browser's own presets
 let hello = null;
 let catalogue = null;
 let ws = null;
@@ -34,6 +36,13 @@ function setParam(path, value) {
   sendChange({ type: 'set', path, value });
 }
 
+// A parameter naming a file just uploaded: set again even when the name is the same.
+function setFile(path, value) {
+  sendChange({ type: 'set', path, value, reload: true });
+}
+
+// Messages: errors stay until the scene changes (they are about the scene before);
+// notices fade after a few seconds.
 function say(kind, text) {
   studio.messages.push({ kind, text });
   const box = $('messages');
@@ -42,6 +51,11 @@ function say(kind, text) {
   d.textContent = text;
   box.prepend(d);
   while (box.children.length > 4) box.lastChild.remove();
+  if (kind === 'notice') setTimeout(() => d.remove(), 8000);
+}
+
+function clearMessages() {
+  $('messages').replaceChildren();
 }
 
 const editor = new AuroraEditor({
@@ -51,21 +65,54 @@ const editor = new AuroraEditor({
 });
 studio.editor = editor;
 
-function selectTab(phenomenon) {
-  studio.phenomenon = phenomenon;
+function userPresets() {
+  try {
+    return JSON.parse(localStorage.getItem(PRESETS_KEY) || '[]');
+  } catch {
+    return [];
+  }
+}
+
+// The preset menu: the shipped scenes by their looks, then this browser's own.
+function fillPresets(phenomenon) {
+  const select = $('builtin');
+  select.replaceChildren();
+  const group = (label, items) => {
+    if (!items.length) return;
+    const g = document.createElement('optgroup');
+    g.label = label;
+    for (const [value, text] of items) {
+      const o = document.createElement('option');
+      o.value = value;
+      o.textContent = text;
+      g.append(o);
+    }
+    select.append(g);
+  };
+  group('Presets', hello.builtins.filter((x) => x.phenomenon === phenomenon).map((b) => [b.name, `${b.title} (${b.name})`]));
+  group('Your presets', userPresets().filter((x) => x.phenomenon === phenomenon).map((u) => [`user:${u.name}`, u.name]));
+  const edited = document.createElement('option');
+  edited.value = '';
+  edited.disabled = true;
+  edited.textContent = '(this scene, edited or opened from a file)';
+  select.append(edited);
+}
+
+// Show the preset the scene came from, or say it is its own.
+function showPreset() {
+  const select = $('builtin');
+  const values = [...select.options].map((o) => o.value);
+  const user = `user:${studio.name}`;
+  select.value = !studio.dirty && values.includes(studio.name) ? studio.name : !studio.dirty && values.includes(user) ? user : '';
+}
+
+function markTab(phenomenon) {
   for (const b of document.querySelectorAll('#tabs button')) {
     b.setAttribute('aria-selected', String(b.dataset.phenomenon === phenomenon));
   }
   $('aurora-editor').hidden = phenomenon !== 'aurora';
   $('wind-hint').hidden = phenomenon !== 'flame';
-  const select = $('builtin');
-  select.replaceChildren();
-  for (const b of hello.builtins.filter((x) => x.phenomenon === phenomenon)) {
-    const o = document.createElement('option');
-    o.value = b.name;
-    o.textContent = b.name;
-    select.append(o);
-  }
+  fillPresets(phenomenon);
   const formats = $('final-format');
   formats.replaceChildren();
   for (const f of hello.phenomena.find((p) => p.name === phenomenon).formats) {
@@ -74,10 +121,16 @@ function selectTab(phenomenon) {
     o.textContent = f;
     formats.append(o);
   }
+  $('flipbook-options').hidden = true;
   buildExtras(phenomenon);
+}
+
+// A tab keeps its scene, simulation and frame on the server while another is shown.
+function selectTab(phenomenon) {
+  studio.phenomenon = phenomenon;
+  markTab(phenomenon);
   $('counters').textContent = '';
-  if (scenes[phenomenon]) sendChange({ type: 'scene', phenomenon, scene: scenes[phenomenon] });
-  else sendChange({ type: 'builtin', name: select.options[0].value });
+  sendChange({ type: 'tab', phenomenon });
   history.replaceState(null, '', `#${phenomenon}`);
 }
 
@@ -114,7 +167,7 @@ function buildExtras(phenomenon) {
     box.append(l);
   };
   const background = (path) => upload('Background image', 'image/png', 'background-upload', (names) =>
-    setParam(path, { kind: 'image', path: names[0] }));
+    setFile(path, { kind: 'image', path: names[0] }));
   if (phenomenon === 'flame' || phenomenon === 'sparkle') {
     background('render.background');
   } else if (phenomenon === 'aurora') {
@@ -125,7 +178,7 @@ function buildExtras(phenomenon) {
     upload('Mesh (OBJ, GLB, glTF + buffers, DXF)', '.obj,.glb,.gltf,.bin,.dxf', 'mesh-upload', (names) => {
       const mesh = names.find((n) => /\.(obj|glb|gltf|dxf)$/i.test(n));
       // The mesh replaces the built-in scene (a scene names one or the other).
-      if (mesh) setParam('geometry', { scale: (studio.scene.geometry || {}).scale ?? 1, mesh });
+      if (mesh) setFile('geometry', { scale: (studio.scene.geometry || {}).scale ?? 1, mesh });
       else say('error', 'no mesh among the files: choose an .obj, .glb, .gltf or .dxf file (with the buffers a .gltf names)');
     }, true);
     background('render.background');
@@ -139,20 +192,22 @@ function buildExtras(phenomenon) {
 }
 
 function onScene(msg) {
+  // A new generation is an accepted change: the messages about the scene before go.
+  // (A refused change re-sends the same generation, and its error stays.)
+  if (msg.generation !== studio.generation) {
+    clearMessages();
+    studio.shownFrames = [];
+  }
   studio.generation = msg.generation;
   studio.lastFrame = -1; // no frame of this generation shown yet
   studio.scene = msg.scene;
-  scenes[msg.phenomenon] = msg.scene;
   if (msg.phenomenon !== studio.phenomenon) {
     // A loaded file can switch the tab.
     studio.phenomenon = msg.phenomenon;
-    for (const b of document.querySelectorAll('#tabs button')) {
-      b.setAttribute('aria-selected', String(b.dataset.phenomenon === msg.phenomenon));
-    }
-    $('aurora-editor').hidden = msg.phenomenon !== 'aurora';
-    $('wind-hint').hidden = msg.phenomenon !== 'flame';
-    buildExtras(msg.phenomenon);
+    markTab(msg.phenomenon);
   }
+  $('editor-hint').textContent = '';
+  showScene(msg);
   const controls = catalogue.controls[msg.phenomenon] || [];
   buildForm($('form'), controls, hello.featured[msg.phenomenon] || [], msg.scene, setParam);
   $('seed').value = msg.scene.scene.seed;
@@ -161,7 +216,8 @@ function onScene(msg) {
   const framesKey = `${msg.phenomenon}:${msg.scene.scene.frames}`;
   if (studio.framesKey !== framesKey) {
     studio.framesKey = framesKey;
-    $('final-frames').value = msg.scene.scene.frames;
+    $('final-first').value = 0;
+    $('final-last').value = msg.scene.scene.frames - 1;
   }
   const view = controls.find((c) => c.path === 'render.view');
   const toggle = $('view-toggle');
@@ -179,12 +235,62 @@ function onScene(msg) {
   if (msg.editor) editor.update(msg.editor);
 }
 
+// Name, dirty marker and undo/redo counts.
+function showScene(msg) {
+  if (msg.name !== undefined) studio.name = msg.name;
+  if (msg.dirty !== undefined) studio.dirty = msg.dirty;
+  if (msg.undo !== undefined) studio.undo = msg.undo;
+  if (msg.redo !== undefined) studio.redo = msg.redo;
+  const name = $('scene-name');
+  name.textContent = studio.name;
+  name.classList.toggle('dirty', studio.dirty);
+  name.title = studio.dirty ? `${studio.name}: changed since it was opened or saved` : studio.name;
+  $('save-name').placeholder = studio.name;
+  $('undo').disabled = studio.undo === 0;
+  $('redo').disabled = studio.redo === 0;
+  showPreset();
+}
+
+// Where the tab is in time (the server's `time` messages).
+let scrubbing = false;
+function onTime(msg) {
+  const status = $('time-status');
+  if (msg.catching_up) {
+    status.textContent = `simulating: frame ${msg.catching_up.frame} of ${msg.catching_up.target}…`;
+    return;
+  }
+  if (msg.generation !== undefined && msg.generation < studio.generation) return;
+  studio.time = msg;
+  if (msg.change) studio.lastChange = { generation: msg.generation, change: msg.change, frame: msg.frame };
+  const scrubber = $('scrubber');
+  scrubber.max = String(msg.length - 1);
+  if (!scrubbing) scrubber.value = String(msg.target ?? msg.frame);
+  $('loop').checked = msg.looping;
+  $('play').setAttribute('aria-pressed', String(msg.playing));
+  $('pause').setAttribute('aria-pressed', String(!msg.playing));
+  showFrame(msg.target ?? msg.frame, msg.length);
+  if (msg.change === 'render') status.textContent = `only how frames are drawn changed: frame ${msg.frame} drawn again from the running simulation`;
+  else if (msg.change === 'simulation' && msg.frame > 0) status.textContent = `the simulation changed: simulating again from frame 0 to frame ${msg.frame}`;
+  else if (msg.target == null && status.textContent.startsWith('simulating')) status.textContent = '';
+  $('time-info').textContent = `${msg.playing ? 'playing' : 'paused'} at ${msg.fps.toFixed(0)} fps · states kept every ${msg.kept_every} frames (${(msg.kept_bytes / 1048576).toFixed(1)} MiB)`;
+}
+
+function showFrame(frame, length) {
+  $('frame-readout').textContent = `${frame} / ${length - 1}`;
+}
+
+// Images are decoded as they come; one that finishes decoding after a later one is
+// dropped, so frames are drawn in the order they were sent.
+let received = 0;
+let drawn = 0;
 async function onFrame(buffer) {
   const view = new DataView(buffer);
   const generation = view.getUint32(0, true);
   if (generation !== studio.generation) return; // stale: a change came after it
+  const seq = ++received;
   const bitmap = await createImageBitmap(new Blob([new Uint8Array(buffer, 16)], { type: 'image/jpeg' }));
-  if (generation !== studio.generation) return;
+  if (generation !== studio.generation || seq < drawn) return;
+  drawn = seq;
   if (preview.width !== bitmap.width || preview.height !== bitmap.height) {
     preview.width = bitmap.width;
     preview.height = bitmap.height;
@@ -192,6 +298,10 @@ async function onFrame(buffer) {
   ctx.drawImage(bitmap, 0, 0);
   studio.frames += 1;
   studio.lastFrame = view.getUint32(4, true);
+  studio.shownFrames.push(studio.lastFrame);
+  if (studio.shownFrames.length > 200) studio.shownFrames.shift();
+  if (!scrubbing) $('scrubber').value = String(studio.lastFrame);
+  if (studio.time) showFrame(studio.lastFrame, studio.time.length);
   const now = performance.now();
   if (change && generation > change.generation) {
     studio.latencies.push(now - change.at);
@@ -208,7 +318,7 @@ function onCounters(msg) {
   const c = msg.counters || {};
   const parts = [`step ${msg.step_ms.toFixed(1)} ms`, `render ${msg.render_ms.toFixed(1)} ms`];
   if (c.virtual_count != null) parts.unshift(`virtual ${c.virtual_count.toExponential(2)}`, `generated ${c.generated}`);
-  else if (c.particles != null) parts.unshift(`particles ${c.particles}`);
+  else if (c.particles != null) parts.unshift(`particles now ${c.particles.toLocaleString('en')}`);
   $('counters').textContent = parts.join(' · ');
 }
 
@@ -228,9 +338,11 @@ function onMessage(msg) {
       studio.session = msg.session;
       $('connection').textContent = `session ${msg.session.slice(0, 6)}`;
       buildTabs(msg.phenomena);
-      selectTab(msg.phenomena.some((p) => p.name === location.hash.slice(1)) ? location.hash.slice(1) : 'aurora');
+      // The studio opens on the campfire at dusk (the flame's first preset).
+      selectTab(msg.phenomena.some((p) => p.name === location.hash.slice(1)) ? location.hash.slice(1) : 'flame');
       break;
     case 'scene': onScene(msg); markIssues($('form'), []); break;
+    case 'time': onTime(msg); break;
     case 'frame': onCounters(msg); break;
     case 'notice': say('notice', msg.message); break;
     case 'refused': say('refused', msg.message); break;
@@ -240,19 +352,27 @@ function onMessage(msg) {
       break;
     case 'saved':
       if (!msg.valid) say('error', `saved, but the scene is not valid yet: ${msg.problems.join('; ')}`);
+      showScene({ name: msg.scene_name, dirty: msg.dirty });
       download(msg.name, msg.toml);
       break;
     case 'progress':
       $('final-progress').hidden = false;
       $('final-progress').max = msg.total;
       $('final-progress').value = msg.done;
-      $('final-status').textContent = `${msg.done} / ${msg.total} frames`;
+      $('final-status').textContent = msg.pre_roll
+        ? `pre-roll: simulating frame ${msg.done - 1} (frames ${msg.first} to ${msg.total - 1} are written)`
+        : `frame ${msg.done - 1} of ${msg.first}–${msg.total - 1} written to ${msg.dir}`;
       break;
     case 'rendered':
-      $('final-status').textContent = `done: ${msg.frames} frames in ${msg.dir}`;
+      studio.lastRender = msg;
+      $('final-status').textContent = `done: frames ${msg.first} to ${msg.last} in ${msg.dir} (${msg.files.join(', ')})`;
       say('notice', `render final: ${msg.frames} frames written to ${msg.dir}`);
       break;
-    case 'wind': break;
+    case 'wind':
+      // The wind dragged on the preview is the scene's now: the control shows it.
+      showValue($('form'), `${msg.path}.force_n_m3`, msg.force);
+      showScene({ dirty: msg.dirty, undo: msg.undo, redo: 0 });
+      break;
     default: say('error', `unknown message ${msg.type}`);
   }
 }
@@ -317,18 +437,121 @@ function buildTabs(phenomena) {
 $('play').addEventListener('click', () => send({ type: 'play' }));
 $('pause').addEventListener('click', () => send({ type: 'pause' }));
 $('step').addEventListener('click', () => send({ type: 'step' }));
-$('reset').addEventListener('click', () => sendChange({ type: 'reset' }));
+$('step-back').addEventListener('click', () => seek(shownFrame() - 1));
+$('reset').addEventListener('click', () => send({ type: 'reset' }));
+$('undo').addEventListener('click', () => sendChange({ type: 'undo' }));
+$('redo').addEventListener('click', () => sendChange({ type: 'redo' }));
+$('loop').addEventListener('change', () => send({ type: 'loop', on: $('loop').checked }));
 $('seed').addEventListener('change', () => setParam('scene.seed', Number($('seed').value)));
-$('builtin').addEventListener('change', () => sendChange({ type: 'builtin', name: $('builtin').value }));
-$('save').addEventListener('click', () => send({ type: 'save' }));
+
+// The frame on screen: while paused the server's word (an image may still be on its
+// way), while playing the last image drawn.
+function shownFrame() {
+  const t = studio.time;
+  if (t && !t.playing) return t.target ?? t.frame;
+  return Math.max(0, studio.lastFrame ?? 0);
+}
+function seek(frame) {
+  if (frame < 0) return;
+  send({ type: 'seek', frame });
+}
+// The scrubber: while dragged it shows where it is and asks for that frame.
+const scrubber = $('scrubber');
+scrubber.addEventListener('input', () => {
+  scrubbing = true;
+  showFrame(Number(scrubber.value), Number(scrubber.max) + 1);
+  seek(Number(scrubber.value));
+});
+scrubber.addEventListener('change', () => { scrubbing = false; });
+
+// Keyboard: Space play/pause, arrows step, Home to the start, Ctrl+Z / Ctrl+Shift+Z
+// (or Ctrl+Y) undo and redo; not while typing in a field.
+document.addEventListener('keydown', (e) => {
+  const t = e.target;
+  const typing = t instanceof HTMLElement && (t.isContentEditable || ['INPUT', 'SELECT', 'TEXTAREA'].includes(t.tagName))
+    && !(t instanceof HTMLInputElement && ['checkbox', 'range', 'button'].includes(t.type));
+  const ctrl = e.ctrlKey || e.metaKey;
+  if (ctrl && (e.key === 'z' || e.key === 'Z')) {
+    if (typing && !(t instanceof HTMLInputElement && t.type === 'range')) return; // the field's own undo
+    e.preventDefault();
+    sendChange({ type: e.shiftKey ? 'redo' : 'undo' });
+    return;
+  }
+  if (ctrl && e.key === 'y') {
+    if (typing) return;
+    e.preventDefault();
+    sendChange({ type: 'redo' });
+    return;
+  }
+  if (typing || ctrl || e.altKey) return;
+  if (e.key === ' ') {
+    e.preventDefault();
+    send({ type: studio.time && studio.time.playing ? 'pause' : 'play' });
+  } else if (e.key === 'ArrowRight') {
+    e.preventDefault();
+    send({ type: 'step' });
+  } else if (e.key === 'ArrowLeft') {
+    e.preventDefault();
+    seek(shownFrame() - 1);
+  } else if (e.key === 'Home') {
+    e.preventDefault();
+    seek(0);
+  }
+});
+
+$('builtin').addEventListener('change', () => {
+  const v = $('builtin').value;
+  if (v.startsWith('user:')) {
+    const p = userPresets().find((u) => u.phenomenon === studio.phenomenon && u.name === v.slice(5));
+    if (p) sendChange({ type: 'scene', phenomenon: p.phenomenon, scene: p.scene, name: p.name });
+  } else if (v) {
+    sendChange({ type: 'builtin', name: v });
+  }
+});
+$('save').addEventListener('click', () => {
+  const name = $('save-name').value.trim();
+  send(name ? { type: 'save', name } : { type: 'save' });
+});
+$('keep-preset').addEventListener('click', () => {
+  const name = $('save-name').value.trim() || studio.name;
+  if (!name || !studio.scene) return;
+  const kept = userPresets().filter((u) => !(u.phenomenon === studio.phenomenon && u.name === name));
+  kept.push({ name, phenomenon: studio.phenomenon, scene: studio.scene });
+  localStorage.setItem(PRESETS_KEY, JSON.stringify(kept));
+  fillPresets(studio.phenomenon);
+  $('builtin').value = `user:${name}`;
+  say('notice', `kept "${name}" in this browser's presets`);
+});
 $('load').addEventListener('change', async () => {
   const file = $('load').files[0];
   if (file) sendChange({ type: 'toml', text: await file.text(), name: file.name });
 });
+$('final-format').addEventListener('change', () => {
+  $('flipbook-options').hidden = $('final-format').value !== 'flipbook';
+});
+$('final-here').addEventListener('click', () => { $('final-first').value = shownFrame(); });
 $('render-final').addEventListener('click', () => {
   $('final-status').textContent = 'starting…';
-  send({ type: 'render_final', frames: Number($('final-frames').value), format: $('final-format').value });
+  $('final-progress').value = 0;
+  const format = $('final-format').value;
+  const msg = { type: 'render_final', first: Number($('final-first').value), last: Number($('final-last').value), format };
+  if (format === 'flipbook') {
+    Object.assign(msg, { pot: $('final-pot').checked, loop_frames: Number($('final-loop').value), alpha: $('final-alpha').value });
+  }
+  send(msg);
 });
+
+// The preview's size follows its frame (drag the corner): the new size is asked for
+// once the drag rests; only how frames are drawn changes, so the frame stays.
+let resizeTimer = null;
+new ResizeObserver(([entry]) => {
+  const { width, height } = entry.contentRect;
+  const w = Math.max(16, Math.min(1920, Math.round(width / 8) * 8));
+  const h = Math.max(16, Math.min(1920, Math.round(height / 8) * 8));
+  if (!hello || (w === preview.width && h === preview.height)) return;
+  clearTimeout(resizeTimer);
+  resizeTimer = setTimeout(() => sendChange({ type: 'preview', width: w, height: h }), 300);
+}).observe($('preview-wrap'));
 
 fetch('/api/controls').then((r) => r.json()).then((c) => {
   catalogue = c;

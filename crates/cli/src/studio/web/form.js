@@ -26,7 +26,11 @@ export function getPath(obj, path) {
 }
 
 // Build the form into `root`. `send(path, value)` is called on every change.
+// Sections the artist opened stay open when the form is built again (after every
+// change).
 export function buildForm(root, controls, featured, scene, send) {
+  const open = new Set([...root.querySelectorAll('details[open] > summary')].map((s) => s.textContent));
+  const focused = document.activeElement && root.contains(document.activeElement) ? document.activeElement.id : null;
   root.replaceChildren();
   const present = controls.filter((c) => getPath(scene, c.path) !== undefined);
   const top = document.createElement('div');
@@ -50,24 +54,41 @@ export function buildForm(root, controls, featured, scene, send) {
     s.textContent = `[${group}]`;
     d.append(s);
     for (const c of list) d.append(controlElement(c, getPath(scene, c.path), send));
+    d.open = open.has(s.textContent);
     root.append(d);
   }
+  if (focused) document.getElementById(focused)?.focus();
+}
+
+// A number as people write it: f32 values come as the nearest double
+// (0.0024999999441206455); seven significant digits give the f32 back.
+export function shown(x) {
+  return typeof x === 'number' && Number.isFinite(x) && !Number.isInteger(x) ? Number(x.toPrecision(7)) : x;
+}
+
+// The id of the input of the control at `path`.
+export function inputId(path) {
+  return `ctl-${path.replace(/[^A-Za-z0-9_-]/g, '-')}`;
 }
 
 // Featured controls stand outside their table, so their label names the table too
-// (`shimmer enabled`, `light azimuth`).
+// (`shimmer enabled`, `light azimuth`). Each input is tied to its label (`for`) and to
+// its valid range (`aria-describedby`), so assistive technology and tests find it by
+// name.
 function controlElement(c, value, send, featured = false) {
-  const row = document.createElement('label');
+  const row = document.createElement('div');
   row.className = 'control';
   row.dataset.path = c.path;
   const label = labelOf(c.path);
   const unit = label.unit;
   const parents = c.path.split('.').slice(1, -1).map((p) => p.replaceAll('_', ' '));
   const name = featured && parents.length ? `${parents.join(' ')} ${label.name}` : label.name;
-  const title = document.createElement('span');
+  const id = inputId(c.path);
+  const title = document.createElement('label');
   title.className = 'name';
   title.textContent = name;
   title.title = c.path;
+  title.htmlFor = id;
   row.append(title);
   const box = document.createElement('span');
   let input;
@@ -90,10 +111,12 @@ function controlElement(c, value, send, featured = false) {
     box.append(input);
   } else if (c.kind === 'vector') {
     box.className = 'vector';
-    const inputs = value.map((x) => {
-      const i = numberInput(c, x, false);
-      box.append(i);
-      return i;
+    const axes = ['x', 'y', 'z', 'w'];
+    const inputs = value.map((x, i) => {
+      const e = numberInput(c, x, false);
+      e.setAttribute('aria-label', `${name} ${axes[i] ?? i}`);
+      box.append(e);
+      return e;
     });
     for (const i of inputs) {
       i.addEventListener('change', () => send(c.path, inputs.map((e) => Number(e.value))));
@@ -113,6 +136,7 @@ function controlElement(c, value, send, featured = false) {
     });
     box.append(input);
   }
+  if (input) input.id = id;
   if (unit) {
     const u = document.createElement('span');
     u.className = 'unit';
@@ -123,8 +147,10 @@ function controlElement(c, value, send, featured = false) {
   if (c.valid) {
     const v = document.createElement('span');
     v.className = 'valid';
+    v.id = `${id}-valid`;
     v.textContent = `valid: ${c.valid}`;
     row.append(v);
+    for (const i of box.querySelectorAll('input, select')) i.setAttribute('aria-describedby', v.id);
   }
   return row;
 }
@@ -135,8 +161,18 @@ function numberInput(c, value, integer) {
   i.step = integer ? '1' : 'any';
   if (c.min != null && c.kind !== 'vector') i.min = c.min;
   if (c.max != null && c.kind !== 'vector') i.max = c.max;
-  i.value = value;
+  i.value = shown(value);
   return i;
+}
+
+// Show `value` in the control at `path` without rebuilding the form (a live change
+// such as the flame's wind).
+export function showValue(root, path, value) {
+  const row = root.querySelector(`.control[data-path="${CSS.escape(path)}"]`);
+  if (!row) return;
+  const inputs = [...row.querySelectorAll('input')];
+  if (Array.isArray(value)) inputs.forEach((i, k) => { i.value = shown(value[k]); });
+  else if (inputs[0]) inputs[0].value = shown(value);
 }
 
 // Mark the controls the server refused (issues carry field paths).
