@@ -70,6 +70,10 @@ struct OutputArgs {
     /// flipbook: a seamless loop, the last K frames cross-faded into the first.
     #[arg(long = "loop", value_name = "K", default_value_t = 0)]
     loop_frames: u32,
+    /// flipbook: cells cut to what the frames show (the bounds of every lit pixel over
+    /// all frames, 2 px of margin); the descriptor says where they lie in the frame.
+    #[arg(long)]
+    crop: bool,
 }
 
 impl OutputArgs {
@@ -87,6 +91,7 @@ impl OutputArgs {
                     AlphaArg::Premultiplied => Alpha::Premultiplied,
                 },
                 loop_frames: self.loop_frames,
+                crop: self.crop,
             },
         }
     }

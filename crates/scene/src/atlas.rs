@@ -36,11 +36,13 @@ pub struct FlipbookSettings {
     pub alpha: Alpha,
     /// Frames cross-faded into the first for a seamless loop (0: no loop).
     pub loop_frames: u32,
+    /// Cells cut to the content's bounds over every frame ([`content_bounds`]).
+    pub crop: bool,
 }
 
 impl Default for FlipbookSettings {
     fn default() -> Self {
-        Self { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0 }
+        Self { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0, crop: false }
     }
 }
 
@@ -56,6 +58,8 @@ pub struct FlipbookOptions {
     pub alpha: Alpha,
     /// Frames cross-faded into the first to make a loop (0: none).
     pub loop_frames: u32,
+    /// Cells cut to the content's bounds over every frame ([`content_bounds`]).
+    pub crop: bool,
     /// Playback rate, frames per second (the scene's).
     pub fps: f64,
 }
@@ -166,11 +170,11 @@ impl Atlas {
     }
 
     /// Bytes an atlas of `layout` holds at its peak: the RGBA8 image and the loop's
-    /// head frames.
+    /// head frames (and, when cropped, the cropped copy, at most as large).
     pub fn memory_bytes(layout: &Layout, options: &FlipbookOptions) -> u64 {
         let cell = u64::from(layout.frame_width) * u64::from(layout.frame_height);
-        u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4
-            + u64::from(options.loop_frames) * cell * 12
+        let image = u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4;
+        image * if options.crop { 2 } else { 1 } + u64::from(options.loop_frames) * cell * 12
     }
 
     /// The next frame (display-linear RGB, interleaved, the cell's size).
@@ -227,6 +231,67 @@ impl Atlas {
     }
 }
 
+/// Transparent pixels kept around the content when cropping, so that bilinear sampling
+/// at the cells' edges reads nothing of the next cell.
+pub const CROP_MARGIN_PX: u32 = 2;
+
+/// The part of every cell of `layout` in `rgba` that shows anything: the smallest
+/// rectangle `[x, y, width, height]` (cell pixels) holding every pixel with alpha > 0 in
+/// any cell, grown by [`CROP_MARGIN_PX`] within the cell; with `power_of_two`, its
+/// sides rounded up to powers of two (still within the cell, which is a power of two
+/// itself). `None` when no cell shows anything.
+pub fn content_bounds(rgba: &[u8], layout: &Layout, power_of_two: bool) -> Option<[u32; 4]> {
+    let (fw, fh) = (layout.frame_width as usize, layout.frame_height as usize);
+    let aw = layout.atlas_width as usize;
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for (i, px) in rgba.chunks_exact(4).enumerate() {
+        if px[3] > 0 {
+            let (x, y) = ((i % aw) % fw, (i / aw) % fh);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+        }
+    }
+    if x0 == usize::MAX {
+        return None;
+    }
+    let m = CROP_MARGIN_PX as usize;
+    let (mut x0, mut y0) = (x0.saturating_sub(m), y0.saturating_sub(m));
+    let (x1, y1) = ((x1 + m).min(fw - 1), (y1 + m).min(fh - 1));
+    let (mut w, mut h) = (x1 - x0 + 1, y1 - y0 + 1);
+    if power_of_two {
+        (w, h) = (w.next_power_of_two().min(fw), h.next_power_of_two().min(fh));
+        (x0, y0) = (x0.min(fw - w), y0.min(fh - h));
+    }
+    Some([x0 as u32, y0 as u32, w as u32, h as u32])
+}
+
+/// The atlas `rgba` of `layout` with every cell cut to `rect` ([`content_bounds`]):
+/// its bytes and layout (the same cells in the same order).
+pub fn cropped(rgba: &[u8], layout: &Layout, rect: [u32; 4]) -> (Vec<u8>, Layout) {
+    let [x0, y0, w, h] = rect.map(|v| v as usize);
+    let (fw, fh, aw) =
+        (layout.frame_width as usize, layout.frame_height as usize, layout.atlas_width as usize);
+    let (columns, rows) = (layout.columns as usize, layout.rows as usize);
+    let out_w = columns * w;
+    let mut out = vec![0u8; out_w * rows * h * 4];
+    for cy in 0..rows {
+        for cx in 0..columns {
+            for y in 0..h {
+                let from = ((cy * fh + y0 + y) * aw + cx * fw + x0) * 4;
+                let to = ((cy * h + y) * out_w + cx * w) * 4;
+                out[to..to + w * 4].copy_from_slice(&rgba[from..from + w * 4]);
+            }
+        }
+    }
+    let layout = Layout {
+        frame_width: w as u32,
+        frame_height: h as u32,
+        atlas_width: out_w as u32,
+        atlas_height: (rows * h) as u32,
+        ..*layout
+    };
+    (out, layout)
+}
+
 /// Frame `j` of the looped sequence (display-linear RGB).
 pub fn looped(frames: &[Vec<f32>], j: usize, n: usize, k: usize) -> std::borrow::Cow<'_, [f32]> {
     if j >= k {
@@ -275,6 +340,10 @@ pub struct Descriptor {
     pub color_space: &'static str,
     /// The scene frames the flipbook was made from, first and last + 1.
     pub source_frames: [u32; 2],
+    /// With `--crop`: where the cells lie in the rendered frame, `[x, y, width,
+    /// height]` pixels (of the frame as resampled to the uncropped cell size).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crop: Option<[u32; 4]>,
 }
 
 #[cfg(test)]
@@ -282,7 +351,65 @@ mod tests {
     use super::*;
 
     fn opts(pot: bool, loop_frames: u32) -> FlipbookOptions {
-        FlipbookOptions { power_of_two: pot, alpha: Alpha::Straight, loop_frames, fps: 60.0 }
+        FlipbookOptions { power_of_two: pot, alpha: Alpha::Straight, loop_frames, crop: false, fps: 60.0 }
+    }
+
+    /// Cropping keeps every lit pixel of every cell (at its place in the cell, less the
+    /// crop's corner) and the margin, and nothing else; power-of-two crops stay powers
+    /// of two inside the cell; an atlas showing nothing is not cropped.
+    #[test]
+    fn crops_keep_every_lit_pixel_and_the_margin() {
+        let (w, h) = (40u32, 24u32);
+        // Three frames, each lit at one spot: the union spans x 10..=25, y 5..=14.
+        let spots = [(10usize, 5usize), (25, 9), (18, 14)];
+        let frames: Vec<Vec<f32>> = spots
+            .iter()
+            .map(|&(sx, sy)| {
+                let mut f = vec![0.0f32; (w * h * 3) as usize];
+                f[(sy * w as usize + sx) * 3] = 0.5;
+                f
+            })
+            .collect();
+        let l = layout(3, w, h, &opts(false, 0)).unwrap();
+        let rgba = atlas(&frames, &l, &opts(false, 0)).unwrap();
+        let m = CROP_MARGIN_PX;
+        let rect = content_bounds(&rgba, &l, false).unwrap();
+        assert_eq!(rect, [10 - m, 5 - m, 16 + 2 * m, 10 + 2 * m]);
+        let (out, cl) = cropped(&rgba, &l, rect);
+        assert_eq!((cl.frame_width, cl.frame_height, cl.columns, cl.rows), (20, 14, l.columns, l.rows));
+        assert_eq!(out.len(), (cl.atlas_width * cl.atlas_height * 4) as usize);
+        let lit: Vec<(u32, u32, u32)> = out
+            .chunks_exact(4)
+            .enumerate()
+            .filter(|(_, p)| p[3] > 0)
+            .map(|(i, _)| {
+                let (x, y) = (i as u32 % cl.atlas_width, i as u32 / cl.atlas_width);
+                let cell = (y / cl.frame_height) * cl.columns + x / cl.frame_width;
+                (cell, x % cl.frame_width + rect[0], y % cl.frame_height + rect[1])
+            })
+            .collect();
+        let want: Vec<(u32, u32, u32)> =
+            spots.iter().enumerate().map(|(k, &(x, y))| (k as u32, x as u32, y as u32)).collect();
+        let mut lit = lit;
+        lit.sort();
+        assert_eq!(lit, want);
+        // Powers of two (the 40x24 frames are resampled to 32x32 cells): the crop's sides
+        // are powers of two and it stays inside the cell.
+        let lp = layout(3, w, h, &opts(true, 0)).unwrap();
+        let small: Vec<Vec<f32>> = (0..3)
+            .map(|k| {
+                let mut f = vec![0.0f32; (lp.frame_width * lp.frame_height * 3) as usize];
+                f[(4 * lp.frame_width as usize + 3 + 9 * k) * 3 + 1] = 0.7;
+                f
+            })
+            .collect();
+        let rgba = atlas(&small, &lp, &opts(true, 0)).unwrap();
+        let r = content_bounds(&rgba, &lp, true).unwrap();
+        assert!(r[2].is_power_of_two() && r[3].is_power_of_two(), "{r:?}");
+        assert!(r[0] + r[2] <= lp.frame_width && r[1] + r[3] <= lp.frame_height, "{r:?} in {lp:?}");
+        // Nothing lit: nothing to crop to.
+        let dark = vec![vec![0.0f32; (w * h * 3) as usize]; 3];
+        assert_eq!(content_bounds(&atlas(&dark, &l, &opts(false, 0)).unwrap(), &l, false), None);
     }
 
     #[test]
@@ -339,7 +466,8 @@ mod tests {
         for (rendered, k, alpha) in
             [(7, 0, Alpha::Straight), (12, 3, Alpha::Premultiplied), (10, 5, Alpha::Straight)]
         {
-            let options = FlipbookOptions { power_of_two: false, alpha, loop_frames: k, fps: 30.0 };
+            let options =
+                FlipbookOptions { power_of_two: false, alpha, loop_frames: k, crop: false, fps: 30.0 };
             let l = layout(rendered, 5, 3, &options).unwrap();
             let frames: Vec<Vec<f32>> = (0..rendered)
                 .map(|f| (0..45).map(|v| ((f * 45 + v) as f32 * 0.618).fract() * 1.2).collect())

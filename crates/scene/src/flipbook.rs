@@ -49,6 +49,7 @@ impl OutputFormat for Flipbook {
             power_of_two: s.power_of_two,
             alpha: s.alpha,
             loop_frames: s.loop_frames,
+            crop: s.crop,
             fps: target.fps,
         };
         let (w, h) = target.size;
@@ -118,7 +119,14 @@ impl FrameSink for FlipbookSink {
 
     fn finish(&mut self) -> Result<(), SinkError> {
         let atlas = self.atlas.take().ok_or_else(|| error("the flipbook is already written"))?;
-        let rgba = atlas.finish().map_err(SinkError)?;
+        let mut rgba = atlas.finish().map_err(SinkError)?;
+        let mut crop = None;
+        if self.options.crop
+            && let Some(rect) = crate::atlas::content_bounds(&rgba, &self.layout, self.options.power_of_two)
+        {
+            (rgba, self.layout) = crate::atlas::cropped(&rgba, &self.layout, rect);
+            crop = Some(rect);
+        }
         let (w, h) = (self.layout.atlas_width, self.layout.atlas_height);
         let image = self.image_path();
         write_atomic(&image, |tmp| {
@@ -134,6 +142,7 @@ impl FrameSink for FlipbookSink {
             order: "row-major from the top left",
             color_space: "sRGB",
             source_frames: [self.first.unwrap_or(0), self.last + 1],
+            crop,
         };
         let json = serde_json::to_string_pretty(&descriptor).map_err(error)?;
         write_bytes_atomic(&self.dir.join("flipbook.json"), json.as_bytes())

@@ -43,7 +43,11 @@ fn the_sparkle_starter_is_no_white_band_at_any_size() {
     for (w, h) in [(320, 180), (960, 540)] {
         let share = white_share(&image(&starter, 10, w, h));
         let band = white_share(&image(&paper, 10, w, h));
-        eprintln!("sparkle starter {w}x{h}: {:.2} % white; without the falloff {:.2} %", 100.0 * share, 100.0 * band);
+        eprintln!(
+            "sparkle starter {w}x{h}: {:.2} % white; without the falloff {:.2} %",
+            100.0 * share,
+            100.0 * band
+        );
         assert!(share < 0.02, "{w}x{h}: {:.2} % of the pixels white", 100.0 * share);
         assert!(band > 0.05, "{w}x{h}: the band without the falloff: {:.2} %", 100.0 * band);
     }

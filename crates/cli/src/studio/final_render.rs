@@ -45,6 +45,9 @@ pub(crate) struct Request {
     /// flipbook: `straight` (the default) or `premultiplied` alpha.
     #[serde(default)]
     pub(crate) alpha: Option<String>,
+    /// flipbook: cells cut to the content's bounds.
+    #[serde(default)]
+    pub(crate) crop: bool,
 }
 
 /// A render the page asked for, checked: the frames written, the format and its options.
@@ -89,7 +92,12 @@ impl Request {
                 self.loop_frames
             ));
         }
-        let flipbook = FlipbookSettings { power_of_two: self.pot, alpha, loop_frames: self.loop_frames };
+        let flipbook = FlipbookSettings {
+            power_of_two: self.pot,
+            alpha,
+            loop_frames: self.loop_frames,
+            crop: self.crop,
+        };
         Ok(Plan {
             frames: first..last + 1,
             format,

@@ -105,6 +105,41 @@ fn flipbook_alpha_modes_and_power_of_two_cells() {
     assert_eq!((j["frame_width"].as_u64(), j["frame_height"].as_u64()), (Some(64), Some(32)));
 }
 
+/// `--crop` cuts every cell to what the frames show: the cropped cells are the
+/// uncropped cells' `crop` rectangle, pixel for pixel, and nothing lit is cut off.
+#[test]
+fn a_cropped_flipbook_keeps_every_lit_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = shipped("flame-paper.toml");
+    let args =
+        ["render", &scene, "--frames", "60..64", "--width", "160", "--height", "90", "--format", "flipbook"];
+    ok(dir.path(), &[&args[..], &["--out", "full"]].concat());
+    ok(dir.path(), &[&args[..], &["--out", "crop", "--crop"]].concat());
+    let (jf, full) = cells(&dir.path().join("full"));
+    let (jc, crop) = cells(&dir.path().join("crop"));
+    assert!(jf.get("crop").is_none(), "{jf}");
+    let rect: Vec<u32> = jc["crop"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as u32).collect();
+    let [x0, y0, w, h] = [rect[0], rect[1], rect[2], rect[3]];
+    assert_eq!(
+        (jc["frame_width"].as_u64(), jc["frame_height"].as_u64()),
+        (Some(u64::from(w)), Some(u64::from(h)))
+    );
+    // The flame is a narrow column: most of the 160x90 frame goes.
+    assert!(w * h * 3 < 160 * 90, "cropped to {w}x{h}");
+    for (f, c) in full.iter().zip(&crop) {
+        let mut inside = Vec::new();
+        for (i, px) in f.chunks(4).enumerate() {
+            let (x, y) = (i as u32 % 160, i as u32 / 160);
+            if (x0..x0 + w).contains(&x) && (y0..y0 + h).contains(&y) {
+                inside.extend_from_slice(px);
+            } else {
+                assert_eq!(px[3], 0, "a lit pixel at ({x}, {y}) outside the crop {rect:?}");
+            }
+        }
+        assert_eq!(&inside, c);
+    }
+}
+
 #[test]
 fn volumes_and_caches_per_frame() {
     let dir = tempfile::tempdir().unwrap();

@@ -536,7 +536,7 @@ $('render-final').addEventListener('click', () => {
   const format = $('final-format').value;
   const msg = { type: 'render_final', first: Number($('final-first').value), last: Number($('final-last').value), format };
   if (format === 'flipbook') {
-    Object.assign(msg, { pot: $('final-pot').checked, loop_frames: Number($('final-loop').value), alpha: $('final-alpha').value });
+    Object.assign(msg, { crop: $('final-crop').checked, pot: $('final-pot').checked, loop_frames: Number($('final-loop').value), alpha: $('final-alpha').value });
   }
   send(msg);
 });
