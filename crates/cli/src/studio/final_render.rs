@@ -70,7 +70,7 @@ impl Request {
         let first = self.first.unwrap_or(0);
         let last = match (self.last, self.frames) {
             (Some(last), _) => last,
-            (None, Some(n)) if n >= 1 => first + n - 1,
+            (None, Some(n)) if n >= 1 => first.saturating_add(n - 1),
             (None, Some(n)) => return Err(format!("frames = {n}: expected [1, {MAX_FINAL_FRAMES}]")),
             (None, None) => scene.settings().frames.max(1) - 1,
         };

@@ -13,10 +13,11 @@
 //! own rate ([`preview_fps`]), loops or stops at the scene's length, and any frame can
 //! be shown (`seek`): simulation states are kept in memory ([`Timeline`]) so going back
 //! does not simulate again from frame 0. A change keeps the frame shown: when only how
-//! frames are drawn changed (the checkpoint identity of the simulation is the same:
-//! `[scene]` and `[render]`), the new renderer takes over the running simulation's
-//! state; otherwise the simulation runs again from frame 0 to that frame, and the
-//! `time` message says which (`change`).
+//! frames are drawn changed (the checkpoint's identity and seed are the new scene's:
+//! `[render]`, and `[scene]` but its seed), the new renderer takes over the running
+//! simulation's state; otherwise the simulation runs again from frame 0 to that frame,
+//! and the `time` message says which (`change`). A runner steered live (the flame's
+//! wind) no longer simulates its scene from frame 0: it keeps and carries no state.
 //!
 //! Every accepted scene change increments the generation; the page ignores frames of
 //! older generations, and the thread drains every queued command before it renders, so
@@ -129,9 +130,12 @@ pub(crate) enum Incoming {
         width: u32,
         height: u32,
     },
-    /// The flame's wind force density, N/m³ (the paper's §6 mouse drag), applied live.
+    /// The flame's wind force density, N/m³ (the paper's §6 mouse drag), applied live;
+    /// `start` begins a new drag (one undo entry per drag).
     Wind {
         force: [f32; 3],
+        #[serde(default)]
+        start: bool,
     },
     /// An aurora editing operation (thesis §3.1; `phenomena_aurora::editor`).
     Aurora(EditOp),
@@ -202,6 +206,20 @@ pub(crate) fn scene_toml(scene: &Scene) -> Result<String, String> {
     ))
 }
 
+/// A scene's name as the studio shows it and names its renders by: at most 64
+/// letters, digits, spaces, dots, `-` and `_` (others become `_`), not starting with a
+/// dot; `None` when nothing is left.
+fn plain_name(name: &str) -> Option<String> {
+    let plain: String = name
+        .trim()
+        .chars()
+        .take(64)
+        .map(|c| if c.is_ascii_alphanumeric() || " ._-".contains(c) { c } else { '_' })
+        .collect();
+    let plain = plain.trim_start_matches('.').trim().to_string();
+    (!plain.is_empty()).then_some(plain)
+}
+
 /// The session's files: only what was uploaded to it, by plain name, each at most the
 /// upload cap.
 fn sandbox(dir: &Path) -> Assets {
@@ -213,7 +231,9 @@ fn sandbox(dir: &Path) -> Assets {
 struct Snapshot {
     scene: Scene,
     drawn: Drawn,
-    name: String,
+    /// For the scene before a file or preset was opened: its name and what it was
+    /// opened or saved as (an edit keeps both).
+    file: Option<(String, Scene)>,
 }
 
 /// One phenomenon tab: its scene, simulation, timeline and edit history.
@@ -238,6 +258,11 @@ struct Tab {
     redo: Vec<Snapshot>,
     /// What the last undo entry stands for when consecutive edits make one (`wind`).
     coalesce: Option<&'static str>,
+    /// The runner was steered live (the flame's wind): its state is no longer what
+    /// its scene gives, so it is not kept or carried over.
+    steered: bool,
+    /// The simulation's state while the tab is put aside (its runner is dropped).
+    parked: Option<Vec<u8>>,
 }
 
 impl Tab {
@@ -255,6 +280,8 @@ impl Tab {
             undo: Vec::new(),
             redo: Vec::new(),
             coalesce: None,
+            steered: false,
+            parked: None,
         }
     }
 
@@ -263,22 +290,30 @@ impl Tab {
         self.scene.settings().frames.max(1)
     }
 
-    fn snapshot(&self) -> Snapshot {
-        Snapshot { scene: self.scene.clone(), drawn: self.drawn.clone(), name: self.name.clone() }
+    /// The scene now, with its name and baseline when `file`.
+    fn snapshot(&self, file: bool) -> Snapshot {
+        Snapshot {
+            scene: self.scene.clone(),
+            drawn: self.drawn.clone(),
+            file: file.then(|| (self.name.clone(), self.baseline.clone())),
+        }
     }
 
     /// Take `s` as the tab's scene.
     fn take(&mut self, s: Snapshot) {
         self.scene = s.scene;
         self.drawn = s.drawn;
-        self.name = s.name;
+        if let Some((name, baseline)) = s.file {
+            (self.name, self.baseline) = (name, baseline);
+        }
     }
 
-    /// Record the scene now for undo before an edit; consecutive edits with the same
-    /// `coalesce` make one entry (a wind drag's many messages).
-    fn remember(&mut self, coalesce: Option<&'static str>) {
+    /// Record the scene now for undo before an edit (`opening`: a file or preset
+    /// replaces it); consecutive edits with the same `coalesce` make one entry (a wind
+    /// drag's many messages).
+    fn remember(&mut self, coalesce: Option<&'static str>, opening: bool) {
         if coalesce.is_none() || self.coalesce != coalesce {
-            self.undo.push(self.snapshot());
+            self.undo.push(self.snapshot(opening));
             if self.undo.len() > MAX_UNDO {
                 self.undo.remove(0);
             }
@@ -508,8 +543,8 @@ impl Session {
         let Some(tab) = &self.tab else { return Ok(()) };
         self.next_due = Instant::now() + Duration::from_secs_f64(1.0 / preview_fps(&tab.scene));
         if tab.frame + 1 >= tab.length() {
-            // The end of the scene: loop, or stop there.
-            if self.looping {
+            // The end of the scene: loop, or stop there (a one-frame scene stops).
+            if self.looping && tab.length() > 1 {
                 return self.go_to(0);
             }
             self.playing = false;
@@ -614,12 +649,17 @@ impl Session {
                 self.send_time(None)
             }
             // After a stop (an error), a new simulation; else frame 0 again.
-            Incoming::Reset if self.frames_done().is_none() => self.restart(),
+            Incoming::Reset if self.frames_done().is_none() => {
+                if let Some(tab) = &mut self.tab {
+                    (tab.frame, tab.target, tab.parked) = (0, None, None);
+                }
+                self.restart()
+            }
             Incoming::Reset => self.go_to(0),
             Incoming::Undo => self.undo(false),
             Incoming::Redo => self.undo(true),
             Incoming::Preview { width, height } => self.resize(width, height),
-            Incoming::Wind { force } => self.wind(force),
+            Incoming::Wind { force, start } => self.wind(force, start),
             Incoming::Aurora(op) => self.aurora(op),
             Incoming::Save { name } => self.save(name),
             Incoming::RenderFinal(request) => self.render_final(&request),
@@ -671,10 +711,36 @@ fn build_runner(scene: &Scene, size: (u32, u32), assets: &Assets, limits: &Limit
     }
 }
 
-/// Whether two runners simulate the same thing (their checkpoints are interchangeable).
-fn same_simulation(a: &Runner, b: &Runner) -> bool {
-    let (a, b) = (a.checkpoint_header(), b.checkpoint_header());
-    (a.phenomenon, a.identity, a.seed) == (b.phenomenon, b.identity, b.seed)
+/// Build `tab`'s runner for its scene at `size`, aiming at the frame it shows or was
+/// going to; returns `"render"` when the simulation's state carried over (only how
+/// frames are drawn changed: the checkpoint's identity and seed are the new scene's) or
+/// `"simulation"` when it runs again from frame 0. The old runner is dropped before the
+/// new one is built (one simulation in memory, and its state once as bytes).
+fn rebuild(tab: &mut Tab, size: (u32, u32), assets: &Assets, limits: &Limits) -> Result<&'static str, Value> {
+    let frame = tab.target.unwrap_or(tab.frame).min(tab.length() - 1);
+    tab.target = None;
+    tab.frame = frame;
+    let old = tab.runner.take();
+    // A steered runner's state is not its scene's (the wind changed under it).
+    let carried = old.filter(|_| !tab.steered).and_then(|o| o.checkpoint().ok()).or(tab.parked.take());
+    tab.steered = false;
+    let mut runner = build_runner(&tab.scene, size, assets, limits)?;
+    tab.size = size;
+    let kept = carried.is_some_and(|bytes| runner.restore(&bytes).is_ok());
+    if !kept {
+        tab.timeline.clear();
+    }
+    // Past the frame (a shorter scene, a step ahead): back to it through the states kept.
+    if runner.frames_done() > frame + 1 {
+        let restored = tab.timeline.at_or_before(frame + 1).is_some_and(|(_, b)| runner.restore(b).is_ok());
+        if !restored {
+            drop(runner);
+            runner = build_runner(&tab.scene, size, assets, limits)?;
+        }
+    }
+    tab.runner = Some(runner);
+    tab.target = Some(frame);
+    Ok(if kept { "render" } else { "simulation" })
 }
 
 impl Session {
@@ -699,12 +765,11 @@ impl Session {
             tab.timeline.clear();
         }
         if restored != Some(true) && want < done {
+            tab.runner = None;
+            tab.steered = false;
             match build_runner(&tab.scene, preview, &assets, &limits) {
-                Ok(fresh) => *runner = fresh,
-                Err(message) => {
-                    tab.runner = None;
-                    return self.send(message);
-                }
+                Ok(fresh) => tab.runner = Some(fresh),
+                Err(message) => return self.send(message),
             }
         }
         tab.target = Some(frame);
@@ -752,11 +817,11 @@ impl Session {
     fn restart(&mut self) -> Result<(), Closed> {
         self.generation = self.generation.wrapping_add(1);
         self.send_scene()?;
-        let Some(mut tab) = self.tab.take() else { return Ok(()) };
-        let result = self.rebuild(&mut tab);
+        let assets = sandbox(self.dir.path());
+        let Some(tab) = &mut self.tab else { return Ok(()) };
+        let result = rebuild(tab, self.preview, &assets, &self.limits);
         let warnings: Vec<String> = tab.runner.as_ref().map(|r| r.warnings().to_vec()).unwrap_or_default();
-        let frame = tab.frame;
-        self.tab = Some(tab);
+        let frame = tab.target.unwrap_or(tab.frame);
         match result {
             Ok(change) => {
                 for w in warnings {
@@ -770,37 +835,6 @@ impl Session {
             }
             Err(message) => self.send(message),
         }
-    }
-
-    /// Build `tab`'s runner for its scene; returns `"render"` when the simulation's state
-    /// carried over (only how frames are drawn changed) or `"simulation"` when it runs
-    /// again from frame 0.
-    fn rebuild(&self, tab: &mut Tab) -> Result<&'static str, Value> {
-        let old = tab.runner.take();
-        tab.target = None;
-        let mut runner = build_runner(&tab.scene, self.preview, &sandbox(self.dir.path()), &self.limits)?;
-        tab.size = self.preview;
-        tab.frame = tab.frame.min(tab.length() - 1);
-        let kept = old
-            .filter(|o| same_simulation(o, &runner))
-            .and_then(|o| o.checkpoint().ok())
-            .is_some_and(|bytes| runner.restore(&bytes).is_ok());
-        if !kept {
-            tab.timeline.clear();
-        }
-        let frame = tab.frame;
-        tab.runner = Some(runner);
-        // Past the frame (a shorter scene): back to it through the states kept.
-        if let Some(r) = &mut tab.runner
-            && r.frames_done() > frame + 1
-        {
-            let restored = tab.timeline.at_or_before(frame + 1).is_some_and(|(_, b)| r.restore(b).is_ok());
-            if !restored {
-                *r = build_runner(&tab.scene, self.preview, &sandbox(self.dir.path()), &self.limits)?;
-            }
-        }
-        tab.target = Some(frame);
-        Ok(if kept { "render" } else { "simulation" })
     }
 
     /// Where the active tab is in time.
@@ -851,7 +885,9 @@ impl Session {
         let Some(runner) = &mut tab.runner else { return Ok(None) };
         match runner.step() {
             Ok(record) => {
-                tab.timeline.offer(runner);
+                if !tab.steered {
+                    tab.timeline.offer(runner);
+                }
                 Ok(Some(record))
             }
             Err(e) => {
@@ -879,8 +915,17 @@ impl Session {
 }
 impl Session {
     /// Put the active tab aside as it is.
+    /// Put the active tab aside: its simulation's state kept as checkpoint bytes (the
+    /// runner and the timeline's states are freed, so tabs put aside hold no more than
+    /// their states).
     fn stash_active(&mut self) {
-        if let Some(tab) = self.tab.take() {
+        if let Some(mut tab) = self.tab.take() {
+            if let Some(runner) = tab.runner.take()
+                && !tab.steered
+            {
+                tab.parked = runner.checkpoint().ok();
+            }
+            tab.timeline.clear();
             self.stash.insert(tab.scene.phenomenon().name(), tab);
         }
     }
@@ -896,13 +941,14 @@ impl Session {
             self.tab = self.stash.remove(entry.name());
         }
         match &self.tab {
-            // Same size: the runner goes on where it was.
-            Some(t) if t.runner.is_some() && t.size == self.preview => {
+            // The tab shown already: the runner goes on where it was.
+            Some(t) if active && t.runner.is_some() && t.size == self.preview => {
                 self.generation = self.generation.wrapping_add(1);
                 self.send_scene()?;
                 let frame = t.target.unwrap_or(t.frame);
                 self.go_to(frame)
             }
+            // Back from aside: built again from its parked state.
             Some(_) => self.restart(),
             None => match shipped::SHIPPED.iter().find(|s| s.phenomenon == entry.name()) {
                 Some(first) => self.load_builtin(first.name.to_string()),
@@ -914,6 +960,7 @@ impl Session {
     /// Open `scene` named `name` in its phenomenon's tab at frame 0 (undo goes back to
     /// the scene before).
     fn open(&mut self, scene: Scene, name: String) -> Result<(), Closed> {
+        let name = plain_name(&name).unwrap_or_else(|| scene.phenomenon().name().to_string());
         let entry = scene.phenomenon();
         if self.tab.as_ref().is_none_or(|t| t.scene.phenomenon() != entry) {
             self.stash_active();
@@ -922,13 +969,12 @@ impl Session {
         let budget = self.timeline_budget();
         match &mut self.tab {
             Some(tab) => {
-                tab.remember(None);
+                tab.remember(None, true);
                 let drawn = scene.get::<AuroraScene>().map(|a| Drawn::of(&a.aurora)).unwrap_or_default();
-                tab.take(Snapshot { scene: scene.clone(), drawn, name });
-                tab.baseline = scene;
+                tab.take(Snapshot { scene: scene.clone(), drawn, file: Some((name, scene)) });
                 tab.runner = None;
                 tab.timeline.clear();
-                tab.frame = 0;
+                (tab.frame, tab.target, tab.parked, tab.steered) = (0, None, None, false);
             }
             None => self.tab = Some(Tab::new(scene, name, budget)),
         }
@@ -980,17 +1026,14 @@ impl Session {
     fn save(&mut self, name: Option<String>) -> Result<(), Closed> {
         let Some(tab) = &mut self.tab else { return self.error("no scene to save: load one first") };
         if let Some(n) = name {
-            let n = n.trim().trim_end_matches(".toml");
-            let plain = !n.is_empty()
-                && n.len() <= 64
-                && n.chars().all(|c| c.is_ascii_alphanumeric() || " ._-".contains(c))
-                && !n.starts_with('.');
-            if !plain {
+            let trimmed = n.trim().trim_end_matches(".toml");
+            if plain_name(trimmed).as_deref() != Some(trimmed) {
                 return self.error(format!(
-                    "save as {n:?}: use 1 to 64 letters, digits, spaces, dots, - and _ (not starting with a dot)"
+                    "save as {:?}: use 1 to 64 letters, digits, spaces, dots, - and _ (not starting with a dot)",
+                    n.chars().take(80).collect::<String>()
                 ));
             }
-            tab.name = n.to_string();
+            tab.name = trimmed.to_string();
         }
         match scene_toml(&tab.scene) {
             Ok(text) => {
@@ -1029,7 +1072,7 @@ impl Session {
             return self.send_scene(); // the page's controls go back to the scene's values
         }
         if let Some(tab) = &mut self.tab {
-            tab.remember(None);
+            tab.remember(None, false);
             tab.scene = candidate;
         }
         self.restart()
@@ -1042,7 +1085,7 @@ impl Session {
         let Some(back) = (if redo { tab.redo.pop() } else { tab.undo.pop() }) else {
             return self.notice(if redo { "nothing to redo" } else { "nothing to undo" });
         };
-        let now = tab.snapshot();
+        let now = tab.snapshot(back.file.is_some());
         if redo {
             tab.undo.push(now)
         } else {
@@ -1056,7 +1099,7 @@ impl Session {
     /// The flame's wind, steered live: the same simulation continues (no new
     /// generation), the scene keeps the new wind, and the states kept after this frame
     /// (simulated in the old wind) are forgotten. A drag is one edit for undo.
-    fn wind(&mut self, force: [f32; 3]) -> Result<(), Closed> {
+    fn wind(&mut self, force: [f32; 3], start: bool) -> Result<(), Closed> {
         use phenomena_scene::flame::WIND_PATH;
         let Some(tab) = &mut self.tab else { return self.error("wind applies to flame scenes") };
         let value = json!({ "force_n_m3": force });
@@ -1065,12 +1108,20 @@ impl Session {
         };
         if let Some(runner) = &mut tab.runner {
             match runner.steer(WIND_PATH, &value) {
-                Steer::Applied => tab.timeline.forget_after(runner.frames_done()),
+                Steer::Applied => {
+                    // The states kept are of the scene before; the scene now blows
+                    // from frame 0. Going back simulates the scene as it is now.
+                    tab.timeline.clear();
+                    tab.steered = true;
+                }
                 Steer::NotLive => return self.error("wind applies to flame scenes"),
                 Steer::Refused(e) => return self.error(format!("wind {force:?} refused: {e}")),
             }
         }
-        tab.remember(Some("wind"));
+        if start {
+            tab.coalesce = None; // a new drag: an edit of its own
+        }
+        tab.remember(Some("wind"), false);
         tab.scene = updated;
         let (undo, dirty) = (tab.undo.len(), tab.scene != tab.baseline);
         self.send(json!({"type": "wind", "force": force, "path": WIND_PATH, "undo": undo, "dirty": dirty}))
@@ -1127,7 +1178,7 @@ impl Session {
         let mut drawn = tab.drawn.clone();
         match editor::edit(&mut config, &mut drawn, op) {
             Ok(message) => {
-                tab.remember(None);
+                tab.remember(None, false);
                 if let Some(a) = tab.scene.get_mut::<AuroraScene>() {
                     a.aurora = config;
                 }

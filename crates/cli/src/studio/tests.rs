@@ -597,3 +597,38 @@ fn render_final_writes_exactly_the_frames_asked_for() {
         assert!(e["message"].as_str().unwrap().contains("last frame 2 is before the first, 5"), "{e}");
     });
 }
+
+/// A change that arrives while the simulation is still on its way to a frame keeps
+/// that frame (not the progress frame shown on the way), and after a live wind drag
+/// nothing of the steered simulation is carried over: undoing the drag simulates the
+/// calm scene again.
+#[test]
+fn changes_keep_the_frame_asked_for_and_steered_states_are_not_reused() {
+    runtime().block_on(async {
+        let (addr, _out) = start(4).await;
+        let (mut ws, _) = connect(addr).await;
+        send(&mut ws, json!({"type": "preview", "width": 160, "height": 96})).await;
+        send(&mut ws, json!({"type": "builtin", "name": "flame-paper"})).await;
+        change_of(&mut ws).await;
+        send(&mut ws, json!({"type": "pause"})).await;
+        send(&mut ws, json!({"type": "set", "path": "flame.emitter.rate_per_s", "value": 4000.0})).await;
+        send(&mut ws, json!({"type": "seek", "frame": 150})).await;
+        send(&mut ws, json!({"type": "set", "path": "scene.exposure_ev", "value": 0.5})).await;
+        // The last change's time: aimed at 150, then there.
+        let t = until_json(&mut ws, "time", |t| t["target"] == 150 && t.get("change").is_some()).await;
+        assert_eq!(t["change"], "render", "{t}");
+        until_json(&mut ws, "time", |t| t["target"].is_null() && t["frame"] == 150).await;
+
+        send(&mut ws, json!({"type": "wind", "force": [2.0, 0.0, 0.0], "start": true})).await;
+        let w = next_json(&mut ws, "wind").await;
+        assert_eq!((w["undo"].as_u64(), w["dirty"].as_bool()), (Some(3), Some(true)), "{w}");
+        send(&mut ws, json!({"type": "wind", "force": [3.0, 0.0, 0.0]})).await;
+        assert_eq!(next_json(&mut ws, "wind").await["undo"], 3, "one drag, one edit");
+        send(&mut ws, json!({"type": "wind", "force": [0.0, 0.0, 0.0], "start": true})).await;
+        assert_eq!(next_json(&mut ws, "wind").await["undo"], 4, "a new drag, a new edit");
+        send(&mut ws, json!({"type": "undo"})).await;
+        let t = change_of(&mut ws).await;
+        assert_eq!((t["change"].as_str(), t["frame"].as_u64()), (Some("simulation"), Some(150)), "{t}");
+        until_json(&mut ws, "time", |t| t["target"].is_null() && t["frame"] == 150).await;
+    });
+}

@@ -369,8 +369,10 @@ function onMessage(msg) {
       say('notice', `render final: ${msg.frames} frames written to ${msg.dir}`);
       break;
     case 'wind':
-      // The wind dragged on the preview is the scene's now: the control shows it.
+      // The wind dragged on the preview is the scene's now: the control shows it, and
+      // a preset kept from here keeps it.
       showValue($('form'), `${msg.path}.force_n_m3`, msg.force);
+      if (studio.scene && studio.scene.flame) studio.scene.flame.wind = { ...(studio.scene.flame.wind || {}), force_n_m3: msg.force };
       showScene({ dirty: msg.dirty, undo: msg.undo, redo: 0 });
       break;
     default: say('error', `unknown message ${msg.type}`);
@@ -395,7 +397,7 @@ let lastWind = 0;
 preview.addEventListener('pointerdown', (e) => {
   if (studio.phenomenon !== 'flame') return;
   preview.setPointerCapture(e.pointerId);
-  drag = { x: e.clientX, y: e.clientY };
+  drag = { x: e.clientX, y: e.clientY, start: true };
 });
 preview.addEventListener('pointermove', (e) => {
   if (!drag) return;
@@ -410,14 +412,15 @@ preview.addEventListener('pointerup', (e) => {
   drag = null;
 });
 preview.addEventListener('dblclick', () => {
-  if (studio.phenomenon === 'flame') send({ type: 'wind', force: [0, 0, 0] });
+  if (studio.phenomenon === 'flame') send({ type: 'wind', force: [0, 0, 0], start: true });
 });
 function sendWind(e) {
   const r = preview.getBoundingClientRect();
   const fx = ((e.clientX - drag.x) / r.width) * WIND_PER_WIDTH;
   const fy = (-(e.clientY - drag.y) / r.width) * WIND_PER_WIDTH;
   studio.wind = [fx, fy, 0];
-  send({ type: 'wind', force: [fx, fy, 0] });
+  send({ type: 'wind', force: [fx, fy, 0], start: drag.start });
+  drag.start = false;
 }
 
 // One tab per phenomenon the server has, in its registry's order.
@@ -457,33 +460,38 @@ function seek(frame) {
 }
 // The scrubber: while dragged it shows where it is and asks for that frame.
 const scrubber = $('scrubber');
+// While dragged, at most one seek every 60 ms (the last position is always sent).
+let seekTimer = null;
+let lastSeekAt = 0;
 scrubber.addEventListener('input', () => {
   scrubbing = true;
   showFrame(Number(scrubber.value), Number(scrubber.max) + 1);
-  seek(Number(scrubber.value));
+  clearTimeout(seekTimer);
+  const wait = Math.max(0, 60 - (performance.now() - lastSeekAt));
+  seekTimer = setTimeout(() => {
+    lastSeekAt = performance.now();
+    seek(Number(scrubber.value));
+  }, wait);
 });
 scrubber.addEventListener('change', () => { scrubbing = false; });
 
 // Keyboard: Space play/pause, arrows step, Home to the start, Ctrl+Z / Ctrl+Shift+Z
-// (or Ctrl+Y) undo and redo; not while typing in a field.
+// (or Ctrl+Y) undo and redo. Space and the arrows act only where they mean nothing
+// else (the page, the preview, the scrubber): a focused checkbox, button or menu keeps
+// its own keys; Ctrl+Z in a text or number field is the field's own undo.
 document.addEventListener('keydown', (e) => {
   const t = e.target;
-  const typing = t instanceof HTMLElement && (t.isContentEditable || ['INPUT', 'SELECT', 'TEXTAREA'].includes(t.tagName))
-    && !(t instanceof HTMLInputElement && ['checkbox', 'range', 'button'].includes(t.type));
+  const field = t instanceof HTMLTextAreaElement
+    || (t instanceof HTMLInputElement && !['checkbox', 'radio', 'range', 'button', 'file'].includes(t.type));
   const ctrl = e.ctrlKey || e.metaKey;
-  if (ctrl && (e.key === 'z' || e.key === 'Z')) {
-    if (typing && !(t instanceof HTMLInputElement && t.type === 'range')) return; // the field's own undo
+  if (ctrl && !e.altKey && (e.key === 'z' || e.key === 'Z' || e.key === 'y')) {
+    if (field) return;
     e.preventDefault();
-    sendChange({ type: e.shiftKey ? 'redo' : 'undo' });
+    sendChange({ type: e.key === 'y' || e.shiftKey ? 'redo' : 'undo' });
     return;
   }
-  if (ctrl && e.key === 'y') {
-    if (typing) return;
-    e.preventDefault();
-    sendChange({ type: 'redo' });
-    return;
-  }
-  if (typing || ctrl || e.altKey) return;
+  const free = t === document.body || t === document.documentElement || t === preview || t === scrubber;
+  if (!free || ctrl || e.altKey) return;
   if (e.key === ' ') {
     e.preventDefault();
     send({ type: studio.time && studio.time.playing ? 'pause' : 'play' });
