@@ -80,22 +80,29 @@ async fn connect(addr: SocketAddr) -> (Client, String) {
     (ws, hello["session"].as_str().unwrap().to_string())
 }
 
-/// The next JSON message of `kind`, skipping others (frames, notices); 60 s at most.
-async fn next_json(ws: &mut Client, kind: &str) -> Value {
+/// The first message `pick` takes (skipping the others) within 60 s; `what` names it
+/// in the failure.
+async fn next_where<T>(ws: &mut Client, what: &str, pick: impl Fn(WsMessage) -> Option<T>) -> T {
     let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
     loop {
         let m = tokio::time::timeout_at(deadline, ws.next())
             .await
-            .unwrap_or_else(|_| panic!("no `{kind}` message within 60 s"))
+            .unwrap_or_else(|_| panic!("no {what} within 60 s"))
             .expect("socket open")
             .expect("no socket error");
-        if let WsMessage::Text(t) = m {
-            let v: Value = serde_json::from_str(&t).unwrap();
-            if v["type"] == kind {
-                return v;
-            }
+        if let Some(v) = pick(m) {
+            return v;
         }
     }
+}
+
+/// The next JSON message of `kind`, skipping others (frames, notices); 60 s at most.
+async fn next_json(ws: &mut Client, kind: &str) -> Value {
+    next_where(ws, &format!("`{kind}` message"), |m| match m {
+        WsMessage::Text(t) => Some(serde_json::from_str::<Value>(&t).unwrap()).filter(|v| v["type"] == kind),
+        _ => None,
+    })
+    .await
 }
 
 async fn send(ws: &mut Client, v: Value) {
@@ -481,20 +488,14 @@ async fn until_json(ws: &mut Client, kind: &str, pred: impl Fn(&Value) -> bool) 
 
 /// The next preview image of frame `frame` (its JPEG bytes and generation); 60 s at most.
 async fn image_of(ws: &mut Client, frame: u32) -> (u32, Vec<u8>) {
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(60);
-    loop {
-        let m = tokio::time::timeout_at(deadline, ws.next())
-            .await
-            .unwrap_or_else(|_| panic!("no image of frame {frame} within 60 s"))
-            .expect("socket open")
-            .expect("no socket error");
-        if let WsMessage::Binary(b) = m {
+    next_where(ws, &format!("image of frame {frame}"), |m| match m {
+        WsMessage::Binary(b) => {
             let word = |i: usize| u32::from_le_bytes(b[4 * i..4 * i + 4].try_into().unwrap());
-            if word(1) == frame {
-                return (word(0), b[16..].to_vec());
-            }
+            (word(1) == frame).then(|| (word(0), b[16..].to_vec()))
         }
-    }
+        _ => None,
+    })
+    .await
 }
 
 /// The `time` message of the next scene change: how time was kept.
