@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::field::{Poisson, Sampler};
 use crate::shape::{Keyframe, Merge, Resample, Split};
+use crate::small_scale::SmallScale;
 
 /// Most keyframes.
 pub(crate) const MAX_KEYFRAMES: u64 = 256;
@@ -43,6 +44,9 @@ pub struct AuroraConfig {
     pub motion: MotionParams,
     /// Removing and adding particles when the shape is renewed (§2.3.4, Table 3.3).
     pub redistribution: Redistribution,
+    /// Folds, curls, rays, thinning ends, flicker and pulsation drawn on top of the
+    /// simulated particles (an extension: [`crate::small_scale`]).
+    pub small_scale: SmallScale,
 }
 
 impl Default for AuroraConfig {
@@ -56,6 +60,7 @@ impl Default for AuroraConfig {
             field: FieldParams::default(),
             motion: MotionParams::default(),
             redistribution: Redistribution::default(),
+            small_scale: SmallScale::default(),
         }
     }
 }
@@ -178,7 +183,11 @@ const EFFECTIVE_MASS_KG: f64 = 0.003 * 9.109_383_701_5e-31;
 pub struct MotionParams {
     /// Particles placed near the source shape at the start (Table 3.2: 120,000).
     pub particles: u32,
-    /// Time step Δt, seconds (Table 3.2: 0.0333).
+    /// Time step Δt, seconds (Table 3.2: 0.0333), which is also the frame time: one
+    /// frame is one step, so a scene plays in real time at 1/Δt frames per second, and
+    /// the flicker's hertz and the pulsation's seconds ([`crate::small_scale`]) are real
+    /// ones. Also read as `frame_time_s`.
+    #[serde(alias = "frame_time_s")]
     pub time_step_s: f32,
     /// Kernel pair of the pseudo-Coulomb force.
     pub kernels: CoulombKernels,
@@ -360,6 +369,7 @@ impl AuroraConfig {
         self.validate_field(&mut i);
         self.validate_motion(&mut i);
         self.validate_redistribution(&mut i);
+        self.small_scale.validate(&mut i, "small_scale");
         i.into_result()
     }
 

@@ -25,6 +25,7 @@ pub mod emission;
 pub mod fall;
 pub mod field;
 pub mod motion;
+pub mod night;
 pub mod noise;
 pub mod pairs;
 pub mod plane;
@@ -32,6 +33,7 @@ mod render;
 pub mod shape;
 mod sim;
 pub mod sky;
+pub mod small_scale;
 pub mod transport;
 pub mod volume;
 

@@ -28,7 +28,9 @@
 use glam::{DVec3, Vec3};
 use phenomena_core::camera::{Camera, CameraView, NEAR_M, Pinhole, Projection};
 use phenomena_core::clock::SharedClock;
-use phenomena_core::color::{LIGHT_SPEED_M_PER_S, PLANCK_J_S, xyz_to_linear_srgb};
+use phenomena_core::color::{
+    LIGHT_SPEED_M_PER_S, Observer, PLANCK_J_S, blackbody_xyz, spectral_line_xyz, xyz_to_linear_srgb,
+};
 use phenomena_core::image::{Frame, Plane};
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::rng::{Purpose, Stream};
@@ -41,9 +43,19 @@ use crate::atmosphere::Atmosphere;
 use crate::deposition::{AltitudeSampler, ColumnModel, Precipitation, Yields};
 use crate::emission::{Line, xyz_to_rgb_eq_2_30};
 use crate::fall::{AirTable, PaperEmission, PaperFall, attenuation, fall, jitter_in_ball};
+use crate::night::{self, Airglow, Site};
 use crate::sim::AuroraSim;
+use crate::small_scale::Prepared;
 
 const EMIT: Purpose = Purpose::named("aurora.sky.emit");
+
+/// The small-scale motion of `sim`'s current frame ([`crate::small_scale`]), if on.
+pub fn small_scale_now(sim: &AuroraSim) -> Option<Prepared> {
+    let config = sim.config();
+    let frame = sim.frame();
+    let time_s = frame as f64 * f64::from(config.motion.time_step_s);
+    config.small_scale.at(&sim.animation().shape_at(frame as f32), time_s, sim.seed())
+}
 
 /// Which emission and colour model the sky view uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -260,11 +272,19 @@ pub struct SkySettings {
     /// `physical` mode: each line's image decays with the line's effective lifetime over
     /// frames instead of following the particles at once (630.0 nm lingers ~half a minute).
     pub afterglow: bool,
-    /// Draw a night sky of stars behind the aurora (fixed per seed; brightness from
-    /// visual magnitudes, in the same units as the aurora).
+    /// Draw the stars behind the aurora: the Hipparcos catalogue's, where they stand for
+    /// `site` at its time ([`crate::night`]), in the same units as the aurora.
     pub stars: bool,
-    /// Faintest star drawn, visual magnitude (default 5.5; 6.5 is the naked-eye limit).
+    /// Faintest star drawn, visual magnitude (default 5.5; the catalogue ends at 6).
     pub star_limiting_magnitude: f32,
+    /// Where and when the sky is seen (the stars' positions).
+    pub site: Site,
+    /// `physical` mode: add the airglow, the night sky's own 557.7, 630.0 nm and OH
+    /// light, brighter towards the horizon ([`crate::night`]; not drawn in `paper` mode,
+    /// whose image has no physical unit).
+    pub airglow: bool,
+    /// The airglow's zenith brightness per emission, rayleighs.
+    pub airglow_zenith: Airglow,
     /// Draw a dark ground with low hills below the horizon (hides what is behind it).
     pub ground: bool,
     /// `paper` mode: the fall and emission parameters.
@@ -305,6 +325,9 @@ impl Default for SkySettings {
             afterglow: false,
             stars: false,
             star_limiting_magnitude: 5.5,
+            site: Site::default(),
+            airglow: false,
+            airglow_zenith: Airglow::default(),
             ground: false,
             white_kilorayleigh: 20.0,
             paper: PaperFall::default(),
@@ -340,7 +363,9 @@ impl SkySettings {
         self.yields.validate(&mut i, "yields");
         self.paper.validate(&mut i, "paper");
         i.range_open_low("white_kilorayleigh", self.white_kilorayleigh, 0.0, 1e6);
-        i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=9.0);
+        i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=6.0);
+        self.site.validate(&mut i, "site");
+        self.airglow_zenith.validate(&mut i, "airglow_zenith");
         i.range("paper_emission_brightness", self.paper_emission_brightness, 0.0..=1e9);
         if let SkyBackground::Image { path } = &self.background
             && path.as_os_str().is_empty()
@@ -615,8 +640,12 @@ impl SkyRenderer {
                 }
             }
         }
+        let time_s = sim.frame() as f64 * f64::from(sim.config().motion.time_step_s);
+        if self.settings.airglow && self.settings.mode == ColourMode::Physical {
+            self.draw_airglow();
+        }
         if self.settings.stars {
-            self.draw_stars(sim.seed());
+            self.draw_stars(time_s);
         }
         if self.settings.ground {
             self.draw_ground();
@@ -636,12 +665,16 @@ impl SkyRenderer {
         if chunks.len() < n {
             chunks.resize_with(n, BandedPoints::default);
         }
+        let small = match self.model {
+            Model::Physical { .. } => small_scale_now(sim),
+            Model::Paper { .. } => None,
+        };
         chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
             points.reset(self.height, self.stride as f32);
             let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
             for i in (first..range.end).step_by(self.stride) {
-                self.emit_particle(sim, i, points);
+                self.emit_particle(sim, i, small.as_ref(), points);
             }
         });
         self.timings.emit_ms = t.ms();
@@ -652,12 +685,18 @@ impl SkyRenderer {
         self.timings.deposit_ms = t.ms();
     }
 
-    /// Append particle `i`'s emissions.
-    fn emit_particle(&self, sim: &AuroraSim, i: usize, out: &mut BandedPoints) {
+    /// Append particle `i`'s emissions (physical mode: where `small` draws it, as bright
+    /// as it says).
+    fn emit_particle(&self, sim: &AuroraSim, i: usize, small: Option<&Prepared>, out: &mut BandedPoints) {
         let particles = sim.particles();
         let grid = sim.grid();
         let centre = grid.origin_km + grid.extent_km() * 0.5;
-        let p = particles.position_km[i] - centre;
+        let (drawn, gain) =
+            small.map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
+        if gain <= 0.0 {
+            return;
+        }
+        let p = drawn - centre;
         let top = f64::from(self.settings.top_altitude_km);
         let foot = DVec3::new(f64::from(p.x), top, f64::from(p.y));
         let (down, drift) = self.settings.field();
@@ -671,7 +710,7 @@ impl SkyRenderer {
                 // radiance P/(4π d² Ω), i.e. P/(d² Ω 1e6) R. With P = column · area ·
                 // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
                 // column · area / (points · 1e6) / (d_km² Ω).
-                let area_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
+                let area_km2 = f64::from(gain) / f64::from(sim.field().rest_density.max(1e-12));
                 let column = ParticleColumn {
                     sampler,
                     points,
@@ -788,31 +827,93 @@ impl SkyRenderer {
         }
     }
 
-    /// Add stars (at infinity) to the frame. Magnitudes follow the sky's cumulative star
-    /// count N(< m) ≈ 10^(0.5 m + 0.7) (about 5000 stars brighter than 6, 16 brighter
-    /// than 1); a star of magnitude m gives 2.54e-6 · 10^(-0.4 m) lux at the eye, spread
-    /// over the pixel it falls in (bilinear), as white light.
-    fn draw_stars(&mut self, seed: u64) {
-        const STARS: Purpose = Purpose::named("aurora.sky.stars");
-        let limit = f64::from(self.settings.star_limiting_magnitude);
-        let count = 10f64.powf(0.5 * limit + 0.7).round() as u64;
+    /// Add the catalogue's stars (at infinity) to the frame, where they stand `time_s`
+    /// after the site's moment: a star of magnitude m, dimmed by the extinction, gives
+    /// 2.54e-6 · 10^(-0.4 m) lux at the eye, spread over the pixel it falls in
+    /// (bilinear), in its blackbody colour.
+    fn draw_stars(&mut self, time_s: f64) {
+        let limit = self.settings.star_limiting_magnitude;
+        let site = &self.settings.site;
+        let jd = site.julian_day() + time_s / 86_400.0;
         let white = self.white_cd_m2();
         let eye = self.settings.camera.camera().position;
-        let mut rng = Stream::new(seed, STARS, 0);
+        let stars = night::catalogue();
+        let n = stars.partition_point(|s| s.vmag <= limit);
         let [r, g, b] = self.frame.planes_mut();
-        for _ in 0..count {
-            let dir = rng.on_unit_sphere();
-            // Inverse of N(< m): m = (log10(u N) - 0.7)/0.5 over u in (0, 1].
-            let u = 1.0 - rng.next_f64();
-            let magnitude = ((u * count as f64).log10() - 0.7) / 0.5;
+        for star in &stars[..n] {
+            let dir = night::direction(star, jd, site.latitude_deg, site.longitude_deg);
+            let elevation = dir.y.asin();
+            if elevation < 0.0 {
+                continue;
+            }
+            let dir = dir.as_vec3();
             let Some(p) = self.view.project(eye + dir * 1e7) else { continue };
             // Luminance = illuminance / the pixel's solid angle.
-            let lux = 2.54e-6 * 10f64.powf(-0.4 * magnitude);
-            let value = (lux / f64::from(self.view.pixel_solid_angle(eye + dir * 1e7)) / white) as f32;
-            for plane in [&mut *r, &mut *g, &mut *b] {
-                plane.deposit_bilinear(p.x_px, p.y_px, value);
+            let lux = 2.54e-6 * 10f64.powf(-0.4 * f64::from(star.vmag)) * night::transmission(elevation);
+            let luminance = lux / f64::from(self.view.pixel_solid_angle(eye + dir * 1e7)) / white;
+            let xyz = blackbody_xyz(Observer::Cie2015TwoDegree, night::temperature_k(star.bv));
+            let rgb = xyz_to_linear_srgb(xyz / xyz.y * luminance);
+            for (plane, v) in [&mut *r, &mut *g, &mut *b].into_iter().zip(rgb.to_array()) {
+                plane.deposit_bilinear(p.x_px, p.y_px, v.max(0.0) as f32);
             }
         }
+    }
+
+    /// Add the airglow: each emission's zenith brightness × the van Rhijn factor of its
+    /// layer × what extinction leaves of it ([`night::glow_transmission`]), per pixel by
+    /// the pixel's elevation, from a table of 1025 steps in sin(elevation), interpolated
+    /// (the glow is smooth in elevation: the van Rhijn factor's steepest change, at the
+    /// horizon, is a few per cent a step).
+    fn draw_airglow(&mut self) {
+        const STEPS: usize = 1024;
+        let w = self.width;
+        let view = self.view;
+        let white = self.white_cd_m2();
+        let layers: Vec<(DVec3, f64)> = self
+            .settings
+            .airglow_zenith
+            .layers()
+            .iter()
+            .map(|&(nm, rayleigh, height)| {
+                let photon_j = PLANCK_J_S * LIGHT_SPEED_M_PER_S / (nm * 1e-9);
+                let per_r = spectral_line_xyz(Observer::Cie2015TwoDegree, nm, 1.0)
+                    * (683.0 * 1e10 / (4.0 * std::f64::consts::PI) * photon_j);
+                (xyz_to_linear_srgb(per_r * rayleigh / white), height)
+            })
+            .collect();
+        let sun = blackbody_xyz(Observer::Cie2015TwoDegree, 5800.0);
+        let continuum = xyz_to_linear_srgb(
+            sun / sun.y * night::continuum_cd_m2(self.settings.airglow_zenith.continuum_mag_arcsec2) / white,
+        );
+        let table: Vec<Vec3> = (0..=STEPS)
+            .map(|k| {
+                let elevation = (k as f64 / STEPS as f64).asin();
+                let through = night::glow_transmission(elevation);
+                let lines: DVec3 = layers.iter().map(|&(rgb, h)| rgb * night::van_rhijn(elevation, h)).sum();
+                ((lines + continuum) * through).max(DVec3::ZERO).as_vec3()
+            })
+            .collect();
+        let [r, g, b] = self.frame.planes_mut();
+        r.data_mut()
+            .par_chunks_mut(w)
+            .zip(g.data_mut().par_chunks_mut(w))
+            .zip(b.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((r, g), b))| {
+                for x in 0..w {
+                    let (_, d) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    let up = d.y / d.length();
+                    if !(up >= 0.0) {
+                        continue;
+                    }
+                    let at = up.min(1.0) * STEPS as f32;
+                    let k = (at as usize).min(STEPS - 1);
+                    let glow = table[k].lerp(table[k + 1], at - k as f32);
+                    r[x] += glow.x;
+                    g[x] += glow.y;
+                    b[x] += glow.z;
+                }
+            });
     }
 
     /// Black out everything below a horizon of low hills (1-3°, a sum of sines of the
@@ -1258,11 +1359,13 @@ mod tests {
             let settings = SkySettings { camera, ..SkySettings::default() };
             let mut sky = SkyRenderer::new(settings, 320, 180, None).unwrap();
             let mut emitted = [BandedPoints::default(), BandedPoints::default()];
+            let small = small_scale_now(&sim);
+            assert!(small.is_some(), "the small-scale motion is on by default");
             for (lanes, points) in [true, false].into_iter().zip(&mut emitted) {
                 sky.lanes = lanes;
                 points.reset(180, 1.0);
                 for i in 0..sim.particles().len() {
-                    sky.emit_particle(&sim, i, points);
+                    sky.emit_particle(&sim, i, small.as_ref(), points);
                 }
             }
             assert!(emitted[0].len() > 10_000, "{} points", emitted[0].len());

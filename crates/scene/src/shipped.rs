@@ -60,7 +60,7 @@ macro_rules! shipped {
 
 /// Every scene in `scenes/`; the first of each phenomenon is the one the studio's tab
 /// opens with. `phenomena demo` renders those with a [`Demo`], in this order.
-pub static SHIPPED: [Shipped; 18] = [
+pub static SHIPPED: [Shipped; 20] = [
     shipped!("flame-campfire", "flame", "Campfire at dusk", demo 30..150 at 960 x 540),
     shipped!("flame-paper", "flame", "Paper flame (Inagaki et al., Fig 8)", demo 120..121 at 640 x 360),
     shipped!("flame-wind-left", "flame", "Flame in a wind from the right (Fig 9)", demo 120..121 at 640 x 360),
@@ -70,6 +70,8 @@ pub static SHIPPED: [Shipped; 18] = [
     shipped!("aurora-scene3", "aurora", "Two curtains merging into one long arc"),
     shipped!("aurora-scene4", "aurora", "Folding curtain, split in three, two layers"),
     shipped!("aurora-scene5", "aurora", "Four folding curtains across the sky"),
+    shipped!("aurora-flicker", "aurora", "Flickering arc at breakup (60 fps)"),
+    shipped!("aurora-pulsating", "aurora", "Pulsating patches in diffuse aurora (40 s)"),
     shipped!("snow-village", "snow", "Snowy village"),
     shipped!("snow-table", "snow", "Snow on and under a garden table", demo 59..60 at 640 x 480),
     shipped!("snow-primitives", "snow", "Snow on simple shapes (paper Fig 8)"),
