@@ -85,9 +85,13 @@ fn renewal_and_motion(c: &mut Criterion) {
 fn full_frame(c: &mut Criterion) {
     let mut group = c.benchmark_group("aurora_frame");
     group.sample_size(20);
-    for (name, particles, w, h) in
-        [("full_frame_120k_1280x720", 120_000, 1280, 720), ("preview_30k_640x360", 30_000, 640, 360)]
-    {
+    // The thesis's sky (black), then the default night around it (catalogue stars,
+    // airglow, Milky Way, ground: issue 39); the small-scale motion is on in both.
+    for (name, particles, w, h, night) in [
+        ("full_frame_120k_1280x720", 120_000, 1280, 720, false),
+        ("preview_30k_640x360", 30_000, 640, 360, false),
+        ("full_frame_120k_1280x720_night", 120_000, 1280, 720, true),
+    ] {
         let mut config = AuroraConfig::default();
         config.motion.particles = particles;
         config.redistribution.enabled = false;
@@ -95,7 +99,8 @@ fn full_frame(c: &mut Criterion) {
         for _ in 0..20 {
             sim.step().expect("step");
         }
-        let mut sky = SkyRenderer::new(SkySettings::default(), w, h, None).expect("sky");
+        let settings = if night { SkySettings::default() } else { SkySettings::thesis() };
+        let mut sky = SkyRenderer::new(settings, w, h, None).expect("sky");
         group.bench_function(name, |b| {
             b.iter(|| {
                 sim.step().expect("step");
@@ -108,7 +113,7 @@ fn full_frame(c: &mut Criterion) {
     // chemistry and electron degradation at every altitude, then the samplers).
     group.bench_function("column_model_build", |b| {
         b.iter(|| {
-            let settings = SkySettings::default();
+            let settings = SkySettings::thesis();
             let column = phenomena_aurora::deposition::ColumnModel::new(
                 phenomena_aurora::atmosphere::Atmosphere::msis21(),
                 &settings.precipitation,
@@ -125,7 +130,7 @@ fn full_frame(c: &mut Criterion) {
     for _ in 0..20 {
         sim.step().expect("step");
     }
-    let settings = SkySettings { mode: phenomena_aurora::ColourMode::Paper, ..SkySettings::default() };
+    let settings = SkySettings { mode: phenomena_aurora::ColourMode::Paper, ..SkySettings::thesis() };
     let mut sky = SkyRenderer::new(settings, 1280, 720, None).expect("sky");
     group.sample_size(10);
     group.bench_function("paper_frame_120k_1280x720", |b| {
@@ -144,7 +149,7 @@ fn full_frame(c: &mut Criterion) {
 fn line_volumes(c: &mut Criterion) {
     use phenomena_core::vdb::{AnyGrid, Metadata, encode_into};
     let sim = settled();
-    let settings = SkySettings::default();
+    let settings = SkySettings::thesis();
     let sky = SkyRenderer::new(settings.clone(), 64, 36, None).expect("sky");
     let column = sky.column_model().expect("physical mode");
     let mut bytes = Vec::new();

@@ -32,7 +32,7 @@ fn main() {
         Some("physical") => ColourMode::Physical,
         _ => ColourMode::Paper,
     };
-    let settings = SkySettings { mode, ..SkySettings::default() };
+    let settings = SkySettings { mode, ..SkySettings::thesis() };
     let mut sky = SkyRenderer::new(settings, 1280, 720, None).expect("sky");
     sky.set_clock(SharedClock::new(Wall(std::time::Instant::now())));
     let frames: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(2);

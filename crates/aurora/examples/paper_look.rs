@@ -65,7 +65,7 @@ fn sky_settings(path: Option<&str>) -> SkySettings {
             }
             s
         }
-        None => SkySettings { mode: ColourMode::Paper, ..SkySettings::default() },
+        None => SkySettings { mode: ColourMode::Paper, ..SkySettings::thesis() },
     }
 }
 

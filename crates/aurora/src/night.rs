@@ -158,8 +158,10 @@ pub fn gmst_deg(jd: f64) -> f64 {
         .rem_euclid(360.0)
 }
 
-/// A star's direction in the local frame (x east, y up, z north) at Julian day `jd`
-/// for an observer at `latitude_deg`, `longitude_deg`.
+/// A star's direction in the sky view's world frame at Julian day `jd` for an observer
+/// at `latitude_deg`, `longitude_deg`: y up, z north and x west (the frame is
+/// right-handed with y up, so a camera looking north has +x on its left and east,
+/// −x, on its right, as an observer facing north does).
 pub fn direction(star: &Star, jd: f64, latitude_deg: f64, longitude_deg: f64) -> DVec3 {
     let (ra, dec) = precess(star.ra_deg, star.dec_deg, (jd - J2000) / 365.25);
     let hour_angle = (gmst_deg(jd) + longitude_deg - ra).to_radians();
@@ -167,7 +169,7 @@ pub fn direction(star: &Star, jd: f64, latitude_deg: f64, longitude_deg: f64) ->
     let east = -dec.cos() * hour_angle.sin();
     let north = dec.sin() * lat.cos() - dec.cos() * hour_angle.cos() * lat.sin();
     let up = dec.sin() * lat.sin() + dec.cos() * hour_angle.cos() * lat.cos();
-    DVec3::new(east, up, north)
+    DVec3::new(-east, up, north)
 }
 
 /// J2000 (ra, dec) in degrees moved by `years` of general precession (Meeus eq 21.1:
@@ -203,6 +205,57 @@ pub fn temperature_k(bv: f32) -> f64 {
     4600.0 * (1.0 / (0.92 * bv + 1.7) + 1.0 / (0.92 * bv + 0.62))
 }
 
+/// Milky Way map: cells per row and rows ([`milky_way_level`]).
+const MW_W: usize = 720;
+const MW_H: usize = 360;
+
+/// The Milky Way's outline levels (0-5) on a 0.5° grid of J2000 right ascension and
+/// declination, from `data/milky_way.txt` (d3-celestial's `mw.json`, rasterised by
+/// `tools/stars/make_milky_way.py`).
+fn milky_way_map() -> &'static [u8] {
+    static MAP: OnceLock<Vec<u8>> = OnceLock::new();
+    MAP.get_or_init(|| {
+        let mut map = Vec::with_capacity(MW_W * MW_H);
+        for line in include_str!("../data/milky_way.txt").lines().filter(|l| !l.starts_with('#')) {
+            for run in line.split_whitespace() {
+                let (level, count) = run.split_once('*').unwrap_or(("0", "0"));
+                let (level, count) = (level.parse().unwrap_or(0u8), count.parse().unwrap_or(0usize));
+                map.extend(std::iter::repeat_n(level, count));
+            }
+        }
+        map.resize(MW_W * MW_H, 0);
+        map
+    })
+}
+
+/// The Milky Way's level (0 outside, 5 in its brightest star clouds), interpolated
+/// bilinearly, at J2000 right ascension and declination in degrees.
+pub fn milky_way_level(ra_deg: f64, dec_deg: f64) -> f32 {
+    let map = milky_way_map();
+    let x = (ra_deg.rem_euclid(360.0) / 0.5 - 0.5).rem_euclid(MW_W as f64);
+    let y = ((89.75 - dec_deg) / 0.5).clamp(0.0, (MW_H - 1) as f64);
+    let (x0, y0) = (x.floor() as usize % MW_W, (y.floor() as usize).min(MW_H - 1));
+    let (x1, y1) = ((x0 + 1) % MW_W, (y0 + 1).min(MW_H - 1));
+    let (fx, fy) = ((x - x.floor()) as f32, (y - y.floor()) as f32);
+    let at = |x: usize, y: usize| f32::from(map[y * MW_W + x]);
+    let top = at(x0, y0) * (1.0 - fx) + at(x1, y0) * fx;
+    let bottom = at(x0, y1) * (1.0 - fx) + at(x1, y1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// Right ascension and declination, degrees, of world direction `d` (x west, y up,
+/// z north: [`direction`]'s frame) at Julian day `jd` from `latitude_deg`,
+/// `longitude_deg` (of the date: J2000 within the half degree precession has moved
+/// them since).
+pub fn equatorial(d: DVec3, jd: f64, latitude_deg: f64, longitude_deg: f64) -> (f64, f64) {
+    let d = d.normalize();
+    let (east, up, north) = (-d.x, d.y, d.z);
+    let lat = latitude_deg.to_radians();
+    let dec = (north * lat.cos() + up * lat.sin()).clamp(-1.0, 1.0).asin();
+    let hour_angle = (-east).atan2(up * lat.cos() - north * lat.sin());
+    ((gmst_deg(jd) + longitude_deg - hour_angle.to_degrees()).rem_euclid(360.0), dec.to_degrees())
+}
+
 /// Airglow brightness at the zenith, rayleighs (`[render.sky.airglow]`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -217,14 +270,15 @@ pub struct Airglow {
     pub oh695_r: f32,
     /// The rest of the natural night sky at the zenith, V-band surface brightness,
     /// mag/arcsec²: integrated starlight, zodiacal light and the airglow's continuum,
-    /// drawn as sunlight-coloured (a 5800 K blackbody). The whole dark sky is about 22
-    /// (0.17 mcd/m²; Leinert et al. 1998), of which the lines above are a sixth.
+    /// drawn as sunlight-coloured (a 5800 K blackbody). The whole dark sky is about
+    /// 22-22.5 (0.17-0.11 mcd/m²; Leinert et al. 1998), of which the lines above are a
+    /// sixth; the default, 22.5, is the darker end.
     pub continuum_mag_arcsec2: f32,
 }
 
 impl Default for Airglow {
     fn default() -> Self {
-        Self { o557_r: 150.0, o630_r: 60.0, oh650_r: 100.0, oh695_r: 100.0, continuum_mag_arcsec2: 22.2 }
+        Self { o557_r: 150.0, o630_r: 60.0, oh650_r: 100.0, oh695_r: 100.0, continuum_mag_arcsec2: 22.5 }
     }
 }
 
@@ -307,6 +361,43 @@ mod tests {
             // the latitude, and it stands within 2° of due north.
             assert!((elevation - 69.65).abs() < 0.7, "{utc}: {elevation}");
             assert!(d.x.atan2(d.z).to_degrees().abs() < 2.0, "{utc}: {d}");
+        }
+    }
+
+    #[test]
+    fn a_star_east_of_the_meridian_stands_on_the_east_side() {
+        // Hour angle −2 h (rising, east of the meridian), declination +20°, seen from
+        // 69.65° N: its east component −cos δ sin H is positive, so its world x is
+        // negative (x points west).
+        let jd = julian_day("2027-01-15T21:00:00Z").unwrap();
+        let lst = gmst_deg(jd) + 18.96;
+        let star = Star { hip: 0, ra_deg: lst + 30.0, dec_deg: 20.0, vmag: 0.0, bv: 0.6 };
+        let d = direction(&star, jd, 69.65, 18.96);
+        // (Precession to 2027 moves it by under half a degree.)
+        let east = (20f64.to_radians().cos() * 30f64.to_radians().sin()).abs();
+        assert!((d.x + east).abs() < 0.01, "{d}");
+    }
+
+    #[test]
+    fn directions_turn_back_into_the_stars_coordinates_and_the_milky_way_is_where_it_is() {
+        let jd = julian_day("2027-01-15T21:00:00Z").unwrap();
+        for star in catalogue().iter().step_by(97) {
+            let d = direction(star, jd, 69.65, 18.96);
+            let (ra, dec) = equatorial(d, jd, 69.65, 18.96);
+            // Precession moves a star by at most ~0.5° in 27 years (more near the poles).
+            let (ra0, dec0) = (star.ra_deg, star.dec_deg);
+            let dra = ((ra - ra0 + 180.0).rem_euclid(360.0) - 180.0) * dec0.to_radians().cos();
+            assert!(dra.abs() < 0.6 && (dec - dec0).abs() < 0.3, "HIP {}: {ra}, {dec}", star.hip);
+        }
+        // The galactic centre (RA 266.4°, dec −28.9°) and Cygnus (RA 305°, dec +40°) lie
+        // in it, the Large Sagittarius Star Cloud (RA 271°-274°, dec −27.5°) in its
+        // brightest level; the galactic poles (RA 192.9°, dec +27.1°; RA 12.9°, dec
+        // −27.1°), Orion's belt and Polaris do not.
+        assert!(milky_way_level(266.4, -28.9) >= 1.0 && milky_way_level(305.0, 40.0) >= 1.0);
+        assert_eq!(milky_way_level(273.0, -27.5), 5.0);
+        assert_eq!(milky_way_level(83.8, -5.4), 0.0);
+        for (ra, dec) in [(192.9, 27.1), (12.9, -27.1), (37.95, 89.26)] {
+            assert_eq!(milky_way_level(ra, dec), 0.0, "({ra}, {dec})");
         }
     }
 

@@ -1,7 +1,8 @@
 //! The sky view: the aurora as a camera sees it (§2.4 and the physical extension).
 //!
 //! Geometry: the x-z plane of the simulation lies at the top of the atmosphere, centred
-//! over the origin (world x east, z north, y altitude, all km, flat Earth); each particle
+//! over the origin (world x west, z north, y altitude, all km, flat Earth: right-handed,
+//! so a camera looking north has +x on its left); each particle
 //! is the foot of a field line that runs down along B (vertical, or tilted by
 //! `field_tilt_deg` towards `field_azimuth_deg`).
 //!
@@ -101,7 +102,8 @@ impl PerLine {
 pub enum SkyCamera {
     /// An observer on the ground `distance_km` south of the centre, looking north and up
     /// at `elevation_deg` (perspective; the thesis's view, Table 3.2: 1280 × 720).
-    /// Defaults: 250 km, 38°, 60°.
+    /// Defaults: 250 km, 28°, 60° (the horizon 2° above the bottom edge; the thesis's
+    /// framing is 38°, [`SkySettings::thesis`]).
     Ground {
         /// Distance south of the plane's centre, km.
         #[serde(default = "defaults::ground_distance_km")]
@@ -203,7 +205,7 @@ mod defaults {
         250.0
     }
     pub(super) fn ground_elevation_deg() -> f32 {
-        38.0
+        28.0
     }
     pub(super) fn fov_y_deg() -> f32 {
         60.0
@@ -253,7 +255,7 @@ pub struct SkySettings {
     /// field at auroral latitudes is about 12° from vertical).
     pub field_tilt_deg: f32,
     /// Direction the field lines lean towards with depth, degrees from north (+z)
-    /// towards east (+x).
+    /// towards +x (west).
     pub field_azimuth_deg: f32,
     /// Standard deviation of each line's splat (eq 2.28), pixels at a 1280-pixel-wide
     /// image (scaled with the width).
@@ -273,9 +275,11 @@ pub struct SkySettings {
     /// frames instead of following the particles at once (630.0 nm lingers ~half a minute).
     pub afterglow: bool,
     /// Draw the stars behind the aurora: the Hipparcos catalogue's, where they stand for
-    /// `site` at its time ([`crate::night`]), in the same units as the aurora.
+    /// `site` at its time ([`crate::night`]), in the same units as the aurora (default
+    /// on, as are `airglow` and `ground`: [`SkySettings::thesis`] has them off).
     pub stars: bool,
-    /// Faintest star drawn, visual magnitude (default 5.5; the catalogue ends at 6).
+    /// Faintest star drawn, visual magnitude (default 5.5; the catalogue ends at 6, so
+    /// a fainter limit draws the whole catalogue).
     pub star_limiting_magnitude: f32,
     /// Where and when the sky is seen (the stars' positions).
     pub site: Site,
@@ -285,6 +289,14 @@ pub struct SkySettings {
     pub airglow: bool,
     /// The airglow's zenith brightness per emission, rayleighs.
     pub airglow_zenith: Airglow,
+    /// Draw the Milky Way: the integrated light of its unresolved stars as a band of
+    /// five outline levels (d3-celestial's, [`crate::night::milky_way_level`]), where it
+    /// stands for `site` at its time, in a 4500 K starlight colour, dimmed by extinction.
+    pub milky_way: bool,
+    /// The Milky Way's surface brightness in its brightest star clouds (its level 5),
+    /// V mag/arcsec²; each level below is 0.625 magnitudes fainter (level 1: 23.5, about
+    /// the faint outer band), and outside it nothing.
+    pub milky_way_mag_arcsec2: f32,
     /// Draw a dark ground with low hills below the horizon (hides what is behind it).
     pub ground: bool,
     /// `paper` mode: the fall and emission parameters.
@@ -303,6 +315,9 @@ pub struct SkySettings {
     /// Behind the aurora.
     pub background: SkyBackground,
 }
+
+/// Spacing, pixels, of the grid the Milky Way is worked out on.
+const NIGHT_STEP_PX: usize = 4;
 
 /// Width the `paper` mode's exposure and every splat size refer to, pixels.
 const REFERENCE_WIDTH_PX: f64 = 1280.0;
@@ -323,12 +338,14 @@ impl Default for SkySettings {
             precipitation: Precipitation::default(),
             yields: Yields::default(),
             afterglow: false,
-            stars: false,
+            stars: true,
             star_limiting_magnitude: 5.5,
             site: Site::default(),
-            airglow: false,
+            airglow: true,
             airglow_zenith: Airglow::default(),
-            ground: false,
+            milky_way: true,
+            milky_way_mag_arcsec2: 21.0,
+            ground: true,
             white_kilorayleigh: 20.0,
             paper: PaperFall::default(),
             paper_emission_brightness: PAPER_EMISSION_BRIGHTNESS,
@@ -338,6 +355,21 @@ impl Default for SkySettings {
 }
 
 impl SkySettings {
+    /// The thesis's sky (§2.4, Table 3.2): the aurora alone over black (no stars,
+    /// airglow or ground), seen from the ground 250 km south, 38° up. With
+    /// `[aurora.small_scale] enabled = false` it gives the frames of the thesis scenes
+    /// before the night was added; the tests that measure the aurora's own light use it.
+    pub fn thesis() -> Self {
+        Self {
+            stars: false,
+            airglow: false,
+            milky_way: false,
+            ground: false,
+            camera: SkyCamera::Ground { distance_km: 250.0, elevation_deg: 38.0, fov_y_deg: 60.0 },
+            ..Self::default()
+        }
+    }
+
     /// Every problem, with fields relative to `[render.sky]`.
     pub fn validate(&self) -> Result<(), Vec<Issue>> {
         let mut i = Issues::default();
@@ -363,9 +395,10 @@ impl SkySettings {
         self.yields.validate(&mut i, "yields");
         self.paper.validate(&mut i, "paper");
         i.range_open_low("white_kilorayleigh", self.white_kilorayleigh, 0.0, 1e6);
-        i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=6.0);
+        i.range("star_limiting_magnitude", self.star_limiting_magnitude, -2.0..=9.0);
         self.site.validate(&mut i, "site");
         self.airglow_zenith.validate(&mut i, "airglow_zenith");
+        i.range("milky_way_mag_arcsec2", self.milky_way_mag_arcsec2, 10.0..=40.0);
         i.range("paper_emission_brightness", self.paper_emission_brightness, 0.0..=1e9);
         if let SkyBackground::Image { path } = &self.background
             && path.as_os_str().is_empty()
@@ -644,6 +677,9 @@ impl SkyRenderer {
         if self.settings.airglow && self.settings.mode == ColourMode::Physical {
             self.draw_airglow();
         }
+        if self.settings.milky_way {
+            self.draw_milky_way(time_s);
+        }
         if self.settings.stars {
             self.draw_stars(time_s);
         }
@@ -859,11 +895,66 @@ impl SkyRenderer {
         }
     }
 
+    /// Add the Milky Way where it stands `time_s` after the site's moment. It is smooth
+    /// (its map has 0.5° cells), so it is worked out every [`NIGHT_STEP_PX`] pixels and
+    /// interpolated bilinearly between.
+    fn draw_milky_way(&mut self, time_s: f64) {
+        let (w, h) = (self.width, self.height);
+        let view = self.view;
+        let site = self.settings.site.clone();
+        let jd = site.julian_day() + time_s / 86_400.0;
+        let star_light = blackbody_xyz(Observer::Cie2015TwoDegree, 4500.0);
+        let brightest = night::continuum_cd_m2(self.settings.milky_way_mag_arcsec2) / self.white_cd_m2();
+        let rgb = xyz_to_linear_srgb(star_light / star_light.y * brightest).max(DVec3::ZERO).as_vec3();
+        let (gw, gh) = (w.div_ceil(NIGHT_STEP_PX) + 1, h.div_ceil(NIGHT_STEP_PX) + 1);
+        let grid: Vec<f32> = (0..gw * gh)
+            .into_par_iter()
+            .map(|k| {
+                let (gx, gy) = ((k % gw) * NIGHT_STEP_PX, (k / gw) * NIGHT_STEP_PX);
+                let (_, d) = view.ray(gx as f32, gy as f32);
+                let elevation = night::elevation(d);
+                if !(elevation > -0.05) {
+                    return 0.0;
+                }
+                let (ra, dec) = night::equatorial(d.as_dvec3(), jd, site.latitude_deg, site.longitude_deg);
+                let level = night::milky_way_level(ra, dec);
+                if level <= 0.0 {
+                    return 0.0;
+                }
+                // 0.625 magnitudes a level below 5; a fractional level below 1 fades in.
+                let relative = 10f32.powf(-0.4 * 0.625 * (5.0 - level.max(1.0))) * level.min(1.0);
+                relative * night::glow_transmission(elevation.max(0.0)) as f32
+            })
+            .collect();
+        let [r, g, b] = self.frame.planes_mut();
+        r.data_mut()
+            .par_chunks_mut(w)
+            .zip(g.data_mut().par_chunks_mut(w))
+            .zip(b.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, ((r, g), b))| {
+                let fy = (y as f32 + 0.5) / NIGHT_STEP_PX as f32;
+                let (y0, ty) = ((fy.floor() as usize).min(gh - 2), fy.fract());
+                for x in 0..w {
+                    let fx = (x as f32 + 0.5) / NIGHT_STEP_PX as f32;
+                    let (x0, tx) = ((fx.floor() as usize).min(gw - 2), fx.fract());
+                    let at = |i: usize, j: usize| grid[j * gw + i];
+                    let top = at(x0, y0) * (1.0 - tx) + at(x0 + 1, y0) * tx;
+                    let bottom = at(x0, y0 + 1) * (1.0 - tx) + at(x0 + 1, y0 + 1) * tx;
+                    let v = top * (1.0 - ty) + bottom * ty;
+                    if v > 0.0 {
+                        r[x] += rgb.x * v;
+                        g[x] += rgb.y * v;
+                        b[x] += rgb.z * v;
+                    }
+                }
+            });
+    }
+
     /// Add the airglow: each emission's zenith brightness × the van Rhijn factor of its
     /// layer × what extinction leaves of it ([`night::glow_transmission`]), per pixel by
     /// the pixel's elevation, from a table of 1025 steps in sin(elevation), interpolated
-    /// (the glow is smooth in elevation: the van Rhijn factor's steepest change, at the
-    /// horizon, is a few per cent a step).
+    /// (the glow is smooth in elevation: it changes by at most about 0.3 % a step).
     fn draw_airglow(&mut self) {
         const STEPS: usize = 1024;
         let w = self.width;

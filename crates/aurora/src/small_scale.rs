@@ -42,6 +42,9 @@ use crate::shape::Shape;
 
 const SITES: Purpose = Purpose::named("aurora.small_scale.sites");
 
+/// Most patch sites a frame works out ahead ([`PatchField`]).
+const MAX_PATCH_TABLE: usize = 512 * 512;
+
 /// Folds: a travelling wave of the sheet's normal offset.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -267,19 +270,33 @@ fn range_pair(i: &mut Issues, field: &str, v: [f32; 2], range: std::ops::RangeIn
 /// Where a point lies relative to the nearest sheet.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SheetPlace {
-    /// Arc length from the sheet's first point, km.
+    /// Arc length along the drawn sheet, km: from the sheet's first point, continued
+    /// across the pieces a split leaves (in the order of their points), so the waves on
+    /// a sheet run on unbroken where it splits.
     pub s_km: f32,
     /// Signed distance from the sheet (positive to the left of its direction), km.
     pub n_km: f32,
-    /// The sheet's length, km.
-    pub length_km: f32,
-    /// Which chain of linked points (sheet) it is.
+    /// Distance from the nearest point of the sheet, km.
+    pub distance_km: f32,
+    /// Arc length from this piece's first point, km.
+    pub from_head_km: f32,
+    /// Arc length to this piece's last point, km.
+    pub to_tail_km: f32,
+    /// Distance from this piece's first point to the nearest end of another piece, km
+    /// (infinite when there is none): a split's or merge's ends touch, free ends do not.
+    pub head_gap_km: f32,
+    /// The same for its last point.
+    pub tail_gap_km: f32,
+    /// The drawn sheet it belongs to.
+    pub sheet: u32,
+    /// Which piece (chain of linked points) it is.
     pub chain: u32,
     /// Unit tangent along the sheet.
     pub tangent: Vec2,
 }
 
-/// One segment of a chain: start, unit direction, length, arc length at its start.
+/// One segment of a chain: start, unit direction, length, arc length at its start
+/// within its chain.
 #[derive(Clone, Copy, Debug)]
 struct Segment {
     a: Vec2,
@@ -289,11 +306,22 @@ struct Segment {
     chain: u32,
 }
 
+/// A chain of linked points: its sheet, where its arc length starts along the sheet,
+/// its length and the gaps at its ends.
+#[derive(Clone, Copy, Debug)]
+struct Chain {
+    sheet: u32,
+    s_offset: f32,
+    length: f32,
+    head_gap: f32,
+    tail_gap: f32,
+}
+
 /// The sheets' segments with their arc lengths, bucketed for nearest-segment queries.
 #[derive(Clone, Debug)]
 struct SheetIndex {
     segments: Vec<Segment>,
-    chain_length: Vec<f32>,
+    chains: Vec<Chain>,
     origin: Vec2,
     cell: f32,
     nx: usize,
@@ -303,46 +331,22 @@ struct SheetIndex {
     reach: f32,
 }
 
+/// Most bucket cells along one side of a [`SheetIndex`].
+const MAX_INDEX_CELLS: f32 = 1024.0;
+
 impl SheetIndex {
     fn new(shape: &Shape, reach: f32) -> Self {
-        let n = shape.points.len();
-        let mut has_prev = vec![false; n];
-        for &j in shape.next.iter().flatten() {
-            if let Some(h) = has_prev.get_mut(j as usize) {
-                *h = true;
-            }
-        }
-        let (mut segments, mut chain_length) = (Vec::new(), Vec::new());
-        let mut visited = vec![false; n];
-        // Heads first (open chains), then whatever is left (closed loops), in point order.
-        let heads = (0..n).filter(|&i| !has_prev[i]).chain(0..n);
-        for head in heads {
-            if visited[head] || shape.next[head].is_none() {
-                continue;
-            }
-            let chain = chain_length.len() as u32;
-            let (mut i, mut s) = (head, 0.0f32);
-            while !visited[i] {
-                visited[i] = true;
-                let Some(j) = shape.next[i].map(|j| j as usize).filter(|&j| j < n) else { break };
-                let (a, b) = (shape.points[i], shape.points[j]);
-                let len = a.distance(b);
-                if len > 0.0 {
-                    segments.push(Segment { a, dir: (b - a) / len, len, s0: s, chain });
-                }
-                s += len;
-                i = j;
-            }
-            chain_length.push(s);
-        }
+        let (segments, chains) = Self::chains(shape);
         let (lo, hi) = segments.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), g| {
             let b = g.a + g.dir * g.len;
             (lo.min(g.a).min(b), hi.max(g.a).max(b))
         });
-        let cell = reach.max(1e-3);
-        let origin = if segments.is_empty() { Vec2::ZERO } else { lo - Vec2::splat(reach) };
-        let span = if segments.is_empty() { Vec2::ZERO } else { (hi + Vec2::splat(reach) - origin) / cell };
-        let (nx, nz) = ((span.x as usize + 1).min(2048), (span.y as usize + 1).min(2048));
+        let (origin, extent) =
+            if segments.is_empty() { (Vec2::ZERO, Vec2::ZERO) } else { (lo - reach, hi - lo + 2.0 * reach) };
+        // Cells of the reach, or coarser for a small reach over large sheets.
+        let cell = reach.max(extent.max_element() / MAX_INDEX_CELLS).max(1e-3);
+        let span = extent / cell;
+        let (nx, nz) = (span.x as usize + 1, span.y as usize + 1);
         let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); nx * nz];
         for (k, g) in segments.iter().enumerate() {
             let b = g.a + g.dir * g.len;
@@ -362,12 +366,64 @@ impl SheetIndex {
             items.extend_from_slice(b);
         }
         start.push(items.len() as u32);
-        Self { segments, chain_length, origin, cell, nx, nz, start, items, reach }
+        Self { segments, chains, origin, cell, nx, nz, start, items, reach }
+    }
+
+    /// The segments and chains of `shape`: chains followed from their heads (open
+    /// chains) then from whatever is left (closed loops), in point order; each sheet's
+    /// chains continue its arc length in the order of their first points.
+    fn chains(shape: &Shape) -> (Vec<Segment>, Vec<Chain>) {
+        let n = shape.points.len();
+        let mut has_prev = vec![false; n];
+        for &j in shape.next.iter().flatten() {
+            if let Some(h) = has_prev.get_mut(j as usize) {
+                *h = true;
+            }
+        }
+        let mut segments = Vec::new();
+        // (sheet, index of the head in its sheet, length, head point, tail point)
+        let mut found: Vec<(u32, u32, f32, Vec2, Vec2)> = Vec::new();
+        let mut visited = vec![false; n];
+        for head in (0..n).filter(|&i| !has_prev[i]).chain(0..n) {
+            if visited[head] || shape.next[head].is_none() {
+                continue;
+            }
+            let chain = found.len() as u32;
+            let (mut i, mut s) = (head, 0.0f32);
+            while !visited[i] {
+                visited[i] = true;
+                let Some(j) = shape.next[i].map(|j| j as usize).filter(|&j| j < n) else { break };
+                let (a, b) = (shape.points[i], shape.points[j]);
+                let len = a.distance(b);
+                if len > 0.0 {
+                    segments.push(Segment { a, dir: (b - a) / len, len, s0: s, chain });
+                }
+                s += len;
+                i = j;
+            }
+            let sheet = shape.sheet.get(head).copied().unwrap_or(chain);
+            let order = shape.index_in_sheet.get(head).copied().unwrap_or(0);
+            found.push((sheet, order, s, shape.points[head], shape.points[i]));
+        }
+        let ends: Vec<(usize, Vec2)> =
+            found.iter().enumerate().flat_map(|(c, f)| [(c, f.3), (c, f.4)]).collect();
+        let gap = |c: usize, p: Vec2| {
+            ends.iter().filter(|(o, _)| *o != c).map(|(_, q)| p.distance(*q)).fold(f32::INFINITY, f32::min)
+        };
+        let chains = found
+            .iter()
+            .enumerate()
+            .map(|(c, &(sheet, order, length, head, tail))| {
+                let s_offset = found.iter().filter(|o| o.0 == sheet && o.1 < order).map(|o| o.2).sum::<f32>();
+                Chain { sheet, s_offset, length, head_gap: gap(c, head), tail_gap: gap(c, tail) }
+            })
+            .collect();
+        (segments, chains)
     }
 
     /// The nearest sheet within reach of `p`.
     fn place(&self, p: Vec2) -> Option<SheetPlace> {
-        if self.segments.is_empty() {
+        if self.segments.is_empty() || !p.is_finite() {
             return None;
         }
         let q = (p - self.origin) / self.cell;
@@ -380,14 +436,18 @@ impl SheetIndex {
             let g = &self.segments[k as usize];
             let d = p - g.a;
             let t = d.dot(g.dir).clamp(0.0, g.len);
-            let off = d - g.dir * t;
-            let dist2 = off.length_squared();
+            let dist2 = (d - g.dir * t).length_squared();
             if dist2 <= self.reach * self.reach && best.as_ref().is_none_or(|(b, _)| dist2 < *b) {
-                let n_km = g.dir.perp_dot(d);
+                let chain = &self.chains[g.chain as usize];
                 let place = SheetPlace {
-                    s_km: g.s0 + t,
-                    n_km,
-                    length_km: self.chain_length[g.chain as usize],
+                    s_km: chain.s_offset + g.s0 + t,
+                    n_km: g.dir.perp_dot(d),
+                    distance_km: dist2.sqrt(),
+                    from_head_km: g.s0 + t,
+                    to_tail_km: (chain.length - g.s0 - t).max(0.0),
+                    head_gap_km: chain.head_gap,
+                    tail_gap_km: chain.tail_gap,
+                    sheet: chain.sheet,
                     chain: g.chain,
                     tangent: g.dir,
                 };
@@ -416,19 +476,44 @@ pub struct Prepared {
     pulsating: Option<PatchField>,
 }
 
-/// One sheet's sites now.
+/// A travelling pattern's position now: the pattern's σ = s/λ − v t/λ is taken as
+/// σ' − `whole` with σ' = s/λ − `frac`, `whole` + `frac` = v t/λ worked out in f64, so
+/// σ' stays small and exact in f32 however long the scene runs.
+#[derive(Clone, Copy, Debug, Default)]
+struct Travel {
+    whole: i64,
+    frac: f32,
+}
+
+impl Travel {
+    fn new(speed_km_s: f32, wavelength_km: f32, time_s: f64) -> Self {
+        let moved = f64::from(speed_km_s) * time_s / f64::from(wavelength_km);
+        let whole = moved.floor();
+        Self { whole: whole as i64, frac: (moved - whole) as f32 }
+    }
+
+    /// σ' at arc length `s_km`.
+    fn local(&self, s_km: f32, wavelength_km: f32) -> f32 {
+        s_km / wavelength_km - self.frac
+    }
+}
+
+/// One chain's sites now.
 #[derive(Clone, Debug, Default)]
 struct ChainNow {
     /// The folds' phase offset, radians.
     fold_phase: f32,
-    /// Curl site of `curl_life[0]`.
+    folds: Travel,
+    curls: Travel,
+    /// Local curl site (⌊σ' + ¼⌋) of `curl_life[0]`.
     curl_first: i64,
     /// Each curl site's life envelope now (0-1).
     curl_life: Vec<f32>,
-    /// Ray site of `rays[0]`.
+    rays: Travel,
+    /// Local ray site (⌊σ'⌋) of `ray_sites[0]`.
     ray_first: i64,
-    /// Each ray's centre (in spacings) and strength.
-    rays: Vec<(f32, f32)>,
+    /// Each ray's centre (in local spacings) and strength.
+    ray_sites: Vec<(f32, f32)>,
 }
 
 /// Uniform in [0, 1) for a site: the same for the same (seed, kind, a, b, c).
@@ -440,6 +525,15 @@ fn site_random(seed: u64, kind: u64, a: i64, b: i64, c: u64) -> f32 {
     Stream::new(seed, SITES, key).next_f32()
 }
 
+/// Brightness factor `from_end` km from a piece's end whose nearest other piece's end
+/// is `gap` km away: a free end fades over `taper` km; an end that meets another piece
+/// (a split just opening, a merge) does not, and the fade grows in as the gap opens to
+/// two tapers.
+fn end_fade(from_end: f32, gap: f32, taper: f32) -> f32 {
+    let length = taper * smoothstep(0.0, 2.0 * taper, gap);
+    if length <= 1e-3 { 1.0 } else { smoothstep(0.0, length, from_end) }
+}
+
 /// Smooth step from 0 at `e0` to 1 at `e1`.
 fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
@@ -449,13 +543,7 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 impl SmallScale {
     fn prepare(&self, shape: &Shape, time_s: f64, seed: u64) -> Prepared {
         let sheets = SheetIndex::new(shape, self.reach_km);
-        let t = time_s as f32;
-        let chains = sheets
-            .chain_length
-            .iter()
-            .enumerate()
-            .map(|(c, &l)| self.chain_now(c as i64, l, t, seed))
-            .collect();
+        let chains = sheets.chains.iter().map(|c| self.chain_now(c, time_s, seed)).collect();
         let (lo, hi) = shape.bounds();
         let margin = Vec2::splat(self.reach_km);
         let bounds = (lo - margin, hi + margin);
@@ -470,9 +558,15 @@ impl SmallScale {
         Prepared { params: *self, sheets, time_s, chains, flicker, pulsating }
     }
 
-    fn chain_now(&self, chain: i64, length: f32, t: f32, seed: u64) -> ChainNow {
+    /// Chain `chain`'s sites at `time_s`: its random numbers keyed by its sheet and
+    /// the sites' places along the sheet, so the pieces of a split sheet keep theirs.
+    fn chain_now(&self, chain: &Chain, time_s: f64, seed: u64) -> ChainNow {
+        let sheet = i64::from(chain.sheet);
+        let (from, to) = (chain.s_offset, chain.s_offset + chain.length);
+        let f = &self.folds;
         let mut now = ChainNow {
-            fold_phase: site_random(seed, 1, chain, 0, 0) * std::f32::consts::TAU,
+            fold_phase: site_random(seed, 1, sheet, 0, 0) * std::f32::consts::TAU,
+            folds: Travel::new(f.speed_km_s, f.wavelength_km, time_s),
             ..ChainNow::default()
         };
         let c = &self.curls;
@@ -480,16 +574,17 @@ impl SmallScale {
             // Sites are centred on the wave's crests (θ = π/2, σ = j + ¼), where a
             // trochoid loops; site j lives in window k (1.5 lifetimes long, its own
             // offset) with chance `share`, as sin² over one lifetime.
-            let sigma = |s: f32| (s - c.speed_km_s * t) / c.wavelength_km + 0.25;
-            now.curl_first = sigma(0.0).floor() as i64;
-            let last = sigma(length).floor() as i64;
-            now.curl_life = (now.curl_first..=last)
-                .map(|j| {
-                    let window = 1.5 * c.lifetime_s;
-                    let u = t / window + site_random(seed, 2, j, chain, 0);
+            now.curls = Travel::new(c.speed_km_s, c.wavelength_km, time_s);
+            let site = |s: f32| (now.curls.local(s, c.wavelength_km) + 0.25).floor() as i64;
+            now.curl_first = site(from);
+            let window = 1.5 * f64::from(c.lifetime_s);
+            now.curl_life = (now.curl_first..=site(to))
+                .map(|local| {
+                    let j = local - now.curls.whole;
+                    let u = time_s / window + f64::from(site_random(seed, 2, j, sheet, 0));
                     let k = u.floor();
-                    let life = (u - k) * 1.5;
-                    if site_random(seed, 3, j, chain, k as i64 as u64) >= c.share || life >= 1.0 {
+                    let life = ((u - k) * 1.5) as f32;
+                    if site_random(seed, 3, j, sheet, k as i64 as u64) >= c.share || life >= 1.0 {
                         0.0
                     } else {
                         (std::f32::consts::PI * life).sin().powi(2)
@@ -499,14 +594,15 @@ impl SmallScale {
         }
         let r = &self.rays;
         if r.contrast > 0.0 {
-            let sigma = |s: f32| (s - r.speed_km_s * t) / r.spacing_km;
+            now.rays = Travel::new(r.speed_km_s, r.spacing_km, time_s);
             let reach = (3.0 * r.width_km / r.spacing_km).ceil() as i64 + 1;
-            now.ray_first = sigma(0.0).floor() as i64 - reach;
-            let last = sigma(length).floor() as i64 + reach;
-            now.rays = (now.ray_first..=last)
-                .map(|j| {
-                    let centre = j as f32 + 0.5 + 0.8 * (site_random(seed, 4, j, chain, 0) - 0.5);
-                    (centre, 0.5 + site_random(seed, 5, j, chain, 0))
+            let site = |s: f32| now.rays.local(s, r.spacing_km).floor() as i64;
+            now.ray_first = site(from) - reach;
+            now.ray_sites = (now.ray_first..=site(to) + reach)
+                .map(|local| {
+                    let j = local - now.rays.whole;
+                    let centre = local as f32 + 0.5 + 0.8 * (site_random(seed, 4, j, sheet, 0) - 0.5);
+                    (centre, 0.5 + site_random(seed, 5, j, sheet, 0))
                 })
                 .collect();
         }
@@ -600,25 +696,31 @@ impl PatchField {
         let lo = (bounds.0 / spacing).floor();
         let hi = (bounds.1 / spacing).floor();
         let first = (lo.x as i64 - span, lo.y as i64 - span);
-        let nx = ((hi.x - lo.x) as i64 + 2 * span + 1).clamp(1, 4096) as usize;
-        let nz = ((hi.y - lo.y) as i64 + 2 * span + 1).clamp(1, 4096) as usize;
+        let nx = ((hi.x - lo.x) as i64 + 2 * span + 1).clamp(1, 1 << 16) as usize;
+        let nz = ((hi.y - lo.y) as i64 + 2 * span + 1).clamp(1, 1 << 16) as usize;
         let mut field =
             Self { kind, spacing, radius, share, span, first, nx, nz, patches: Vec::new(), time_s, seed };
-        field.patches = (0..nx * nz)
-            .map(|k| field.compute(first.0 + (k % nx) as i64, first.1 + (k / nx) as i64))
-            .collect();
+        // Sites are worked out ahead only while the table stays small (512² sites, 8 MiB);
+        // patches much smaller than the shape are worked out when asked for.
+        if nx * nz <= MAX_PATCH_TABLE {
+            field.patches = (0..nx * nz)
+                .map(|k| field.compute(first.0 + (k % nx) as i64, first.1 + (k / nx) as i64))
+                .collect();
+        } else {
+            (field.nx, field.nz) = (0, 0);
+        }
         field
     }
 
     /// Site (i, j)'s patch, from its random numbers.
     fn compute(&self, i: i64, j: i64) -> Patch {
-        let h = [0u64, 1, 2, 3, 4, 5].map(|c| site_random(self.seed, self.kind.key(), i, j, c));
+        let h = [0u64, 1, 2, 3, 4, 5, 6].map(|c| site_random(self.seed, self.kind.key(), i, j, c));
         if h[2] >= self.share {
             return Patch::default();
         }
         let (sin, cos) = (std::f32::consts::PI * h[5]).sin_cos();
-        // Axes radius × (1 ± 0.3), by the site's second number.
-        let stretch = 1.0 + 0.6 * (h[1] - 0.5);
+        // Axes radius × s and radius / s, s in 1 ± 0.3 by the site's seventh number.
+        let stretch = 1.0 + 0.6 * (h[6] - 0.5);
         Patch {
             present: true,
             centre: Vec2::new(i as f32 + 0.5 + 0.6 * (h[3] - 0.5), j as f32 + 0.5 + 0.6 * (h[4] - 0.5)),
@@ -671,39 +773,42 @@ impl Prepared {
 
     /// The point `p` (plane km) where it is drawn, and its brightness factor.
     pub fn apply(&self, p: Vec2) -> (Vec2, f32) {
+        if !p.is_finite() {
+            return (p, 1.0);
+        }
         let mut gain = self.patches(p);
         let Some(place) = self.sheets.place(p) else { return (p, gain) };
         let s = &self.params;
-        let t = self.time_s as f32;
         let chain = &self.chains[place.chain as usize];
         // Fade towards the edge of reach, so displaced and undisplaced particles meet.
-        let near = smoothstep(s.reach_km, 0.5 * s.reach_km, place.n_km.abs());
-        let (along, normal) = self.displacement(chain, &place, t);
+        let near = smoothstep(s.reach_km, 0.5 * s.reach_km, place.distance_km);
+        let (along, normal) = self.displacement(chain, &place);
         let drawn = p + (place.tangent * along + place.tangent.perp() * normal) * near;
         if s.rays.contrast > 0.0 {
-            gain *= 1.0 + near * (self.rays(chain, &place, t) - 1.0);
+            gain *= 1.0 + near * (self.rays(chain, &place) - 1.0);
         }
         if s.end_taper_km > 0.0 {
-            let from_end = place.s_km.min(place.length_km - place.s_km);
-            gain *= 1.0 + near * (smoothstep(0.0, s.end_taper_km, from_end) - 1.0);
+            let fade = end_fade(place.from_head_km, place.head_gap_km, s.end_taper_km)
+                * end_fade(place.to_tail_km, place.tail_gap_km, s.end_taper_km);
+            gain *= 1.0 + near * (fade - 1.0);
         }
         (drawn, gain)
     }
 
     /// The sheet's displacement at `place`: (along, normal), km.
-    fn displacement(&self, chain: &ChainNow, place: &SheetPlace, t: f32) -> (f32, f32) {
+    fn displacement(&self, chain: &ChainNow, place: &SheetPlace) -> (f32, f32) {
         use std::f32::consts::{PI, TAU};
         let s = &self.params;
         let mut normal = 0.0;
         let folds = &s.folds;
         if folds.amplitude_km > 0.0 {
-            let phase = TAU * (place.s_km - folds.speed_km_s * t) / folds.wavelength_km + chain.fold_phase;
+            let phase = TAU * chain.folds.local(place.s_km, folds.wavelength_km) + chain.fold_phase;
             normal += folds.amplitude_km * phase.sin();
         }
         let c = &s.curls;
         let mut along = 0.0;
         if !chain.curl_life.is_empty() {
-            let sigma = (place.s_km - c.speed_km_s * t) / c.wavelength_km;
+            let sigma = chain.curls.local(place.s_km, c.wavelength_km);
             let shifted = sigma + 0.25;
             let j = shifted.floor();
             let k = (j as i64 - chain.curl_first).clamp(0, chain.curl_life.len() as i64 - 1) as usize;
@@ -718,16 +823,16 @@ impl Prepared {
     }
 
     /// Ray brightness factor along the sheet (mean 1).
-    fn rays(&self, chain: &ChainNow, place: &SheetPlace, t: f32) -> f32 {
+    fn rays(&self, chain: &ChainNow, place: &SheetPlace) -> f32 {
         let r = &self.params.rays;
-        let sigma = (place.s_km - r.speed_km_s * t) / r.spacing_km;
+        let sigma = chain.rays.local(place.s_km, r.spacing_km);
         let w = r.width_km / r.spacing_km;
         let reach = (3.0 * w).ceil() as i64 + 1;
         let j0 = sigma.floor() as i64;
         let mut sum = 0.0;
         for j in j0 - reach..=j0 + reach {
             let Some(&(centre, strength)) =
-                usize::try_from(j - chain.ray_first).ok().and_then(|k| chain.rays.get(k))
+                usize::try_from(j - chain.ray_first).ok().and_then(|k| chain.ray_sites.get(k))
             else {
                 continue;
             };
@@ -780,7 +885,8 @@ mod tests {
         let ix = SheetIndex::new(&shape, 5.0);
         let p = ix.place(Vec2::new(37.5, 2.0)).unwrap();
         assert!((p.s_km - 37.5).abs() < 1e-4 && (p.n_km - 2.0).abs() < 1e-5, "{p:?}");
-        assert_eq!(p.length_km, 100.0);
+        assert_eq!((p.from_head_km, p.to_tail_km), (37.5, 62.5));
+        assert!(p.head_gap_km.is_infinite() && (p.distance_km - 2.0).abs() < 1e-5);
         assert!(ix.place(Vec2::new(37.5, -4.9)).unwrap().n_km < 0.0);
         assert!(ix.place(Vec2::new(37.5, 6.0)).is_none(), "beyond reach");
     }
@@ -796,7 +902,7 @@ mod tests {
         let mean: f64 = (0..n)
             .map(|k| {
                 let place = prepared.place(Vec2::new(8000.0 * k as f32 / n as f32 + 100.0, 0.0)).unwrap();
-                f64::from(prepared.rays(&prepared.chains[place.chain as usize], &place, 0.0))
+                f64::from(prepared.rays(&prepared.chains[place.chain as usize], &place))
             })
             .sum::<f64>()
             / f64::from(n);
@@ -811,6 +917,55 @@ mod tests {
         assert!(gain(0.5) < 0.01 && gain(199.5) < 0.01, "{} {}", gain(0.5), gain(199.5));
         assert_eq!(gain(100.0), 1.0);
         assert!(gain(10.0) > 0.2 && gain(10.0) < 0.8);
+    }
+
+    #[test]
+    fn patches_from_the_table_are_those_worked_out_when_asked_for() {
+        let kind = PatchKind::Pulsating(Pulsating { enabled: true, ..Pulsating::default() });
+        let bounds = (Vec2::new(0.0, 0.0), Vec2::new(300.0, 200.0));
+        let table = PatchField::new(kind, 50.0, 40.0, 0.8, bounds, 7.3, 11);
+        assert!(!table.patches.is_empty());
+        let mut none = table.clone();
+        (none.nx, none.nz, none.patches) = (0, 0, Vec::new());
+        let mut lit = 0;
+        for k in 0..2000 {
+            let p = Vec2::new((k % 50) as f32 * 7.1 - 20.0, (k / 50) as f32 * 6.3 - 20.0);
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            table.each(p, |v, w| a.push((v, w)));
+            none.each(p, |v, w| b.push((v, w)));
+            assert_eq!(a, b, "at {p}");
+            lit += usize::from(!a.is_empty());
+        }
+        assert!(lit > 500, "{lit} points under a patch");
+    }
+
+    /// A sheet split in two whose pieces still touch (as a split is when it opens) is
+    /// as bright at the split as along its middle, and its waves run on unbroken; its
+    /// outer ends fade; once the pieces are two tapers apart the new ends fade too.
+    #[test]
+    fn a_split_opening_leaves_no_dark_notch_and_no_jump() {
+        // Two pieces of 11 points, x = 0..100 and 100 + gap..200 + gap, of one sheet.
+        let split = |gap: f32| {
+            let mut shape = straight(100.0, 11);
+            let other = straight(100.0, 11);
+            shape.points.extend(other.points.iter().map(|p| Vec2::new(p.x + 100.0 + gap, p.y)));
+            shape.next.extend(other.next.iter().map(|n| n.map(|j| j + 11)));
+            shape.sheet.extend(other.sheet.iter());
+            shape.index_in_sheet.extend(other.index_in_sheet.iter().map(|i| i + 11));
+            shape
+        };
+        let s = SmallScale { rays: Rays { contrast: 0.0, ..Rays::default() }, ..SmallScale::default() };
+        let joined = s.at(&straight(200.0, 21), 1.3, 4).unwrap();
+        let touching = s.at(&split(0.0), 1.3, 4).unwrap();
+        for x in [95.0, 99.9, 100.1, 105.0] {
+            let p = Vec2::new(x, 0.5);
+            assert_eq!(touching.apply(p).1, 1.0, "gain at {x}");
+            let (a, b) = (joined.apply(p).0, touching.apply(p).0);
+            assert!(a.distance(b) < 1e-3, "at {x}: {a} against {b}");
+        }
+        assert!(touching.apply(Vec2::new(0.5, 0.0)).1 < 0.01, "the outer end fades");
+        let apart = s.at(&split(2.0 * s.end_taper_km), 1.3, 4).unwrap();
+        assert!(apart.apply(Vec2::new(99.5, 0.0)).1 < 0.01, "a new end two tapers away fades");
     }
 
     #[test]

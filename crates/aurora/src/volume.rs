@@ -9,15 +9,17 @@
 //! volume emission profile (`deposition.rs`'s [`ColumnModel`]), so a voxel holds
 //!
 //! V(voxel) = Σ over particles whose field line crosses it of
-//! (footprint / voxel area) × ver(line, altitude) × 1e-4,
+//! gain × (footprint / voxel area) × ver(line, altitude) × 1e-4,
 //!
+//! each particle's foot and gain where and as the sky view draws it (the small-scale
+//! motion, [`crate::small_scale`]: 1 with it off),
 //! up to the top altitude (the share of a line emitted above it, some of the 630.0 nm
 //! line's, is left out), in rayleighs per metre of path (ver in photons cm⁻³ s⁻¹: 1 m of it is 100 · ver
 //! photons cm⁻² s⁻¹, 1e-4 · ver R). Integrated along a ray in metres it gives rayleighs,
 //! the unit of the EXR line layers. The 630.0 nm afterglow of the images (the lingering
 //! of O(¹D)) is not in the volume: it is this frame's emission.
 //!
-//! World space is metres (the sky view's km × 1000): x east, y altitude, z north; voxel
+//! World space is metres (the sky view's km × 1000): x west, y altitude, z north; voxel
 //! (i, j, k) is centred at (i, j, k) × voxel size. The five grids are filled in parallel,
 //! each in a fixed order, so the bytes do not depend on the thread count.
 
@@ -28,7 +30,7 @@ use crate::deposition::ColumnModel;
 use crate::emission::Line;
 use crate::render::LINE_LAYERS;
 use crate::sim::AuroraSim;
-use crate::sky::SkySettings;
+use crate::sky::{SkySettings, small_scale_now};
 
 /// Why the volumes cannot be made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -88,7 +90,8 @@ fn leaf_bound(
         return Err(VolumeError::VoxelSize(voxel_km));
     }
     let h = voxel_km;
-    let mut leaf_columns: Vec<(i32, i32)> = feet(sim, h).into_iter().map(|(x, z)| (x >> 3, z >> 3)).collect();
+    let mut leaf_columns: Vec<(i32, i32)> =
+        feet(sim, h).into_iter().map(|(x, z, _)| (x >> 3, z >> 3)).collect();
     leaf_columns.sort_unstable();
     leaf_columns.dedup();
     let top = f64::from(settings.top_altitude_km);
@@ -111,18 +114,23 @@ fn leaf_bound(
     Ok(leaves)
 }
 
-/// The voxel column (x, z) of each particle's foot, the plane centred over the origin
-/// at voxels of `h` km (particles that are not finite left out), in particle order.
-fn feet(sim: &AuroraSim, h: f64) -> Vec<(i32, i32)> {
+/// The voxel column (x, z) of each particle's foot where the sky view draws it, and its
+/// brightness factor (the small-scale motion, [`crate::small_scale`]), the plane
+/// centred over the origin at voxels of `h` km (particles that are not finite or are
+/// dark left out), in particle order.
+fn feet(sim: &AuroraSim, h: f64) -> Vec<(i32, i32, f32)> {
     let grid = sim.grid();
     let centre = grid.origin_km + grid.extent_km() * 0.5;
+    let small = small_scale_now(sim);
     sim.particles()
         .position_km
         .iter()
         .filter(|p| p.is_finite())
-        .map(|&p| {
+        .map(|&p| small.as_ref().map_or((p, 1.0), |s| s.apply(p)))
+        .filter(|&(p, gain)| p.is_finite() && gain > 0.0)
+        .map(|(p, gain)| {
             let q = p - centre;
-            ((f64::from(q.x) / h).round() as i32, (f64::from(q.y) / h).round() as i32)
+            ((f64::from(q.x) / h).round() as i32, (f64::from(q.y) / h).round() as i32, gain)
         })
         .collect()
 }
@@ -147,14 +155,15 @@ pub fn line_volumes(
     leaf_bound(sim, settings, column, voxel_km)?;
     let transform = Transform::new(voxel_km * 1e3, [0.0; 3])?;
     let h = voxel_km;
-    // The particles' feet, counted per voxel column (sorted: a fixed order).
+    // The particles' feet, their brightness summed per voxel column (sorted: a fixed
+    // order, so the sums do not depend on the particles' order).
     let mut feet = feet(sim, h);
-    feet.sort_unstable();
-    let mut columns: Vec<(i32, i32, u32)> = Vec::new();
+    feet.sort_unstable_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)).then(a.2.total_cmp(&b.2)));
+    let mut columns: Vec<(i32, i32, f64)> = Vec::new();
     for f in feet {
         match columns.last_mut() {
-            Some(c) if (c.0, c.1) == f => c.2 += 1,
-            _ => columns.push((f.0, f.1, 1)),
+            Some(c) if (c.0, c.1) == (f.0, f.1) => c.2 += f64::from(f.2),
+            _ => columns.push((f.0, f.1, f64::from(f.2))),
         }
     }
     let footprint_km2 = 1.0 / f64::from(sim.field().rest_density.max(1e-12));
@@ -169,7 +178,7 @@ pub fn line_volumes(
         g.insert_metadata("wavelength_nm", line.wavelength_nm())?;
         let profile = profile(column, line, &layers);
         for &(ix, iz, count) in &columns {
-            let weight = coverage * f64::from(count);
+            let weight = coverage * count;
             for &(j, altitude_km, v) in &profile {
                 // Down the field line: the foot drifts by `drift` per km of descent.
                 let shift = drift * (top - altitude_km) / h;
@@ -224,6 +233,8 @@ mod tests {
     fn columns_integrate_to_the_line_brightness() {
         let mut config = AuroraConfig::default();
         config.motion.particles = 3000;
+        // Every particle at full brightness (the small-scale motion scales each one).
+        config.small_scale.enabled = false;
         let sim = AuroraSim::new(config, 1).unwrap();
         let settings = SkySettings::default();
         let col = column(&settings);

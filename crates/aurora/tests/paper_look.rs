@@ -25,7 +25,7 @@ use phenomena_aurora::{ColourMode, SkySettings};
 fn scene2_in_paper_mode_is_green_with_a_redder_top() {
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 200);
-    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };
+    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::thesis() };
     let frame = common::sky_frame(&sim, settings, 640, 360);
     let look = common::curtain_look(&frame, 0.02);
     let [_, middle, _] = look.thirds;
@@ -59,7 +59,7 @@ fn scene2_in_paper_mode_is_green_with_a_redder_top() {
             jitter: 0.3,
             ..PaperFall::default()
         },
-        ..SkySettings::default()
+        ..SkySettings::thesis()
     };
     let old = common::curtain_look(&common::sky_frame(&sim, printed, 640, 360), 0.02);
     eprintln!(

@@ -23,7 +23,7 @@ use phenomena_aurora::SkySettings;
 fn scene2_has_a_redder_upper_border() {
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 140);
-    let frame = common::sky_frame(&sim, SkySettings::default(), 1280, 720);
+    let frame = common::sky_frame(&sim, SkySettings::thesis(), 1280, 720);
     let look = common::curtain_look(&frame, 0.02);
     let (top, middle) = (look.redness(0), look.redness(1));
     eprintln!(

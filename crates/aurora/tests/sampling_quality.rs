@@ -52,9 +52,9 @@ fn the_default_samples_stay_close_to_sixteen_times_as_many() {
     let (config, _, seed) = common::load("aurora-scene2.toml");
     let sim = common::run(config, seed, 100);
     let render = |points_per_particle: u32| {
-        common::sky_frame(&sim, SkySettings { points_per_particle, ..SkySettings::default() }, 1280, 720)
+        common::sky_frame(&sim, SkySettings { points_per_particle, ..SkySettings::thesis() }, 1280, 720)
     };
-    let default = SkySettings::default().points_per_particle;
+    let default = SkySettings::thesis().points_per_particle;
     let (frame, reference) = (render(default), render(REFERENCE_POINTS));
     let db = psnr(&frame, &reference);
     eprintln!(

@@ -2,7 +2,9 @@
 //! curtain, the afterglow's decay, thread-count independence, and the dome and
 //! panorama cameras.
 
+use phenomena_aurora::deposition::{Precipitation, Spectrum};
 use phenomena_aurora::emission::Line;
+use phenomena_aurora::night::Airglow;
 use phenomena_aurora::{AuroraConfig, AuroraSim, ColourMode, SkyCamera, SkyRenderer, SkySettings};
 use phenomena_core::image::Frame;
 
@@ -43,7 +45,7 @@ fn a_curtain_is_green_in_the_middle_and_redder_on_top() {
             look_at_altitude_km: 200.0,
             fov_y_deg: 16.0,
         },
-        ..SkySettings::default()
+        ..SkySettings::thesis()
     };
     let s = sim(20_000, 3);
     let mut sky = SkyRenderer::new(settings, 320, 240, None).expect("sky");
@@ -82,7 +84,7 @@ fn the_red_line_lingers_after_the_particles_move_on() {
     }
     let mut second = AuroraSim::new(config, 7).expect("moved arc");
     second.step().expect("step");
-    let settings = SkySettings { afterglow: true, ..SkySettings::default() };
+    let settings = SkySettings { afterglow: true, ..SkySettings::thesis() };
     let mut sky = SkyRenderer::new(settings, 200, 120, None).expect("sky");
     sky.render(&first);
     let before = sky.line_images().clone();
@@ -121,7 +123,7 @@ fn the_red_line_lingers_after_the_particles_move_on() {
 fn sky_renders_are_identical_for_one_and_two_threads() {
     let s = sim(8_000, 2);
     for mode in [ColourMode::Physical, ColourMode::Paper] {
-        let settings = SkySettings { mode, ..SkySettings::default() };
+        let settings = SkySettings { mode, ..SkySettings::thesis() };
         let render = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
             pool.install(|| {
@@ -138,7 +140,7 @@ fn sky_renders_are_identical_for_one_and_two_threads() {
 #[test]
 fn the_dome_master_shows_the_sky_inside_its_circle() {
     let s = sim(8_000, 2);
-    let settings = SkySettings { camera: SkyCamera::Dome { fov_deg: 180.0 }, ..SkySettings::default() };
+    let settings = SkySettings { camera: SkyCamera::Dome { fov_deg: 180.0 }, ..SkySettings::thesis() };
     let mut sky = SkyRenderer::new(settings, 128, 128, None).expect("sky");
     let frame = sky.render(&s);
     let (mut inside, mut outside) = (0.0f64, 0.0f64);
@@ -165,7 +167,7 @@ fn the_panorama_shows_the_arc_above_the_horizon_from_east_to_west() {
     // east of the observer, 0-40 km south of it, 100-400 km up, so all its light is
     // above the horizon (upper half) and reaches both the eastern and western quarters.
     let s = sim(8_000, 2);
-    let settings = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
+    let settings = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::thesis() };
     let mut sky = SkyRenderer::new(settings, 360, 180, None).expect("sky");
     let frame = sky.render(&s);
     let upper = rows_rgb(frame, 0..90).iter().sum::<f64>();
@@ -191,7 +193,7 @@ fn the_ground_hides_what_is_below_the_horizon_and_stars_shine_above_it() {
     // hills are 1.5° ± 1.6°), so with the ground on they are black; stars add light only
     // above the hills.
     let s = sim(4_000, 1);
-    let base = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::default() };
+    let base = SkySettings { camera: SkyCamera::Panorama, ..SkySettings::thesis() };
     let render = |settings: SkySettings| {
         let mut sky = SkyRenderer::new(settings, 360, 180, None).expect("sky");
         sky.render(&s).clone()
@@ -210,9 +212,61 @@ fn the_ground_hides_what_is_below_the_horizon_and_stars_shine_above_it() {
             }
         }
     }
-    // About 10^(0.5·5.5 + 0.7) = 2818 stars, half of them above the horizon, each over
-    // up to 4 pixels (bilinear): at least several hundred lit pixels.
+    // The catalogue holds 2,851 stars to magnitude 5.5, about half of them above the
+    // horizon at any time, each over up to 4 pixels (bilinear): several hundred lit
+    // pixels.
     assert!(added > 500, "{added} pixels gained starlight");
+}
+
+#[test]
+fn airglow_brightens_towards_the_horizon_in_the_frame() {
+    // Panorama, aurora far off to the north (its particles only cover azimuths near
+    // 0°): columns 90-150 (azimuth 90-150°, east to south-east) hold only the glow.
+    // With the emission lines alone (the continuum of starlight and zodiacal light,
+    // which comes from no layer, turned down to nothing), each row's mean there rises
+    // from the zenith towards the horizon, as the van Rhijn factor and extinction say
+    // (2.8 times at 10° elevation, 1.7 at 30°), and the ground is black.
+    let s = sim(4_000, 1);
+    let lines_only = Airglow { continuum_mag_arcsec2: 40.0, ..Airglow::default() };
+    let settings = SkySettings {
+        camera: SkyCamera::Panorama,
+        airglow: true,
+        airglow_zenith: lines_only,
+        ground: true,
+        ..SkySettings::thesis()
+    };
+    let mut sky = SkyRenderer::new(settings, 360, 180, None).expect("sky");
+    let frame = sky.render(&s).clone();
+    let row = |y: usize| (90..150).map(|x| f64::from(frame.pixel(x, y).y)).sum::<f64>() / 60.0;
+    // Row y's centre is at elevation 90° − (y + 0.5)°.
+    let (zenith, at_30, at_10) = (row(0), row(59), row(79));
+    assert!(zenith > 0.0, "the glow at the zenith");
+    assert!(at_30 > 1.5 * zenith && at_10 > 2.3 * zenith, "{zenith} {at_30} {at_10}");
+    assert_eq!(row(95), 0.0, "the ground");
+}
+
+#[test]
+fn the_paper_mode_ignores_the_small_scale_motion() {
+    // The thesis's mode draws the particles where the simulation puts them (§2.4):
+    // switching the small-scale motion off changes none of its pixels.
+    let s = sim(4_000, 2);
+    let mut config = s.config().clone();
+    config.small_scale.enabled = false;
+    let mut still = AuroraSim::new(config, s.seed()).expect("sim");
+    for _ in 0..2 {
+        still.step().expect("step");
+    }
+    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::thesis() };
+    let render =
+        |sim: &AuroraSim| SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky").render(sim).clone();
+    let (a, b) = (render(&s), render(&still));
+    assert!(a == b, "paper frames differ");
+    // ...while the physical mode draws it.
+    let physical = SkySettings { mode: ColourMode::Physical, ..settings.clone() };
+    let render =
+        |sim: &AuroraSim| SkyRenderer::new(physical.clone(), 160, 90, None).expect("sky").render(sim).clone();
+    let (a, b) = (render(&s), render(&still));
+    assert!(a != b, "physical frames equal");
 }
 
 #[test]
@@ -221,7 +275,7 @@ fn the_phases_of_a_particle_subset_average_to_the_full_image() {
     // unbiased: the k phases partition the particles, so their mean is the full image,
     // up to f32 rounding of the sums (relative 1e-4 is ~800 ulps of headroom).
     let s = sim(20_000, 3);
-    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::default() };
+    let settings = SkySettings { mode: ColourMode::Paper, ..SkySettings::thesis() };
     let mut full = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
     full.render(&s);
     let reference: Vec<Vec<f32>> = full.line_images().iter().map(|p| p.data().to_vec()).collect();
@@ -253,7 +307,7 @@ fn a_reused_renderer_leaves_no_trace_of_earlier_frames() {
     // 23). Without afterglow a frame must not depend on what was rendered before it: a
     // renderer that drew a denser, different sim first gives the same bits as a fresh one.
     for mode in [ColourMode::Physical, ColourMode::Paper] {
-        let settings = SkySettings { mode, afterglow: false, ..SkySettings::default() };
+        let settings = SkySettings { mode, afterglow: false, ..SkySettings::thesis() };
         let (before, now) = (sim(12_000, 4), sim(5_000, 2));
         let mut reused = SkyRenderer::new(settings.clone(), 160, 90, None).expect("sky");
         // Two frames: the renderer alternates two sets of line images.
@@ -263,5 +317,66 @@ fn a_reused_renderer_leaves_no_trace_of_earlier_frames() {
         let fresh = SkyRenderer::new(settings, 160, 90, None).expect("sky").render(&now).clone();
         assert!(rows_rgb(&fresh, 0..90).iter().sum::<f64>() > 0.0, "{mode:?}: a lit frame");
         assert_eq!(again, fresh, "{mode:?}");
+    }
+}
+
+/// Widths of `precipitation`'s curtain seen level from the side, 1500 km away with a 4°
+/// field (2.29 px per km of altitude at the curtain): luminance per row summed over the
+/// width; (peak altitude, lower border 10 → 90 % of the peak, top 90 → 10 %), km.
+fn border_widths(precipitation: Precipitation) -> (f64, f64, f64) {
+    let settings = SkySettings {
+        camera: SkyCamera::Orbit {
+            altitude_km: 140.0,
+            distance_km: 1500.0,
+            look_at_altitude_km: 140.0,
+            fov_y_deg: 4.0,
+        },
+        precipitation,
+        ..SkySettings::thesis()
+    };
+    let s = sim(20_000, 3);
+    let mut sky = SkyRenderer::new(settings, 320, 240, None).expect("sky");
+    let frame = sky.render(&s).clone();
+    let px_per_km = 240.0 / (2.0 * 1500.0 * 2f64.to_radians().tan());
+    let rows: Vec<f64> =
+        (0..240).map(|y| (0..320).map(|x| f64::from(frame.pixel(x, y).y)).sum::<f64>()).collect();
+    let (peak_row, peak) =
+        rows.iter().enumerate().fold((0, 0.0), |b, (i, &v)| if v > b.1 { (i, v) } else { b });
+    // The last row (moving away from the peak) at or above `share` of it.
+    let reach = |share: f64, step: i64| {
+        let mut y = peak_row as i64;
+        while (0..240).contains(&(y + step)) && rows[(y + step) as usize] >= share * peak {
+            y += step;
+        }
+        assert!((1..239).contains(&y), "the curtain runs out of the frame");
+        y
+    };
+    let km = |a: i64, b: i64| (a - b).abs() as f64 / px_per_km;
+    let peak_km = 140.0 + (120.0 - peak_row as f64 - 0.5) / px_per_km;
+    (peak_km, km(reach(0.1, 1), reach(0.9, 1)), km(reach(0.1, -1), reach(0.9, -1)))
+}
+
+#[test]
+#[allow(clippy::print_stderr)] // the measures, for the notes (--nocapture)
+fn the_lower_border_is_sharp_and_the_top_fades() {
+    // Observed: a curtain's lower border goes from dark to bright in a few km, its top
+    // fades over tens of km. The default Maxwellian (2 keV, whose fast tail reaches
+    // deeper) and a mono-energetic 5 keV beam (an inverted-V arc's accelerated
+    // electrons): the lower border within 10 and 5 km, the top over at least 20 km and
+    // at least three times the lower border's width.
+    let maxwellian = border_widths(Precipitation::default());
+    let mono = border_widths(Precipitation {
+        spectrum: Spectrum::Mono,
+        energy_kev: 5.0,
+        ..Precipitation::default()
+    });
+    for ((peak, lower, upper), name, limit) in
+        [(maxwellian, "maxwellian 2 keV", 10.0), (mono, "mono 5 keV", 5.0)]
+    {
+        eprintln!(
+            "{name}: peak at {peak:.0} km; lower border 10-90 % over {lower:.1} km; top 90-10 % over {upper:.1} km"
+        );
+        assert!(lower <= limit, "{name}: lower border over {lower} km");
+        assert!(upper >= 20.0 && upper >= 3.0 * lower, "{name}: top fades over {upper} km");
     }
 }

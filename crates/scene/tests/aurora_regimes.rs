@@ -4,7 +4,7 @@
 //! brightness, and are not in phase with each other.
 //!
 //! The frames are the scenes' own (their camera, particles, frame time), at a small size,
-//! with the night around the aurora (stars, airglow, ground) switched off: that light is
+//! with the night around the aurora (stars, airglow, Milky Way, ground) switched off: that light is
 //! constant and added to the aurora's, so it changes no spectrum, but it would count in
 //! a patch's brightness when its swing is measured.
 
@@ -30,7 +30,7 @@ fn tile_series(name: &str, w: u32, h: u32, tile: usize) -> (Vec<Vec<f64>>, f64) 
         }
     }
     let mut scene: Scene = shipped::shipped(name).expect("shipped").scene().unwrap_or_else(|e| panic!("{e}"));
-    for key in ["stars", "airglow", "ground"] {
+    for key in ["stars", "airglow", "milky_way", "ground"] {
         scene = scene.with_value(&format!("render.sky.{key}"), json!(false)).expect("a sky setting");
     }
     let s = scene.settings_mut();

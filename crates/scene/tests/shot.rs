@@ -57,7 +57,10 @@ const AURORA: &str = "[aurora.motion]\nparticles = 4000\n[render.aurora.sky]\nst
 /// elsewhere exactly the aurora's sky.
 #[test]
 fn a_surface_in_front_of_the_aurora_hides_it() {
-    let text = format!("{SIZE}{CAMERA}[render]\naurora_site_km = [0.0, -100.0]\n{SNOW}{AURORA}");
+    // The camera low (20 cm up), so the table stands against the sky: above the horizon,
+    // where the airglow and the stars are, the table hides sky light.
+    let camera = CAMERA.replace("position = [0.0, 1.0, -6.0]", "position = [0.0, 0.2, -6.0]");
+    let text = format!("{SIZE}{camera}[render]\naurora_site_km = [0.0, -100.0]\n{SNOW}{AURORA}");
     let (beauty, layers) = shot(&text, 3);
     let cover = &layers["snow.A"];
     let (mut covered, mut open, mut sky_lit) = (0, 0, 0);
