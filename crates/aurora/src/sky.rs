@@ -316,8 +316,24 @@ pub struct SkySettings {
     pub background: SkyBackground,
 }
 
-/// Spacing, pixels, of the grid the Milky Way is worked out on.
+/// Spacing, pixels, of the grid of ray directions the night's passes interpolate.
 const NIGHT_STEP_PX: usize = 4;
+
+/// Steps of the airglow's table over sin(elevation) from 0 to 1.
+const AIRGLOW_STEPS: usize = 1024;
+
+/// Sine of the highest hill (1.5° + 0.8° + 0.5° + 0.3° = 3.1°, and a margin).
+const HILLS_TOP_SIN: f32 = 0.0559; // sin 3.2°
+
+/// The ground's horizon at azimuth `azimuth` (radians from north): low hills, 1.5° ±
+/// 1.6°, a sum of sines.
+#[inline]
+fn hills_rad(azimuth: f32) -> f32 {
+    (1.5 + 0.8 * (3.0 * azimuth).sin()
+        + 0.5 * (7.0 * azimuth + 1.0).sin()
+        + 0.3 * (13.0 * azimuth + 2.0).sin())
+    .to_radians()
+}
 
 /// Width the `paper` mode's exposure and every splat size refer to, pixels.
 const REFERENCE_WIDTH_PX: f64 = 1280.0;
@@ -464,6 +480,53 @@ pub struct SkyRenderer {
     lanes: bool,
     fresh: [Plane; 5],
     blur_tmp: Vec<f32>,
+    /// Ray directions every [`NIGHT_STEP_PX`] pixels (the view is fixed): the night's
+    /// passes interpolate them ([`SkyRenderer::draw_night`]).
+    night_dirs: NightGrid,
+    /// Each catalogue star to the limiting magnitude: its linear sRGB per unit of
+    /// transmission and solid angle (colour × illuminance / white), worked out once.
+    star_light: Vec<Vec3>,
+}
+
+/// Ray directions of the points (i, j) · [`NIGHT_STEP_PX`] of the image.
+#[derive(Clone, Debug, Default)]
+struct NightGrid {
+    w: usize,
+    h: usize,
+    dirs: Vec<Vec3>,
+}
+
+impl NightGrid {
+    fn new(view: &CameraView, width: usize, height: usize) -> Self {
+        let (w, h) = (width.div_ceil(NIGHT_STEP_PX) + 1, height.div_ceil(NIGHT_STEP_PX) + 1);
+        let dirs = (0..w * h)
+            .into_par_iter()
+            .map(|k| {
+                let (x, y) = ((k % w) * NIGHT_STEP_PX, (k / w) * NIGHT_STEP_PX);
+                view.ray(x as f32, y as f32).1.normalize_or_zero()
+            })
+            .collect();
+        Self { w, h, dirs }
+    }
+
+    /// Grid cell (i, j) and weights (tx, ty) of the pixel centre (x, y).
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> (usize, usize, f32, f32) {
+        let fx = (x as f32 + 0.5) / NIGHT_STEP_PX as f32;
+        let fy = (y as f32 + 0.5) / NIGHT_STEP_PX as f32;
+        ((fx as usize).min(self.w - 2), (fy as usize).min(self.h - 2), fx.fract(), fy.fract())
+    }
+
+    /// `values` (one per grid point) interpolated bilinearly at cell (i, j), (tx, ty).
+    #[inline]
+    fn lerp<T>(values: &[T], w: usize, (i, j, tx, ty): (usize, usize, f32, f32)) -> T
+    where
+        T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let top = values[j * w + i] * (1.0 - tx) + values[j * w + i + 1] * tx;
+        let bottom = values[(j + 1) * w + i] * (1.0 - tx) + values[(j + 1) * w + i + 1] * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
 }
 
 /// One emission chunk's points, filed by the band of their first row as they are
@@ -561,7 +624,10 @@ impl SkyRenderer {
         let scale = (width as f64 / REFERENCE_WIDTH_PX) as f32;
         let sigma_px = settings.splat_sigma_px.to_array().map(|s| s * scale);
         let eye = settings.camera.camera().position;
+        let night_dirs = NightGrid::new(&view, width, height);
         Ok(Self {
+            night_dirs,
+            star_light: Vec::new(),
             settings,
             width,
             height,
@@ -674,18 +740,10 @@ impl SkyRenderer {
             }
         }
         let time_s = sim.frame() as f64 * f64::from(sim.config().motion.time_step_s);
-        if self.settings.airglow && self.settings.mode == ColourMode::Physical {
-            self.draw_airglow();
-        }
-        if self.settings.milky_way {
-            self.draw_milky_way(time_s);
-        }
         if self.settings.stars {
             self.draw_stars(time_s);
         }
-        if self.settings.ground {
-            self.draw_ground();
-        }
+        self.draw_night(time_s);
         self.timings.colour_ms = t.ms();
         &self.frame
     }
@@ -869,14 +927,24 @@ impl SkyRenderer {
     /// (bilinear), in its blackbody colour.
     fn draw_stars(&mut self, time_s: f64) {
         let limit = self.settings.star_limiting_magnitude;
-        let site = &self.settings.site;
-        let jd = site.julian_day() + time_s / 86_400.0;
-        let white = self.white_cd_m2();
-        let eye = self.settings.camera.camera().position;
         let stars = night::catalogue();
         let n = stars.partition_point(|s| s.vmag <= limit);
+        if self.star_light.len() != n {
+            let white = self.white_cd_m2();
+            self.star_light = stars[..n]
+                .iter()
+                .map(|star| {
+                    let xyz = blackbody_xyz(Observer::Cie2015TwoDegree, night::temperature_k(star.bv));
+                    let lux = 2.54e-6 * 10f64.powf(-0.4 * f64::from(star.vmag));
+                    xyz_to_linear_srgb(xyz / xyz.y * lux / white).max(DVec3::ZERO).as_vec3()
+                })
+                .collect();
+        }
+        let site = &self.settings.site;
+        let jd = site.julian_day() + time_s / 86_400.0;
+        let eye = self.settings.camera.camera().position;
         let [r, g, b] = self.frame.planes_mut();
-        for star in &stars[..n] {
+        for (star, light) in stars[..n].iter().zip(&self.star_light) {
             let dir = night::direction(star, jd, site.latitude_deg, site.longitude_deg);
             let elevation = dir.y.asin();
             if elevation < 0.0 {
@@ -885,47 +953,33 @@ impl SkyRenderer {
             let dir = dir.as_vec3();
             let Some(p) = self.view.project(eye + dir * 1e7) else { continue };
             // Luminance = illuminance / the pixel's solid angle.
-            let lux = 2.54e-6 * 10f64.powf(-0.4 * f64::from(star.vmag)) * night::transmission(elevation);
-            let luminance = lux / f64::from(self.view.pixel_solid_angle(eye + dir * 1e7)) / white;
-            let xyz = blackbody_xyz(Observer::Cie2015TwoDegree, night::temperature_k(star.bv));
-            let rgb = xyz_to_linear_srgb(xyz / xyz.y * luminance);
-            for (plane, v) in [&mut *r, &mut *g, &mut *b].into_iter().zip(rgb.to_array()) {
-                plane.deposit_bilinear(p.x_px, p.y_px, v.max(0.0) as f32);
+            let per_pixel =
+                night::transmission(elevation) as f32 / self.view.pixel_solid_angle(eye + dir * 1e7);
+            for (plane, v) in [&mut *r, &mut *g, &mut *b].into_iter().zip((*light * per_pixel).to_array()) {
+                plane.deposit_bilinear(p.x_px, p.y_px, v);
             }
         }
     }
 
-    /// Add the Milky Way where it stands `time_s` after the site's moment. It is smooth
-    /// (its map has 0.5° cells), so it is worked out every [`NIGHT_STEP_PX`] pixels and
-    /// interpolated bilinearly between.
-    fn draw_milky_way(&mut self, time_s: f64) {
-        let (w, h) = (self.width, self.height);
-        let view = self.view;
-        let site = self.settings.site.clone();
-        let jd = site.julian_day() + time_s / 86_400.0;
-        let star_light = blackbody_xyz(Observer::Cie2015TwoDegree, 4500.0);
-        let brightest = night::continuum_cd_m2(self.settings.milky_way_mag_arcsec2) / self.white_cd_m2();
-        let rgb = xyz_to_linear_srgb(star_light / star_light.y * brightest).max(DVec3::ZERO).as_vec3();
-        let (gw, gh) = (w.div_ceil(NIGHT_STEP_PX) + 1, h.div_ceil(NIGHT_STEP_PX) + 1);
-        let grid: Vec<f32> = (0..gw * gh)
-            .into_par_iter()
-            .map(|k| {
-                let (gx, gy) = ((k % gw) * NIGHT_STEP_PX, (k / gw) * NIGHT_STEP_PX);
-                let (_, d) = view.ray(gx as f32, gy as f32);
-                let elevation = night::elevation(d);
-                if !(elevation > -0.05) {
-                    return 0.0;
-                }
-                let (ra, dec) = night::equatorial(d.as_dvec3(), jd, site.latitude_deg, site.longitude_deg);
-                let level = night::milky_way_level(ra, dec);
-                if level <= 0.0 {
-                    return 0.0;
-                }
-                // 0.625 magnitudes a level below 5; a fractional level below 1 fades in.
-                let relative = 10f32.powf(-0.4 * 0.625 * (5.0 - level.max(1.0))) * level.min(1.0);
-                relative * night::glow_transmission(elevation.max(0.0)) as f32
-            })
-            .collect();
+    /// The night behind the aurora and the ground in front of it, in one pass over the
+    /// pixels: the airglow (physical mode: each emission's zenith brightness × the van
+    /// Rhijn factor of its layer × what extinction leaves, [`night::glow_transmission`],
+    /// from a table of 1025 steps in sin(elevation): it changes by at most about 0.3 % a
+    /// step), the Milky Way (worked out every [`NIGHT_STEP_PX`] pixels, its map having
+    /// 0.5° cells, and interpolated), then the ground: everything below a horizon of low
+    /// hills (1-3°, a sum of sines of the azimuth) is black. Each pixel's direction is
+    /// interpolated from the grid of ray directions every [`NIGHT_STEP_PX`] pixels
+    /// (bilinear between unit vectors 4 px apart: under 10⁻⁴ of a degree off).
+    fn draw_night(&mut self, time_s: f64) {
+        let airglow = self.settings.airglow && self.settings.mode == ColourMode::Physical;
+        let (milky_way, ground) = (self.settings.milky_way, self.settings.ground);
+        if !(airglow || milky_way || ground) {
+            return;
+        }
+        let glow = if airglow { self.airglow_table() } else { Vec::new() };
+        let (mw, mw_rgb) = if milky_way { self.milky_way_now(time_s) } else { (Vec::new(), Vec3::ZERO) };
+        let grid = &self.night_dirs;
+        let w = self.width;
         let [r, g, b] = self.frame.planes_mut();
         r.data_mut()
             .par_chunks_mut(w)
@@ -933,32 +987,32 @@ impl SkyRenderer {
             .zip(b.data_mut().par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, ((r, g), b))| {
-                let fy = (y as f32 + 0.5) / NIGHT_STEP_PX as f32;
-                let (y0, ty) = ((fy.floor() as usize).min(gh - 2), fy.fract());
                 for x in 0..w {
-                    let fx = (x as f32 + 0.5) / NIGHT_STEP_PX as f32;
-                    let (x0, tx) = ((fx.floor() as usize).min(gw - 2), fx.fract());
-                    let at = |i: usize, j: usize| grid[j * gw + i];
-                    let top = at(x0, y0) * (1.0 - tx) + at(x0 + 1, y0) * tx;
-                    let bottom = at(x0, y0 + 1) * (1.0 - tx) + at(x0 + 1, y0 + 1) * tx;
-                    let v = top * (1.0 - ty) + bottom * ty;
-                    if v > 0.0 {
-                        r[x] += rgb.x * v;
-                        g[x] += rgb.y * v;
-                        b[x] += rgb.z * v;
+                    let cell = grid.at(x, y);
+                    let d = NightGrid::lerp(&grid.dirs, grid.w, cell);
+                    let up = d.y / d.length();
+                    if ground && up < HILLS_TOP_SIN && up.asin() < hills_rad(d.x.atan2(d.z)) {
+                        (r[x], g[x], b[x]) = (0.0, 0.0, 0.0);
+                        continue;
                     }
+                    let mut add = Vec3::ZERO;
+                    if airglow && up >= 0.0 {
+                        let at = up.min(1.0) * AIRGLOW_STEPS as f32;
+                        let k = (at as usize).min(AIRGLOW_STEPS - 1);
+                        add += glow[k].lerp(glow[k + 1], at - k as f32);
+                    }
+                    if milky_way {
+                        add += mw_rgb * NightGrid::lerp(&mw, grid.w, cell);
+                    }
+                    r[x] += add.x;
+                    g[x] += add.y;
+                    b[x] += add.z;
                 }
             });
     }
 
-    /// Add the airglow: each emission's zenith brightness × the van Rhijn factor of its
-    /// layer × what extinction leaves of it ([`night::glow_transmission`]), per pixel by
-    /// the pixel's elevation, from a table of 1025 steps in sin(elevation), interpolated
-    /// (the glow is smooth in elevation: it changes by at most about 0.3 % a step).
-    fn draw_airglow(&mut self) {
-        const STEPS: usize = 1024;
-        let w = self.width;
-        let view = self.view;
+    /// The airglow's linear sRGB at sin(elevation) = k / [`AIRGLOW_STEPS`].
+    fn airglow_table(&self) -> Vec<Vec3> {
         let white = self.white_cd_m2();
         let layers: Vec<(DVec3, f64)> = self
             .settings
@@ -976,62 +1030,46 @@ impl SkyRenderer {
         let continuum = xyz_to_linear_srgb(
             sun / sun.y * night::continuum_cd_m2(self.settings.airglow_zenith.continuum_mag_arcsec2) / white,
         );
-        let table: Vec<Vec3> = (0..=STEPS)
+        (0..=AIRGLOW_STEPS)
             .map(|k| {
-                let elevation = (k as f64 / STEPS as f64).asin();
+                let elevation = (k as f64 / AIRGLOW_STEPS as f64).asin();
                 let through = night::glow_transmission(elevation);
                 let lines: DVec3 = layers.iter().map(|&(rgb, h)| rgb * night::van_rhijn(elevation, h)).sum();
                 ((lines + continuum) * through).max(DVec3::ZERO).as_vec3()
             })
-            .collect();
-        let [r, g, b] = self.frame.planes_mut();
-        r.data_mut()
-            .par_chunks_mut(w)
-            .zip(g.data_mut().par_chunks_mut(w))
-            .zip(b.data_mut().par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, ((r, g), b))| {
-                for x in 0..w {
-                    let (_, d) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    let up = d.y / d.length();
-                    if !(up >= 0.0) {
-                        continue;
-                    }
-                    let at = up.min(1.0) * STEPS as f32;
-                    let k = (at as usize).min(STEPS - 1);
-                    let glow = table[k].lerp(table[k + 1], at - k as f32);
-                    r[x] += glow.x;
-                    g[x] += glow.y;
-                    b[x] += glow.z;
-                }
-            });
+            .collect()
     }
 
-    /// Black out everything below a horizon of low hills (1-3°, a sum of sines of the
-    /// azimuth), seen from the camera.
-    fn draw_ground(&mut self) {
-        let w = self.width;
-        let view = self.view;
-        let [r, g, b] = self.frame.planes_mut();
-        r.data_mut()
-            .par_chunks_mut(w)
-            .zip(g.data_mut().par_chunks_mut(w))
-            .zip(b.data_mut().par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, ((r, g), b))| {
-                for x in 0..w {
-                    let (_, d) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    let azimuth = d.x.atan2(d.z);
-                    let hills = (1.5
-                        + 0.8 * (3.0 * azimuth).sin()
-                        + 0.5 * (7.0 * azimuth + 1.0).sin()
-                        + 0.3 * (13.0 * azimuth + 2.0).sin())
-                    .to_radians();
-                    if d.y.asin() < hills {
-                        (r[x], g[x], b[x]) = (0.0, 0.0, 0.0);
-                    }
+    /// The Milky Way `time_s` after the site's moment: its relative brightness at each
+    /// grid point (1 in its brightest level, 0.625 magnitudes fainter a level, a
+    /// fractional level below 1 fading in, dimmed like the airglow) and the linear sRGB
+    /// of 1 (a 4500 K starlight colour).
+    fn milky_way_now(&self, time_s: f64) -> (Vec<f32>, Vec3) {
+        let site = &self.settings.site;
+        let jd = site.julian_day() + time_s / 86_400.0;
+        let star_light = blackbody_xyz(Observer::Cie2015TwoDegree, 4500.0);
+        let brightest = night::continuum_cd_m2(self.settings.milky_way_mag_arcsec2) / self.white_cd_m2();
+        let rgb = xyz_to_linear_srgb(star_light / star_light.y * brightest).max(DVec3::ZERO).as_vec3();
+        let (lat, lon) = (site.latitude_deg, site.longitude_deg);
+        let values = self
+            .night_dirs
+            .dirs
+            .par_iter()
+            .map(|d| {
+                let elevation = night::elevation(*d);
+                if !(elevation > -0.05) {
+                    return 0.0;
                 }
-            });
+                let (ra, dec) = night::equatorial(d.as_dvec3(), jd, lat, lon);
+                let level = night::milky_way_level(ra, dec);
+                if level <= 0.0 {
+                    return 0.0;
+                }
+                let relative = 10f32.powf(-0.4 * 0.625 * (5.0 - level.max(1.0))) * level.min(1.0);
+                relative * night::glow_transmission(elevation.max(0.0)) as f32
+            })
+            .collect();
+        (values, rgb)
     }
 
     /// Line images -> XYZ -> linear sRGB into `self.frame`.

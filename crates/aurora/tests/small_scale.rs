@@ -111,6 +111,7 @@ fn curls_only(curls: Curls) -> SmallScale {
 }
 
 #[test]
+#[allow(clippy::print_stderr)] // the measures, for the notes (--nocapture)
 fn curls_are_measured_at_their_parameters() {
     let curls = Curls { amplitude_km: 3.0, wavelength_km: 8.0, speed_km_s: 8.0, lifetime_s: 0.8, share: 0.6 };
     let sim = sheet_sim(curls_only(curls));
@@ -139,6 +140,9 @@ fn curls_are_measured_at_their_parameters() {
     // Loops: with 2πA/λ = 2.36 > 1 the drawn sheet runs backwards somewhere (x' = s +
     // along displacement decreases), as a curl seen from below does.
     let backwards = backward_steps(&now);
+    eprintln!(
+        "curls: wavelength {lambda:.2} km, speed {speed:.2} km/s, largest excursion {largest:.2} km, {backwards} backward steps"
+    );
     assert!(backwards > 20, "{backwards} backward steps");
 }
 
