@@ -276,7 +276,8 @@ pub struct SkySettings {
     pub afterglow: bool,
     /// Draw the stars behind the aurora: the Hipparcos catalogue's, where they stand for
     /// `site` at its time ([`crate::night`]), in the same units as the aurora (default
-    /// on, as are `airglow` and `ground`: [`SkySettings::thesis`] has them off).
+    /// on, as are `airglow`, `milky_way` and `ground`: [`SkySettings::thesis`] has them
+    /// off).
     pub stars: bool,
     /// Faintest star drawn, visual magnitude (default 5.5; the catalogue ends at 6, so
     /// a fainter limit draws the whole catalogue).
