@@ -141,17 +141,71 @@ impl Nearness {
     }
 }
 
-/// Segments bucketed into square cells for distance queries.
+/// Segments' numbers bucketed into square cells: each segment is filed in every cell
+/// its `reach`-neighbourhood's box overlaps, so the segments within `reach` of a point
+/// are among its cell's. Shared by the field's distance tests ([`Nearness`]) and the
+/// small-scale motion's nearest sheet ([`crate::small_scale`]).
 #[derive(Clone, Debug)]
-struct SegmentIndex {
-    /// Per segment: start a, direction b - a, and 1/|b - a|² (0 for a point).
-    lines: Vec<(Vec2, Vec2, f32)>,
+pub(crate) struct SegmentBuckets {
     origin: Vec2,
     cell: f32,
     nx: usize,
     nz: usize,
     start: Vec<u32>,
     items: Vec<u32>,
+}
+
+impl SegmentBuckets {
+    /// `nx × nz` cells of `cell` km from `origin`; segment k is `segments[k]` (a, b).
+    /// Boxes reaching past the grid are clamped to its edge cells.
+    pub(crate) fn new(
+        segments: impl Iterator<Item = (Vec2, Vec2)>,
+        reach: f32,
+        origin: Vec2,
+        cell: f32,
+        (nx, nz): (usize, usize),
+    ) -> Self {
+        let clamp_cell = |p: Vec2| {
+            let c = ((p - origin) / cell).max(Vec2::ZERO);
+            ((c.x as usize).min(nx - 1), (c.y as usize).min(nz - 1))
+        };
+        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); nx * nz];
+        for (k, (a, b)) in segments.enumerate() {
+            let (i0, j0) = clamp_cell(a.min(b) - Vec2::splat(reach));
+            let (i1, j1) = clamp_cell(a.max(b) + Vec2::splat(reach));
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    buckets[j * nx + i].push(k as u32);
+                }
+            }
+        }
+        let mut start = Vec::with_capacity(nx * nz + 1);
+        let mut items = Vec::new();
+        for b in &buckets {
+            start.push(items.len() as u32);
+            items.extend_from_slice(b);
+        }
+        start.push(items.len() as u32);
+        Self { origin, cell, nx, nz, start, items }
+    }
+
+    /// Segments whose neighbourhood may contain `p` (none outside the grid).
+    pub(crate) fn near(&self, p: Vec2) -> &[u32] {
+        let c = (p - self.origin) / self.cell;
+        if !(c.x >= 0.0 && c.y >= 0.0) || c.x as usize >= self.nx || c.y as usize >= self.nz {
+            return &[];
+        }
+        let k = c.y as usize * self.nx + c.x as usize;
+        &self.items[self.start[k] as usize..self.start[k + 1] as usize]
+    }
+}
+
+/// Segments bucketed into square cells for distance queries.
+#[derive(Clone, Debug)]
+struct SegmentIndex {
+    /// Per segment: start a, direction b - a, and 1/|b - a|² (0 for a point).
+    lines: Vec<(Vec2, Vec2, f32)>,
+    buckets: SegmentBuckets,
 }
 
 impl SegmentIndex {
@@ -164,29 +218,12 @@ impl SegmentIndex {
         let origin = lo - Vec2::splat(reach);
         let cell = (reach * 2.0).max(1e-6);
         let span = (hi + Vec2::splat(reach) - origin) / cell;
-        let (nx, nz) = if segments.is_empty() {
+        let cells = if segments.is_empty() {
             (1, 1)
         } else {
             ((span.x as usize + 1).min(4096), (span.y as usize + 1).min(4096))
         };
-        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); nx * nz];
-        for (s, &(a, b)) in segments.iter().enumerate() {
-            let (smin, smax) = (a.min(b) - Vec2::splat(reach), a.max(b) + Vec2::splat(reach));
-            let (i0, j0) = Self::clamp_cell(origin, cell, nx, nz, smin);
-            let (i1, j1) = Self::clamp_cell(origin, cell, nx, nz, smax);
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    buckets[j * nx + i].push(s as u32);
-                }
-            }
-        }
-        let mut start = Vec::with_capacity(nx * nz + 1);
-        let mut items = Vec::new();
-        for b in &buckets {
-            start.push(items.len() as u32);
-            items.extend_from_slice(b);
-        }
-        start.push(items.len() as u32);
+        let buckets = SegmentBuckets::new(segments.iter().copied(), reach, origin, cell, cells);
         let lines = segments
             .iter()
             .map(|&(a, b)| {
@@ -194,22 +231,12 @@ impl SegmentIndex {
                 (a, b - a, if len2 > 0.0 { 1.0 / len2 } else { 0.0 })
             })
             .collect();
-        Self { lines, origin, cell, nx, nz, start, items }
-    }
-
-    fn clamp_cell(origin: Vec2, cell: f32, nx: usize, nz: usize, p: Vec2) -> (usize, usize) {
-        let c = ((p - origin) / cell).max(Vec2::ZERO);
-        ((c.x as usize).min(nx - 1), (c.y as usize).min(nz - 1))
+        Self { lines, buckets }
     }
 
     /// Segments whose neighbourhood may contain `p`.
     fn near(&self, p: Vec2) -> &[u32] {
-        let c = (p - self.origin) / self.cell;
-        if !(c.x >= 0.0 && c.y >= 0.0) || c.x as usize >= self.nx || c.y as usize >= self.nz {
-            return &[];
-        }
-        let k = c.y as usize * self.nx + c.x as usize;
-        &self.items[self.start[k] as usize..self.start[k + 1] as usize]
+        self.buckets.near(p)
     }
 
     /// Whether some segment lies within `reach` of `p` (squared distances: no root, no

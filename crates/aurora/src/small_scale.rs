@@ -38,6 +38,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::Issues;
 use serde::{Deserialize, Serialize};
 
+use crate::field::SegmentBuckets;
 use crate::shape::Shape;
 
 const SITES: Purpose = Purpose::named("aurora.small_scale.sites");
@@ -322,12 +323,7 @@ struct Chain {
 struct SheetIndex {
     segments: Vec<Segment>,
     chains: Vec<Chain>,
-    origin: Vec2,
-    cell: f32,
-    nx: usize,
-    nz: usize,
-    start: Vec<u32>,
-    items: Vec<u32>,
+    buckets: SegmentBuckets,
     reach: f32,
 }
 
@@ -347,26 +343,9 @@ impl SheetIndex {
         let cell = reach.max(extent.max_element() / MAX_INDEX_CELLS).max(1e-3);
         let span = extent / cell;
         let (nx, nz) = (span.x as usize + 1, span.y as usize + 1);
-        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); nx * nz];
-        for (k, g) in segments.iter().enumerate() {
-            let b = g.a + g.dir * g.len;
-            let (lo, hi) = (g.a.min(b) - Vec2::splat(reach), g.a.max(b) + Vec2::splat(reach));
-            let (i0, j0) = cell_of(origin, cell, nx, nz, lo);
-            let (i1, j1) = cell_of(origin, cell, nx, nz, hi);
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    buckets[j * nx + i].push(k as u32);
-                }
-            }
-        }
-        let mut start = Vec::with_capacity(nx * nz + 1);
-        let mut items = Vec::new();
-        for b in &buckets {
-            start.push(items.len() as u32);
-            items.extend_from_slice(b);
-        }
-        start.push(items.len() as u32);
-        Self { segments, chains, origin, cell, nx, nz, start, items, reach }
+        let ends = segments.iter().map(|g| (g.a, g.a + g.dir * g.len));
+        let buckets = SegmentBuckets::new(ends, reach, origin, cell, (nx, nz));
+        Self { segments, chains, buckets, reach }
     }
 
     /// The segments and chains of `shape`: chains followed from their heads (open
@@ -426,13 +405,8 @@ impl SheetIndex {
         if self.segments.is_empty() || !p.is_finite() {
             return None;
         }
-        let q = (p - self.origin) / self.cell;
-        if q.x < 0.0 || q.y < 0.0 || q.x >= self.nx as f32 || q.y >= self.nz as f32 {
-            return None;
-        }
-        let c = q.y as usize * self.nx + q.x as usize;
         let mut best: Option<(f32, SheetPlace)> = None;
-        for &k in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
+        for &k in self.buckets.near(p) {
             let g = &self.segments[k as usize];
             let d = p - g.a;
             let t = d.dot(g.dir).clamp(0.0, g.len);
@@ -456,11 +430,6 @@ impl SheetIndex {
         }
         best.map(|(_, p)| p)
     }
-}
-
-fn cell_of(origin: Vec2, cell: f32, nx: usize, nz: usize, p: Vec2) -> (usize, usize) {
-    let q = ((p - origin) / cell).max(Vec2::ZERO);
-    ((q.x as usize).min(nx - 1), (q.y as usize).min(nz - 1))
 }
 
 /// [`SmallScale`] made ready for one moment: see [`Prepared::apply`]. Everything that
