@@ -18,7 +18,7 @@ use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
 use crate::phenomenon::{
-    Built, Capability, ExportKind, Exported, Pass, Phenomenon, Scratch, Stage, View, VolumeOptions,
+    Built, Capability, ExportKind, Exported, Pass, Phenomenon, Scratch, Stage, View, VolumeOptions, VolumeOut,
 };
 use crate::settings::SceneSettings;
 
@@ -190,7 +190,7 @@ impl Phenomenon for AuroraScene {
         built: &Built<Self>,
         options: &VolumeOptions,
         _scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         use phenomena_core::vdb::AnyGrid;
         let voxel_km = options.voxel_m.map_or(1.0, |m| m / 1e3);

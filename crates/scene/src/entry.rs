@@ -23,7 +23,7 @@ use crate::budget::{Estimate, Limits, Report};
 use crate::checkpoint::{self, CheckpointError, Header};
 use crate::error::{BuildError, SinkError};
 use crate::phenomenon::{
-    Built, Capability, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions,
+    Built, Capability, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, VolumeOut,
 };
 use crate::settings::SceneSettings;
 use crate::source::{Unread, deserialize_all};
@@ -165,7 +165,7 @@ pub(crate) trait Dispatch: Sync {
         built: &dyn Any,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, SinkError>;
     fn volume_bytes(&self, built: &dyn Any, options: &VolumeOptions) -> Result<u64, SinkError>;
     fn points(&self, built: &dyn Any) -> Result<Vec<u8>, SinkError>;
@@ -411,7 +411,7 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
         b: &dyn Any,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, SinkError> {
         P::volume(&live::<P>(b).built, options, scratch, out).map_err(SinkError)
     }

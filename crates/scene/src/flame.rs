@@ -13,7 +13,9 @@ use crate::assets::Assets;
 use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
-use crate::phenomenon::{Built, Capability, Pass, Phenomenon, Scratch, Stage, Steer, View, VolumeOptions};
+use crate::phenomenon::{
+    Built, Capability, Pass, Phenomenon, Scratch, Stage, Steer, View, VolumeOptions, VolumeOut,
+};
 use crate::settings::SceneSettings;
 
 /// A flame scene file.
@@ -186,7 +188,7 @@ impl Phenomenon for FlameScene {
         built: &Built<Self>,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         use phenomena_core::vdb::AnyGrid;
         let voxel_m = options.voxel_m.unwrap_or(0.01);

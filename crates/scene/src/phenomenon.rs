@@ -101,12 +101,84 @@ impl Scratch {
     }
 }
 
-/// Encode `grids` as one OpenVDB file into `out` and describe each as OpenVDB will
-/// report it once read (the manifest written beside each `.vdb`): name, value type,
-/// class, active voxels, smallest and largest value, bounding box of the active voxels,
-/// voxel size and translation (metres), and the grid's metadata.
-pub fn encode_volume(grids: &[phenomena_core::vdb::AnyGrid<'_>], out: &mut Vec<u8>) -> Value {
-    phenomena_core::vdb::encode_into(grids, &phenomena_core::vdb::Metadata::new(), out);
+/// Where a phenomenon's volume goes ([`encode_volume`]).
+pub enum VolumeOut<'a> {
+    /// One OpenVDB file's bytes (the vector is cleared first).
+    Vdb(&'a mut Vec<u8>),
+    /// The grids' leaves as they are, one [`LeafGrid`] per grid (the vector is cleared
+    /// first): for callers that want arrays rather than a file (the Python module).
+    Leaves(&'a mut Vec<LeafGrid>),
+}
+
+/// One grid of a volume as its 8³ leaves, the values OpenVDB reads from the `.vdb` file
+/// the same grid is written as.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeafGrid {
+    /// The grid's name (`density`, `aurora_557_7`).
+    pub name: String,
+    /// Its class (`fog volume`, `unknown`).
+    pub class: &'static str,
+    /// Values per voxel: 1 (float) or 3 (vec3).
+    pub components: usize,
+    /// Voxel size, metres.
+    pub voxel_size_m: f64,
+    /// World position of voxel (0, 0, 0), metres.
+    pub translation_m: [f64; 3],
+    /// Each leaf's lowest voxel index (a multiple of 8 on each axis).
+    pub origins: Vec<[i32; 3]>,
+    /// The leaves' values, leaf after leaf in `origins`' order; in a leaf, voxel
+    /// (i, j, k) from its origin at (i·64 + j·8 + k)·`components` (OpenVDB's order).
+    pub values: Vec<f32>,
+}
+
+impl LeafGrid {
+    /// The leaves of `grid`.
+    pub fn of(grid: &phenomena_core::vdb::AnyGrid<'_>) -> Self {
+        use phenomena_core::vdb::AnyGrid;
+        let t = grid.transform();
+        let mut leaf = LeafGrid {
+            name: grid.name().to_string(),
+            class: grid.class().as_str(),
+            components: 1,
+            voxel_size_m: t.voxel_size_m(),
+            translation_m: t.translation_m(),
+            origins: Vec::new(),
+            values: Vec::new(),
+        };
+        match grid {
+            AnyGrid::Float(g) => {
+                for (origin, values) in g.leaves() {
+                    leaf.origins.push(origin);
+                    leaf.values.extend_from_slice(values);
+                }
+            }
+            AnyGrid::Vec3(g) => {
+                leaf.components = 3;
+                for (origin, values) in g.leaves() {
+                    leaf.origins.push(origin);
+                    leaf.values.extend(values.iter().flatten());
+                }
+            }
+        }
+        leaf
+    }
+}
+
+/// Put `grids` into `out` (encoded as one OpenVDB file, or as their leaves) and
+/// describe each as OpenVDB will report it once read (the manifest written beside each
+/// `.vdb`): name, value type, class, active voxels, smallest and largest value, bounding
+/// box of the active voxels, voxel size and translation (metres), and the grid's
+/// metadata.
+pub fn encode_volume(grids: &[phenomena_core::vdb::AnyGrid<'_>], out: &mut VolumeOut<'_>) -> Value {
+    match out {
+        VolumeOut::Vdb(bytes) => {
+            phenomena_core::vdb::encode_into(grids, &phenomena_core::vdb::Metadata::new(), bytes)
+        }
+        VolumeOut::Leaves(list) => {
+            list.clear();
+            list.extend(grids.iter().map(LeafGrid::of));
+        }
+    }
     let list: Vec<Value> = grids
         .iter()
         .map(|g| {
@@ -323,7 +395,7 @@ pub trait Phenomenon:
         _built: &Built<Self>,
         _options: &VolumeOptions,
         _scratch: &mut Scratch,
-        _out: &mut Vec<u8>,
+        _out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         Err(format!("{} scenes write no volumes", Self::NAME))
     }
@@ -356,5 +428,43 @@ pub trait Phenomenon:
     /// Change parameter `path` of the running simulation to `value` without a restart.
     fn steer(_built: &mut Built<Self>, _path: &str, _value: &Value) -> Steer {
         Steer::NotLive
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use phenomena_core::vdb::{AnyGrid, Grid, GridClass, Transform};
+
+    use super::*;
+
+    #[test]
+    fn leaves_hold_the_voxels_where_openvdb_reads_them_and_the_same_manifest() {
+        let transform = Transform::new(0.5, [1.0, 2.0, 3.0]).unwrap();
+        let mut density = Grid::<f32>::new("density", transform, GridClass::FogVolume);
+        density.set([1, 2, 3], 4.0);
+        density.set([-1, 9, 0], 7.0);
+        let mut velocity = Grid::<[f32; 3]>::new("velocity", transform, GridClass::Unknown);
+        velocity.set([0, 0, 1], [1.0, 2.0, 3.0]);
+        let grids = [AnyGrid::from(&density), AnyGrid::from(&velocity)];
+        let (mut bytes, mut leaves) = (Vec::new(), Vec::new());
+        let manifest = encode_volume(&grids, &mut VolumeOut::Vdb(&mut bytes));
+        assert_eq!(encode_volume(&grids, &mut VolumeOut::Leaves(&mut leaves)), manifest);
+        assert!(!bytes.is_empty());
+        let [d, v] = &leaves[..] else { panic!("two grids, got {}", leaves.len()) };
+        assert_eq!(
+            (d.name.as_str(), d.class, d.components, d.voxel_size_m),
+            ("density", "fog volume", 1, 0.5)
+        );
+        assert_eq!(d.translation_m, [1.0, 2.0, 3.0]);
+        assert_eq!(d.values.len(), 512 * d.origins.len());
+        // Each set voxel at (origin leaf, i·64 + j·8 + k); nothing else is lit.
+        for (ijk, want) in [([1, 2, 3], 4.0), ([-1, 9, 0], 7.0)] {
+            let origin = Grid::<f32>::leaf_origin(ijk);
+            let leaf = d.origins.iter().position(|&o| o == origin).expect("its leaf is listed");
+            assert_eq!(d.values[leaf * 512 + Grid::<f32>::leaf_offset(ijk)], want);
+        }
+        assert_eq!(d.values.iter().filter(|&&x| x != 0.0).count(), 2);
+        assert_eq!((v.components, v.origins.as_slice()), (3, &[[0, 0, 0]][..]));
+        assert_eq!(v.values[3..6], [1.0, 2.0, 3.0]);
     }
 }

@@ -55,6 +55,7 @@ use crate::error::BuildError;
 use crate::flame::FlameScene;
 use crate::phenomenon::{
     Built, Capability, ExportKind, Exported, PASSES, Pass, Phenomenon, Scratch, Stage, View, VolumeOptions,
+    VolumeOut,
 };
 use crate::settings::SceneSettings;
 use crate::snow::{SnowGeometry, SnowScene};
@@ -498,7 +499,7 @@ impl Phenomenon for ShotScene {
         built: &Built<Self>,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         match built.sim.parts.iter().rev().map(open).find(|p| p.can(Capability::Volume)) {
             Some(part) => part.volume(options, scratch, out),
@@ -641,7 +642,7 @@ trait Part: Send {
         &self,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, String>;
     fn volume_bytes(&self, options: &VolumeOptions) -> Result<u64, String>;
     fn export(&self, name: &str, format: &str) -> Option<Result<Exported, String>>;
@@ -696,7 +697,7 @@ impl<P: Phenomenon> Part for Built<P> {
         &self,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         P::volume(self, options, scratch, out)
     }

@@ -15,7 +15,7 @@ use serde_json::Value;
 use crate::budget::Estimate;
 use crate::entry::Entry;
 use crate::error::SinkError;
-use crate::phenomenon::{Scratch, VolumeOptions};
+use crate::phenomenon::{Scratch, VolumeOptions, VolumeOut};
 
 /// What one frame did: timings (0 unless the runner has a clock), the phenomenon's
 /// counters, and what happened to its image. One JSON object per frame in `--stats`.
@@ -80,7 +80,7 @@ impl State<'_> {
         &self,
         options: &VolumeOptions,
         scratch: &mut Scratch,
-        out: &mut Vec<u8>,
+        out: &mut VolumeOut<'_>,
     ) -> Result<Value, SinkError> {
         self.entry.ops().volume(self.built, options, scratch, out)
     }

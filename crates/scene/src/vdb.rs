@@ -11,7 +11,7 @@ use crate::format::{OutputFormat, Target};
 use crate::output::{
     Files, NumberedFiles, PerFrame, error, manifest_path, remove_if_there, write_bytes_atomic,
 };
-use crate::phenomenon::{Capability, Scratch, VolumeOptions};
+use crate::phenomenon::{Capability, Scratch, VolumeOptions, VolumeOut};
 use crate::sink::{Output, State};
 
 /// The format.
@@ -54,7 +54,8 @@ impl PerFrame for VolumeFrames {
     }
 
     fn write(&mut self, path: &Path, out: &Output<'_>) -> Result<(), SinkError> {
-        let mut manifest = out.data.volume(&self.options, &mut self.scratch, &mut self.bytes)?;
+        let mut manifest =
+            out.data.volume(&self.options, &mut self.scratch, &mut VolumeOut::Vdb(&mut self.bytes))?;
         manifest["frame"] = out.index.into();
         let text = serde_json::to_string_pretty(&manifest).map_err(error)?;
         // The manifest first: a volume is never left without one (a failure between
