@@ -205,6 +205,21 @@ class Scene:
             return image
         return image, {name: np.frombuffer(v, dtype="<f4").reshape(h, w) for name, v in extra}
 
+    def save_exr(
+        self,
+        path: "os.PathLike[str] | str",
+        frame: Optional[int] = None,
+        *,
+        width: Optional[int] = None,
+        height: Optional[int] = None,
+        layers: bool = True,
+        progress: Progress = None,
+    ) -> None:
+        """Render as :meth:`render` and write the frame as the ``exr`` format does
+        (32-bit float linear RGB with, unless ``layers`` is false, the renderer's
+        layers: an RGB-only file is what an environment texture wants), atomically."""
+        self._native.save_exr(os.fspath(path), frame, width, height, progress, layers)
+
     def iter_frames(self, start: int = 0, stop: Optional[int] = None, **render) -> Iterator[Tuple[int, np.ndarray]]:
         """``(frame, image)`` for frames ``start`` to ``stop`` (default the scene's
         frames), simulating forward."""

@@ -14,6 +14,8 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
+use phenomena_core::image::{Frame, Plane};
+use phenomena_core::phenomenon::Layer;
 use phenomena_scene::{
     Assets, BuildError, FrameRecord, FrameSink, LeafGrid, Limits, Observer, Output, RunError, Runner, Scene,
     SinkError, VolumeOptions, VolumeOut,
@@ -105,19 +107,16 @@ impl Observer for Progress<'_> {
     }
 }
 
-/// Keeps the frame a run hands over: linear RGB, interleaved, and the extra layers.
-#[derive(Default)]
+/// Keeps the frame a run hands over: linear RGB and the extra layers.
 struct Capture {
-    rgb: Vec<f32>,
-    size: (usize, usize),
-    layers: Vec<(String, Vec<f32>)>,
+    frame: Frame,
+    layers: Vec<(String, Plane)>,
 }
 
 impl FrameSink for Capture {
     fn write(&mut self, out: &Output<'_>) -> Result<(), SinkError> {
-        self.rgb = out.frame.to_interleaved();
-        self.size = (out.frame.width(), out.frame.height());
-        self.layers = out.layers.iter().map(|l| (l.name.to_string(), l.plane.data().to_vec())).collect();
+        self.frame = out.frame.clone();
+        self.layers = out.layers.iter().map(|l| (l.name.to_string(), l.plane.clone())).collect();
         Ok(())
     }
 }
@@ -163,6 +162,43 @@ impl NativeScene {
 }
 
 impl Inner {
+    /// Render frame `frame` at `width` x `height` ([`NativeScene::render`]).
+    fn render(
+        &mut self,
+        py: Python<'_>,
+        frame: Option<u32>,
+        width: Option<u32>,
+        height: Option<u32>,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Capture> {
+        let this = self;
+        let settings = this.scene.settings();
+        let (w, h) = (width.unwrap_or(settings.width), height.unwrap_or(settings.height));
+        this.resize(py, w, h)?;
+        let done = this.frames_done();
+        let frame = frame.unwrap_or(done.saturating_sub(1));
+        if frame >= 1_000_000 {
+            return Err(PyValueError::new_err(format!(
+                "frame {frame} is out of range: expected [0, 999999]"
+            )));
+        }
+        let memory = this.scene.render_memory().is_some();
+        // The frame asked for is behind the state, or would need a second render of it
+        // (a scene whose frames depend on earlier renders): start again from frame 0.
+        if done > frame + 1 || (memory && done == frame + 1) {
+            this.runner = None;
+        }
+        let mut capture = Capture { frame: Frame::new(0, 0), layers: Vec::new() };
+        if this.frames_done() == frame + 1 {
+            let runner = this.runner(py)?;
+            let mut record = FrameRecord { frame, ..FrameRecord::default() };
+            py.detach(|| runner.output(&mut record, &mut capture)).map_err(run_error)?;
+        } else {
+            this.run(py, frame..frame + 1, &mut capture, progress.as_ref())?;
+        }
+        Ok(capture)
+    }
+
     /// Frames simulated so far.
     fn frames_done(&self) -> u32 {
         self.runner.as_ref().map_or(0, Runner::frames_done)
@@ -380,28 +416,34 @@ impl NativeScene {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Rendered<'py>> {
         let mut guard = self.lock()?;
-        let this = &mut *guard;
-        let settings = this.scene.settings();
-        let (w, h) = (width.unwrap_or(settings.width), height.unwrap_or(settings.height));
-        this.resize(py, w, h)?;
-        let done = this.frames_done();
-        let frame = frame.unwrap_or(done.saturating_sub(1));
-        let memory = this.scene.render_memory().is_some();
-        // The frame asked for is behind the state, or would need a second render of it
-        // (a scene whose frames depend on earlier renders): start again from frame 0.
-        if done > frame + 1 || (memory && done == frame + 1) {
-            this.runner = None;
-        }
-        let mut capture = Capture::default();
-        if this.frames_done() == frame + 1 {
-            let runner = this.runner(py)?;
-            let mut record = FrameRecord { frame, ..FrameRecord::default() };
-            py.detach(|| runner.output(&mut record, &mut capture)).map_err(run_error)?;
-        } else {
-            this.run(py, frame..frame + 1, &mut capture, progress.as_ref())?;
-        }
-        let layers = capture.layers.iter().map(|(name, v)| (name.clone(), f32_bytes(py, v))).collect();
-        Ok((f32_bytes(py, &capture.rgb), capture.size.0, capture.size.1, layers))
+        let capture = guard.render(py, frame, width, height, progress)?;
+        let layers = capture.layers.iter().map(|(name, p)| (name.clone(), f32_bytes(py, p.data()))).collect();
+        let (w, h) = (capture.frame.width(), capture.frame.height());
+        Ok((f32_bytes(py, &capture.frame.to_interleaved()), w, h, layers))
+    }
+
+    /// Render as [`NativeScene::render`] and write the frame as the `exr` format writes
+    /// it (32-bit float linear RGB and, with `layers`, the renderer's layers),
+    /// atomically, to `path`.
+    #[pyo3(signature = (path, frame=None, width=None, height=None, progress=None, layers=true))]
+    #[allow(clippy::too_many_arguments)]
+    fn save_exr(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        frame: Option<u32>,
+        width: Option<u32>,
+        height: Option<u32>,
+        progress: Option<Py<PyAny>>,
+        layers: bool,
+    ) -> PyResult<()> {
+        let mut guard = self.lock()?;
+        let capture = guard.render(py, frame, width, height, progress)?;
+        let planes = if layers { capture.layers.as_slice() } else { &[] };
+        let layers: Vec<Layer<'_>> = planes.iter().map(|(name, plane)| Layer { name, plane }).collect();
+        let image = &capture.frame;
+        py.detach(move || phenomena_scene::write_exr(&path, image, &layers))
+            .map_err(|e| PyValueError::new_err(e.0))
     }
 
     /// The whole simulation state as a checkpoint file's bytes.

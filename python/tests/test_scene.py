@@ -158,3 +158,13 @@ def test_exports_and_the_starters():
     assert mesh["positions"].shape[1] == 3 and mesh["triangles"].max() < len(mesh["positions"])
     with pytest.raises(ValueError):
         scene.export("flame-volume")
+
+
+def test_save_exr_writes_the_commands_file(repo, cli, tmp_path):
+    cli("render", repo / "scenes/aurora-scene2.toml", "--frames", "2..3", "--width", 48, "--height", 27,
+        "--format", "exr", "--out", tmp_path)
+    scene = phenomena.Scene(repo / "scenes/aurora-scene2.toml")
+    scene.save_exr(tmp_path / "mine.exr", 2, width=48, height=27)
+    assert (tmp_path / "mine.exr").read_bytes() == (tmp_path / "frame_00002.exr").read_bytes()
+    with pytest.raises(ValueError, match="frame"):
+        scene.render(5_000_000)
