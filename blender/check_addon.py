@@ -53,6 +53,7 @@ def cube_over_plane():
     empty_scene()
     bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 0.0))
     plane = bpy.context.active_object
+    plane.scale.x = -1.0  # mirrored: its faces must still face up
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
     cube = bpy.context.active_object
     return plane, cube
@@ -70,6 +71,19 @@ def vertices(obj):
     return co.reshape(-1, 3)
 
 
+def open_edges(obj):
+    """Edges of the mesh not shared by exactly two triangles, corners at one place
+    being one corner (the export gives each texel's sides their own corners)."""
+    v = vertices(obj)
+    _, welded = np.unique(np.round(v / 1e-6).astype(np.int64), axis=0, return_inverse=True)
+    faces = np.empty(len(obj.data.polygons) * 3, np.int64)
+    obj.data.polygons.foreach_get("vertices", faces)
+    t = welded.reshape(-1)[faces.reshape(-1, 3)]
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return int(np.sum(counts != 2))
+
+
 def check_snow():
     plane, cube = cube_over_plane()
     s = bpy.context.scene.phenomena_snow
@@ -83,13 +97,15 @@ def check_snow():
     check(abs(v[:, 2].max() - 1.02) < 0.005, f"the snow's top is 2 cm over the cube (z {v[:, 2].max():.4f})")
     check(v[:, 2].min() > 0.9, f"no snow on the plane with only the cube selected (lowest z {v[:, 2].min():.3f})")
     check(np.abs(v[:, :2]).max() < 0.5 + 0.05, "the snow stays on the cube's top")
+    check(open_edges(snow_object()) == 0, "and it is closed")
     # Re-run in place: one snow object, now on everything, and the scene saved.
     s.receivers = "ALL"
     s.export_dir = os.path.join(OUT, "snow-scene")
     check(bpy.ops.phenomena.snow_cover() == {"FINISHED"}, "snow_cover runs again in place")
     snow = snow_object()
     v = vertices(snow)
-    check(np.any(v[:, 2] < 0.1), "with every object, snow lies on the plane too")
+    check(np.any(v[:, 2] < 0.1), "with every object, snow lies on the (mirrored) plane too")
+    check(open_edges(snow) == 0, "closed too")
     ply = os.path.join(OUT, "snow-cli.ply")
     subprocess.run([BINARY, "export", "snow-mesh", os.path.join(s.export_dir, "snow.toml"), "--format", "ply",
                     "--time-h", str(snow["phenomena_hours"]), "--out", ply], check=True)

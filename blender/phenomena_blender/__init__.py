@@ -11,7 +11,7 @@ or in the folder named by ``PHENOMENA_PYTHON_PATH``. Blender 4.2+ installs it as
 extension (``blender_manifest.toml``) with the wheel inside.
 
 Coordinates: phenomena is y-up, Blender z-up; Blender (x, y, z) is phenomena
-(x, z, -y), and north is +Y.
+(x, z, -y). The aurora sky is turned so its north is on +Y.
 """
 
 bl_info = {
@@ -78,10 +78,16 @@ def _output_dir(context, name):
 
 
 def _scene_for(phenomena, path, kind):
-    """The scene file at ``path``, or the phenomenon's starter."""
+    """The scene file at ``path`` (already absolute: worker threads do not touch bpy),
+    or the phenomenon's starter."""
     if path:
-        return phenomena.Scene(bpy.path.abspath(path))
+        return phenomena.Scene(path)
     return phenomena.Scene.from_toml(phenomena.starter(kind), name=f"{kind}.toml")
+
+
+def _abspath(path):
+    """A panel's path made absolute (``//`` is the .blend file's folder); empty stays empty."""
+    return bpy.path.abspath(path) if path else ""
 
 
 # ---------------------------------------------------------------- background work
@@ -116,6 +122,8 @@ class _Work:
             return {"CANCELLED"}
         self._state = {"done": 0, "total": 1, "cancel": False, "result": None, "error": None}
         state = self._state
+        # The thread gets plain Python values only: the operator is Blender's data.
+        compute, job = self.compute, self._job
 
         def progress(done, total):
             state["done"], state["total"] = done, max(total, 1)
@@ -123,7 +131,7 @@ class _Work:
 
         def run():
             try:
-                state["result"] = self.compute(self._job, progress)
+                state["result"] = compute(job, progress)
             except BaseException as e:  # includes the cancel (KeyboardInterrupt)
                 state["error"] = e
 
@@ -139,14 +147,14 @@ class _Work:
         state = self._state
         if event.type == "ESC":
             state["cancel"] = True
+            return {"RUNNING_MODAL"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         wm = context.window_manager
         wm.progress_update(int(1000 * state["done"] / state["total"]))
         if self._thread.is_alive():
             return {"PASS_THROUGH"}
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
+        self._stop_reporting(context)
         if state["error"] is not None:
             cancelled = isinstance(state["error"], KeyboardInterrupt)
             self.report({"WARNING" if cancelled else "ERROR"}, "cancelled" if cancelled else str(state["error"]))
@@ -157,6 +165,19 @@ class _Work:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         return {"FINISHED"}
+
+    def _stop_reporting(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+            wm.progress_end()
+
+    def cancel(self, context):
+        """Blender ends the operator (a file loaded, the window closed): stop the work
+        and the progress bar; the thread ends at its next frame."""
+        self._state["cancel"] = True
+        self._stop_reporting(context)
 
 
 # ---------------------------------------------------------------- snow
@@ -213,9 +234,12 @@ def _scene_geometry(context, exclude):
             continue
         m = np.array(obj.matrix_world, dtype=np.float64)
         co = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        tri = tri.reshape(-1, 3)
+        if np.linalg.det(m[:3, :3]) < 0:
+            tri = tri[:, ::-1]  # a mirrored object: keep its faces facing out
         verts.append(co.astype(np.float32))
-        tris.append(tri.reshape(-1, 3) + offset)
-        ids.append(np.full(len(tri) // 3, len(objects)))
+        tris.append(tri + offset)
+        ids.append(np.full(len(tri), len(objects)))
         objects.append(obj)
         offset += len(co)
     if not objects:
@@ -224,14 +248,21 @@ def _scene_geometry(context, exclude):
 
 
 def _keep_over(cover_positions, cover_triangles, verts, tris, ids, receivers):
-    """Triangles of the snow whose solid (connected piece) lies mostly over a receiver
-    object: a ray down from each triangle's centre finds the surface beneath."""
+    """Triangles of the snow whose solid lies mostly over a receiver object: a ray down
+    from each triangle's centre finds the surface beneath, and a solid (triangles
+    connected through shared corners, corners at the same place being one) is kept
+    or dropped whole, so what is kept stays closed. A solid spanning a receiver and
+    another object goes with the one under most of it."""
     import numpy as np
     from mathutils import Vector
     from mathutils.bvhtree import BVHTree
 
+    original = cover_triangles
     tree = BVHTree.FromPolygons([tuple(v) for v in verts.tolist()], [tuple(t) for t in tris.tolist()])
-    parent = list(range(len(cover_positions)))
+    # The export gives each texel's sides and bottom their own corners: weld by place.
+    _, welded = np.unique(np.round(cover_positions / 1e-6).astype(np.int64), axis=0, return_inverse=True)
+    cover_triangles = welded.reshape(-1)[cover_triangles]
+    parent = list(range(int(welded.max()) + 1 if len(welded) else 0))
 
     def find(a):
         while parent[a] != a:
@@ -244,7 +275,7 @@ def _keep_over(cover_positions, cover_triangles, verts, tris, ids, receivers):
         parent[rb] = ra
         parent[find(rc)] = ra
     piece = np.array([find(t[0]) for t in cover_triangles.tolist()])
-    centres = cover_positions[cover_triangles].mean(axis=1)
+    centres = cover_positions[original].mean(axis=1)
     over = np.zeros(len(cover_triangles), bool)
     down = Vector((0.0, 0.0, -1.0))
     for k, c in enumerate(centres.tolist()):
@@ -376,8 +407,8 @@ class PHENOMENA_OT_flame_volume(_Work, bpy.types.Operator):
 
     def prepare(self, context):
         s = context.scene.phenomena_flame
-        return {"filepath": bpy.path.abspath(self.filepath) if self.filepath else "",
-                "scene": s.scene_path, "frames": s.frames, "voxel_m": s.voxel_m,
+        return {"filepath": _abspath(self.filepath),
+                "scene": _abspath(s.scene_path), "frames": s.frames, "voxel_m": s.voxel_m,
                 "out": _output_dir(context, "flame"), "strength": s.emission_strength}
 
     def compute(self, job, progress):
@@ -475,7 +506,7 @@ class PHENOMENA_OT_aurora_sky(_Work, bpy.types.Operator):
     def prepare(self, context):
         s = context.scene.phenomena_aurora
         site = {"latitude_deg": s.latitude_deg, "longitude_deg": s.longitude_deg, "utc": s.utc} if s.use_site else None
-        return {"scene": s.scene_path, "frame": s.frame, "width": s.width, "site": site,
+        return {"scene": _abspath(s.scene_path), "frame": s.frame, "width": s.width, "site": site,
                 "out": os.path.join(_output_dir(context, "aurora"), f"aurora_sky_{s.frame:05}.exr"),
                 "strength": s.strength}
 
@@ -574,7 +605,7 @@ class PHENOMENA_OT_sparkle_glints(_Work, bpy.types.Operator):
 
     def prepare(self, context):
         s = context.scene.phenomena_sparkle
-        return {"scene": s.scene_path, "frame": s.frame, "radius": s.radius_m, "strength": s.strength}
+        return {"scene": _abspath(s.scene_path), "frame": s.frame, "radius": s.radius_m, "strength": s.strength}
 
     def compute(self, job, progress):
         phenomena = _package()

@@ -30,7 +30,7 @@ flame = phenomena.Scene(os.path.join(REPO, "scenes", "flame-paper.toml"))
 print(flame)
 image = flame.render(30, width=320, height=180)  # frame 30: the state after 31 steps
 print("frame 30:", image.shape, image.dtype, "mean radiance", float(image.mean()))
-flame.save_exr(os.path.join(OUT, "flame_00030.exr"))  # what `render --format exr` writes
+flame.save_exr(os.path.join(OUT, "flame_00030.exr"))  # `render --format exr --width 320 --height 180`
 
 # %% [markdown]
 # ## Particles, volumes and checkpoints

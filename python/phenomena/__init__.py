@@ -287,10 +287,11 @@ class Scene:
 @dataclass
 class SnowCover:
     """Snow on a mesh: the closed snow solids as ``positions`` (N, 3), ``normals``
-    (N, 3) float32 and ``triangles`` (M, 3) uint32 in the input's units and axes, and
-    the scene that made them (``scene_toml`` naming ``geometry.obj``, whose bytes are
-    ``geometry_obj``): ``phenomena export snow-mesh`` of that scene writes the same
-    snow."""
+    (N, 3) float32 and ``triangles`` (M, 3) uint32, in metres (the input times its
+    ``scale``) with the input's axes, and the scene that made them (``scene_toml``
+    naming ``geometry.obj``, whose bytes are ``geometry_obj``):
+    ``phenomena export snow-mesh snow.toml --time-h HOURS`` of that scene writes the
+    same snow."""
 
     positions: np.ndarray
     normals: np.ndarray
@@ -347,7 +348,7 @@ def snow_cover(
     """Snow on a mesh held in memory: ``vertices`` (N, 3) and ``triangles`` (M, 3) in
     metres (times ``scale``) with y up, ``objects`` an object id per triangle (default:
     one object). The snow falls for ``hours`` (or until ``depth_cm`` has fallen at the
-    rate; default the starter's 12 steps of 0.1 h), with ``snow`` any ``[snow]`` keys
+    rate; default 1.2 h, twelve steps of 0.1 h), with ``snow`` any ``[snow]`` keys
     (``repose_deg``, ``main_tilt_deg`` for wind, ``map_resolution``, ...). Goes through
     the same scene layer as ``phenomena export snow-mesh`` of the scene it returns."""
     table = dict(snow or {})

@@ -12,15 +12,17 @@
 use std::collections::BTreeMap;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, MutexGuard};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::time::Duration;
 
 use phenomena_core::image::{Frame, Plane};
 use phenomena_core::phenomenon::Layer;
 use phenomena_scene::{
     Assets, BuildError, FrameRecord, FrameSink, LeafGrid, Limits, Observer, Output, RunError, Runner, Scene,
-    SinkError, VolumeOptions, VolumeOut,
+    Simulate, SinkError, VolumeOptions, VolumeOut,
 };
-use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
@@ -85,10 +87,15 @@ struct Progress<'a> {
     total: u32,
     /// An exception the callback raised, given back after the run.
     error: Option<PyErr>,
+    /// Each frame's record as JSON, kept when asked for.
+    records: Option<Vec<String>>,
 }
 
 impl Observer for Progress<'_> {
     fn frame(&mut self, record: &FrameRecord) -> ControlFlow<()> {
+        if let Some(list) = &mut self.records {
+            list.push(serde_json::to_string(record).unwrap_or_default());
+        }
         Python::attach(|py| {
             if let Err(e) = py.check_signals() {
                 self.error = Some(e);
@@ -137,7 +144,43 @@ type Leaves<'py> = (String, &'static str, usize, f64, [f64; 3], Bound<'py, PyByt
 /// A scene, its simulation and renderer (`phenomena.Scene` wraps it). Python may call
 /// it from several threads: one call at a time works on it.
 #[pyclass(module = "phenomena._native")]
-struct NativeScene(Mutex<Inner>);
+struct NativeScene {
+    inner: Mutex<Inner>,
+    /// The thread (a [`thread_number`]) whose call holds `inner`, 0 when none does.
+    owner: AtomicU64,
+}
+
+/// A number for the calling thread, unique in the process (never 0).
+fn thread_number() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    thread_local!(static NUMBER: u64 = NEXT.fetch_add(1, Ordering::Relaxed));
+    NUMBER.with(|n| *n)
+}
+
+/// A call's hold on a scene: the scene, and its owner cleared when the call ends.
+struct Held<'a> {
+    guard: MutexGuard<'a, Inner>,
+    owner: &'a AtomicU64,
+}
+
+impl Drop for Held<'_> {
+    fn drop(&mut self) {
+        self.owner.store(0, Ordering::SeqCst);
+    }
+}
+
+impl std::ops::Deref for Held<'_> {
+    type Target = Inner;
+    fn deref(&self) -> &Inner {
+        &self.guard
+    }
+}
+
+impl std::ops::DerefMut for Held<'_> {
+    fn deref_mut(&mut self) -> &mut Inner {
+        &mut self.guard
+    }
+}
 
 /// What a [`NativeScene`] holds.
 struct Inner {
@@ -150,14 +193,37 @@ struct Inner {
 impl NativeScene {
     fn new(scene: Scene, assets: Assets, max_memory_bytes: Option<u64>) -> Self {
         let limits = max_memory_bytes.map_or(Limits::NONE, |b| Limits { memory_bytes: b });
-        Self(Mutex::new(Inner { scene, assets, limits, runner: None }))
+        Self::holding(Inner { scene, assets, limits, runner: None })
     }
 
-    /// The scene, for one call.
-    fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
-        self.0
-            .lock()
-            .map_err(|_| PyValueError::new_err("an earlier call on this scene failed midway: load it again"))
+    fn holding(inner: Inner) -> Self {
+        Self { inner: Mutex::new(inner), owner: AtomicU64::new(0) }
+    }
+
+    /// The scene, for one call. Another thread's call is waited for with the GIL
+    /// released (it may need the GIL to finish); a call from this thread while one of
+    /// its own is running (a progress callback using the scene it reports on) is
+    /// refused, as it could never be served.
+    fn lock(&self, py: Python<'_>) -> PyResult<Held<'_>> {
+        let me = thread_number();
+        if self.owner.load(Ordering::SeqCst) == me {
+            return Err(PyRuntimeError::new_err(
+                "this scene is busy with a call that is reporting progress: a progress callback cannot use the scene it reports on",
+            ));
+        }
+        let guard = loop {
+            match self.inner.try_lock() {
+                Ok(guard) => break guard,
+                Err(TryLockError::WouldBlock) => py.detach(|| std::thread::sleep(Duration::from_micros(200))),
+                Err(TryLockError::Poisoned(_)) => {
+                    return Err(PyValueError::new_err(
+                        "an earlier call on this scene failed midway: load it again",
+                    ));
+                }
+            }
+        };
+        self.owner.store(me, Ordering::SeqCst);
+        Ok(Held { guard, owner: &self.owner })
     }
 }
 
@@ -174,9 +240,10 @@ impl Inner {
         let this = self;
         let settings = this.scene.settings();
         let (w, h) = (width.unwrap_or(settings.width), height.unwrap_or(settings.height));
+        // The current state's frame, before a new size can start the run again.
+        let frame = frame.unwrap_or(this.frames_done().saturating_sub(1));
         this.resize(py, w, h)?;
         let done = this.frames_done();
-        let frame = frame.unwrap_or(done.saturating_sub(1));
         if frame >= 1_000_000 {
             return Err(PyValueError::new_err(format!(
                 "frame {frame} is out of range: expected [0, 999999]"
@@ -217,27 +284,32 @@ impl Inner {
         }
     }
 
-    /// Simulate up to frame `frames.end`, giving the frames of `frames` to `sink`.
+    /// Simulate up to frame `frames.end`, giving the frames of `frames` to `sink`;
+    /// returns each simulated frame's record as JSON. A scene whose frames depend on
+    /// earlier renders is rendered every frame, as the command does.
     fn run(
         &mut self,
         py: Python<'_>,
         frames: std::ops::Range<u32>,
         sink: &mut (dyn FrameSink + Send),
         progress: Option<&Py<PyAny>>,
-    ) -> PyResult<()> {
+    ) -> PyResult<Vec<String>> {
         let runner = self.runner(py)?;
         let start = runner.frames_done();
+        let total = frames.end.saturating_sub(start);
         let mut observer =
-            Progress { callback: progress, start, total: frames.end.saturating_sub(start), error: None };
+            Progress { callback: progress, start, total, error: None, records: Some(Vec::new()) };
         let result = py.detach(|| runner.run(frames, sink, &mut observer));
         if let Some(e) = observer.error {
             return Err(e);
         }
-        result.map_err(run_error)
+        result.map_err(run_error)?;
+        Ok(observer.records.unwrap_or_default())
     }
 
     /// Make the frames `width` x `height`, keeping the simulation's state (a checkpoint
-    /// keeps across sizes) unless its frames depend on earlier renders.
+    /// keeps across sizes) unless its frames depend on earlier renders. Nothing changes
+    /// when the new size cannot be built.
     fn resize(&mut self, py: Python<'_>, width: u32, height: u32) -> PyResult<()> {
         let settings = self.scene.settings();
         if (settings.width, settings.height) == (width, height) {
@@ -246,8 +318,7 @@ impl Inner {
         let mut scene = self.scene.clone();
         scene.settings_mut().width = width;
         scene.settings_mut().height = height;
-        let issues = scene.validate();
-        if let Some(i) = issues.first() {
+        if let Some(i) = scene.validate().first() {
             return Err(PyValueError::new_err(i.to_string()));
         }
         let state = match &self.runner {
@@ -256,12 +327,12 @@ impl Inner {
             }
             _ => None,
         };
-        self.scene = scene;
-        self.runner = None;
+        let mut resized = Inner { scene, assets: self.assets.clone(), limits: self.limits, runner: None };
         if let Some(bytes) = state {
-            let runner = self.runner(py)?;
+            let runner = resized.runner(py)?;
             runner.restore(&bytes).map_err(|e| PyValueError::new_err(e.to_string()))?;
         }
+        *self = resized;
         Ok(())
     }
 }
@@ -305,8 +376,8 @@ impl NativeScene {
     }
 
     /// What the scene is, as JSON: phenomenon, `[scene]`, frame time, view, exports.
-    fn info(&self) -> PyResult<String> {
-        let mut guard = self.lock()?;
+    fn info(&self, py: Python<'_>) -> PyResult<String> {
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let p = this.scene.phenomenon();
         Ok(serde_json::json!({
@@ -321,22 +392,22 @@ impl NativeScene {
     }
 
     /// The scene's tables as JSON.
-    fn to_json(&self) -> PyResult<String> {
-        let mut guard = self.lock()?;
+    fn to_json(&self, py: Python<'_>) -> PyResult<String> {
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         Ok(this.scene.to_json().to_string())
     }
 
     /// The scene as TOML text.
-    fn to_toml(&self) -> PyResult<String> {
-        let mut guard = self.lock()?;
+    fn to_toml(&self, py: Python<'_>) -> PyResult<String> {
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         this.scene.to_toml().map_err(PyValueError::new_err)
     }
 
     /// The same scene with `path` (`snow.repose_deg`) set to the JSON `value`, validated.
     fn with_value(&self, py: Python<'_>, path: &str, value: &str) -> PyResult<Self> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let value: serde_json::Value =
             serde_json::from_str(value).map_err(|e| PyValueError::new_err(format!("{path}: {e}")))?;
@@ -344,14 +415,14 @@ impl NativeScene {
         if let Some(i) = scene.validate().first() {
             return Err(scene_error(py, i.to_string(), vec![(String::new(), 0, 0, i.to_string())]));
         }
-        Ok(Self(Mutex::new(Inner { scene, assets: this.assets.clone(), limits: this.limits, runner: None })))
+        Ok(Self::holding(Inner { scene, assets: this.assets.clone(), limits: this.limits, runner: None }))
     }
 
     /// Everything `phenomena validate` checks, without building the simulation: the
     /// files load, the simulation and renderer accept the scene, the memory estimate is
     /// within the budget. Returns the report as JSON (warnings, estimate).
     fn validate(&self, py: Python<'_>) -> PyResult<String> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let checked = {
             let this = &mut *this;
@@ -368,15 +439,15 @@ impl NativeScene {
     }
 
     /// Frames simulated so far.
-    fn frames_done(&self) -> PyResult<u32> {
-        let mut guard = self.lock()?;
+    fn frames_done(&self, py: Python<'_>) -> PyResult<u32> {
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         Ok(this.frames_done())
     }
 
     /// Warnings found while building, each a sentence.
     fn warnings(&self, py: Python<'_>) -> PyResult<Vec<String>> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         Ok(this.runner(py)?.warnings().to_vec())
     }
@@ -384,23 +455,15 @@ impl NativeScene {
     /// Simulate `count` frames; returns each frame's record as JSON.
     #[pyo3(signature = (count=1, progress=None))]
     fn step(&self, py: Python<'_>, count: u32, progress: Option<Py<PyAny>>) -> PyResult<Vec<String>> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
-        let runner = this.runner(py)?;
-        let mut records = Vec::new();
-        let start = runner.frames_done();
-        let mut observer = Progress { callback: progress.as_ref(), start, total: count, error: None };
-        for _ in 0..count {
-            let record = py.detach(|| runner.step()).map_err(run_error)?;
-            records.push(serde_json::to_string(&record).unwrap_or_default());
-            if observer.frame(&record).is_break() {
-                return Err(observer
-                    .error
-                    .take()
-                    .unwrap_or_else(|| run_error(RunError::Cancelled { frames: record.frame + 1 })));
-            }
-        }
-        Ok(records)
+        let done = this.frames_done();
+        let end = done.checked_add(count).filter(|&e| e <= 1_000_000).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "{count} more frames after {done} is out of range: at most 1000000 in all"
+            ))
+        })?;
+        this.run(py, done..end, &mut Simulate, progress.as_ref())
     }
 
     /// Render frame `frame` (the state after `frame + 1` steps; `None`: the current
@@ -415,7 +478,7 @@ impl NativeScene {
         height: Option<u32>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Rendered<'py>> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let capture = guard.render(py, frame, width, height, progress)?;
         let layers = capture.layers.iter().map(|(name, p)| (name.clone(), f32_bytes(py, p.data()))).collect();
         let (w, h) = (capture.frame.width(), capture.frame.height());
@@ -437,7 +500,7 @@ impl NativeScene {
         progress: Option<Py<PyAny>>,
         layers: bool,
     ) -> PyResult<()> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let capture = guard.render(py, frame, width, height, progress)?;
         let planes = if layers { capture.layers.as_slice() } else { &[] };
         let layers: Vec<Layer<'_>> = planes.iter().map(|(name, plane)| Layer { name, plane }).collect();
@@ -448,7 +511,7 @@ impl NativeScene {
 
     /// The whole simulation state as a checkpoint file's bytes.
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let bytes = this.runner(py)?.checkpoint().map_err(|e| PyValueError::new_err(e.0))?;
         Ok(PyBytes::new(py, &bytes))
@@ -456,14 +519,14 @@ impl NativeScene {
 
     /// Continue from checkpoint `bytes` of this scene; returns the frames simulated.
     fn restore(&self, py: Python<'_>, bytes: &[u8]) -> PyResult<u32> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         this.runner(py)?.restore(bytes).map_err(|e| PyValueError::new_err(e.to_string()))
     }
 
     /// The particles as the `ply` format's point cache bytes.
     fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let bytes = this.runner(py)?.state().points().map_err(|e| PyValueError::new_err(e.0))?;
         Ok(PyBytes::new(py, &bytes))
@@ -476,7 +539,7 @@ impl NativeScene {
         name: &str,
         format: &str,
     ) -> PyResult<(Bound<'py, PyBytes>, String)> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let runner = this.runner(py)?;
         let exported = py.detach(move || runner.export(name, format)).map_err(PyValueError::new_err)?;
@@ -492,7 +555,7 @@ impl NativeScene {
         voxel_m: Option<f64>,
         as_vdb: bool,
     ) -> PyResult<(String, Vec<Leaves<'py>>, Option<Bound<'py, PyBytes>>)> {
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let this = &mut *guard;
         let max_bytes = (this.limits.memory_bytes != u64::MAX).then_some(this.limits.memory_bytes);
         let options = VolumeOptions { voxel_m, max_bytes };

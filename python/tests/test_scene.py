@@ -168,3 +168,49 @@ def test_save_exr_writes_the_commands_file(repo, cli, tmp_path):
     assert (tmp_path / "mine.exr").read_bytes() == (tmp_path / "frame_00002.exr").read_bytes()
     with pytest.raises(ValueError, match="frame"):
         scene.render(5_000_000)
+
+
+def afterglow_aurora(frames=12):
+    import re
+
+    text = re.sub(r"^frames = \d+", f"frames = {frames}", phenomena.starter("aurora"), flags=re.M)
+    text = text.replace("afterglow = false", "afterglow = true")
+    return phenomena.Scene.from_toml(text, name="glow.toml")
+
+
+def test_frames_that_depend_on_earlier_renders_match_a_straight_render():
+    # The afterglow carries light from frame to frame: step() renders what it steps,
+    # as the command does, so stepping then rendering equals rendering at once.
+    stepped = afterglow_aurora()
+    stepped.step(3)
+    a = stepped.render(5, width=32, height=18)
+    b = afterglow_aurora().render(5, width=32, height=18)
+    np.testing.assert_array_equal(a, b)
+    # The default frame is the current state's, also when a new size starts again.
+    stepped.step(2)
+    np.testing.assert_array_equal(stepped.render(width=40, height=20),
+                                  afterglow_aurora().render(7, width=40, height=20))
+    assert stepped.frames_done == 8
+
+
+def test_a_size_that_cannot_be_built_changes_nothing(repo):
+    scene = phenomena.Scene(repo / "scenes/flame-paper.toml", max_memory_gib=0.5)
+    before = scene.render(4, width=32, height=18)
+    with pytest.raises(phenomena.SceneError, match="memory"):
+        scene.render(4, width=16000, height=16000)
+    assert scene.size == (32, 18) and scene.frames_done == 5
+    np.testing.assert_array_equal(scene.render(4), before)
+
+
+def test_a_progress_callback_cannot_use_its_own_scene_and_threads_take_turns(repo):
+    scene = phenomena.Scene(repo / "scenes/flame-paper.toml")
+    with pytest.raises(RuntimeError, match="busy"):
+        scene.step(2, progress=lambda done, total: scene.frames_done)
+    # A second thread waits for the first's call instead of deadlocking on the GIL.
+    results = []
+    worker = threading.Thread(target=lambda: results.append(scene.render(40, width=64, height=36).shape))
+    worker.start()
+    seen = [scene.frames_done for _ in range(20)]
+    worker.join(timeout=120)
+    assert not worker.is_alive() and results == [(36, 64, 3)]
+    assert all(0 <= s <= 41 for s in seen) and scene.frames_done == 41
