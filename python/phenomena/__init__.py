@@ -197,8 +197,9 @@ class Scene:
         frames; default the current state) as linear radiance, (H, W, 3) float32: the
         RGB of the command's EXR of that frame. Simulates forward as needed; a frame
         already passed is simulated again from frame 0. A new ``width``/``height`` keeps
-        the simulation's state. With ``layers``, also the renderer's extra planes (the
-        EXR's other channels) by name."""
+        the simulation's state and becomes the scene's size (:attr:`size`) for later
+        calls. With ``layers``, also the renderer's extra planes (the EXR's other
+        channels) by name."""
         rgb, w, h, extra = self._native.render(frame, width, height, progress)
         image = np.frombuffer(rgb, dtype="<f4").reshape(h, w, 3)
         if not layers:
