@@ -3,8 +3,10 @@
     PHENOMENA_PYTHON_PATH=SITE blender -b --factory-startup --python-exit-code 1 \\
         --python blender/check_addon.py -- PHENOMENA_BINARY OUT_DIR
 
-enables blender/phenomena_blender as a legacy add-on from the repository and runs each
-operator on a small scene: snow on top of a cube over a plane (and only there), snow
+enables blender/phenomena_blender as a legacy add-on from the repository (Blender 3.4)
+or, with PHENOMENA_EXTENSION_ZIP set, installs that zip (blender/package.sh) as an
+extension with its own wheel (Blender 4.2+, e.g. the bpy module from the package index:
+`python blender/check_addon.py -- ...`), and runs each operator on a small scene: snow on top of a cube over a plane (and only there), snow
 equal to `phenomena export snow-mesh` of the scene the add-on saved, a flame volume
 object whose VDB frames follow the timeline, the world lit by an aurora panorama, glints
 as points. Any failed check raises, and Blender exits with status 1.
@@ -16,8 +18,8 @@ import subprocess
 import sys
 import tempfile
 
-import addon_utils
-import bpy
+import bpy  # first: as a module (Blender 4.x from the package index) it puts addon_utils on the path
+import addon_utils  # noqa: E402
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -37,11 +39,27 @@ def enable_from_the_repository():
     scripts = tempfile.mkdtemp(prefix="phenomena-scripts-")
     os.makedirs(os.path.join(scripts, "addons"))
     os.symlink(os.path.join(REPO, "blender", "phenomena_blender"), os.path.join(scripts, "addons", "phenomena_blender"))
-    bpy.context.preferences.filepaths.script_directory = scripts
+    paths = bpy.context.preferences.filepaths
+    if hasattr(paths, "script_directories"):  # Blender 3.6+: a list of folders
+        paths.script_directories.new().directory = scripts
+    else:
+        paths.script_directory = scripts
     bpy.utils.refresh_script_paths()
     addon_utils.modules_refresh()
     bpy.ops.preferences.addon_enable(module="phenomena_blender")
     check(addon_utils.check("phenomena_blender")[1], "the add-on is enabled from the repository")
+
+
+def install_the_extension(zip_path):
+    """The packaged extension installed and enabled as Blender 4.2+ does it; the
+    phenomena package must then come from the wheel inside it."""
+    result = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    check(result == {"FINISHED"}, f"the extension installs from {os.path.basename(zip_path)}")
+    check("bl_ext.user_default.phenomena_blender" in bpy.context.preferences.addons, "and is enabled")
+    import phenomena
+
+    check(os.sep + "extensions" + os.sep in phenomena.__file__,
+          f"with the phenomena package from its own wheel ({phenomena.__file__})")
 
 
 def empty_scene():
@@ -200,7 +218,11 @@ def check_sparkle():
     check(obj.modifiers[0].type == "NODES", "drawn as points by geometry nodes with an emissive material")
 
 
-enable_from_the_repository()
+if os.environ.get("PHENOMENA_EXTENSION_ZIP"):
+    install_the_extension(os.path.abspath(os.environ["PHENOMENA_EXTENSION_ZIP"]))
+else:
+    enable_from_the_repository()
+print(f"Blender {bpy.app.version_string}")
 check_snow()
 check_flame()
 check_aurora()

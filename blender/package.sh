@@ -10,7 +10,12 @@ out=${1:-target/phenomena_blender-0.1.0.zip}
 python=${PYTHON:-python3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-"$python" -m pip wheel --no-deps ./python -w "$work/wheels"
+# WHEEL: a phenomena wheel already built (else one is built here).
+if [ -n "${WHEEL:-}" ]; then
+  mkdir -p "$work/wheels" && cp "$WHEEL" "$work/wheels/"
+else
+  "$python" -m pip wheel --no-deps ./python -w "$work/wheels"
+fi
 wheel=$(basename "$(ls "$work"/wheels/phenomena-*.whl)")
 cp -r blender/phenomena_blender "$work/phenomena_blender"
 rm -rf "$work/phenomena_blender/_vendor" "$work/phenomena_blender/__pycache__"
