@@ -242,13 +242,13 @@ impl Inner {
         let (w, h) = (width.unwrap_or(settings.width), height.unwrap_or(settings.height));
         // The current state's frame, before a new size can start the run again.
         let frame = frame.unwrap_or(this.frames_done().saturating_sub(1));
-        this.resize(py, w, h)?;
-        let done = this.frames_done();
         if frame >= 1_000_000 {
             return Err(PyValueError::new_err(format!(
                 "frame {frame} is out of range: expected [0, 999999]"
             )));
         }
+        this.resize(py, w, h)?;
+        let done = this.frames_done();
         let memory = this.scene.render_memory().is_some();
         // The frame asked for is behind the state, or would need a second render of it
         // (a scene whose frames depend on earlier renders): start again from frame 0.
