@@ -136,6 +136,29 @@ impl Lobe {
         if self.kappa > 0.0 { self.norm * (self.kappa * (c - 1.0)).exp() } else { self.norm }
     }
 
+    /// Probability that a normal of the lobe makes a cosine in `w_lo..=w_hi` with the axis:
+    /// 2π C/κ (e^{κ(w_hi - 1)} - e^{κ(w_lo - 1)}) (uniform: (w_hi - w_lo)/2).
+    pub(crate) fn polar_mass(&self, w_lo: f64, w_hi: f64) -> f64 {
+        if self.kappa > 0.0 {
+            2.0 * PI * self.norm / self.kappa
+                * ((self.kappa * (w_hi - 1.0)).exp() - (self.kappa * (w_lo - 1.0)).exp())
+        } else {
+            0.5 * (w_hi - w_lo)
+        }
+    }
+
+    /// The cosine to the axis of a normal drawn from the lobe restricted to cosines in
+    /// `w_lo..=w_hi`, from a uniform `u` (inversion of the CDF ∝ e^{κ w}; uniform: linear).
+    #[inline]
+    pub(crate) fn polar_in(&self, w_lo: f64, w_hi: f64, u: f64) -> f64 {
+        let w = if self.kappa > 0.0 {
+            w_hi + (u + (1.0 - u) * (-self.kappa * (w_hi - w_lo)).exp()).ln() / self.kappa
+        } else {
+            w_lo + u * (w_hi - w_lo)
+        };
+        w.clamp(w_lo, w_hi)
+    }
+
     /// A normal drawn from the lobe around `axis` (Wood's inversion for the 3-D case).
     pub(crate) fn sample(&self, axis: Vec3, rng: &mut Stream) -> Vec3 {
         let u = rng.next_f64();
