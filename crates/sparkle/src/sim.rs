@@ -809,9 +809,7 @@ impl SparkleSim {
         // Births into a later frame skip the normals certainly seen at the one before.
         let from = (frame > 0).then(|| self.seen_at(frame - 1));
         let inner = match (&from, motion, self.space) {
-            (Some(from), Some(m), Space::Box { min, size }) if false => {
-                InnerSplit::of(min, size, &m, from, to, theta)
-            }
+            (Some(from), Some(m), Space::Box { min, size }) => InnerSplit::of(min, size, &m, from, to, theta),
             _ => None,
         };
         let n = self.virtual_count;
