@@ -181,6 +181,27 @@ pub struct SnowRenderer {
     lights: Vec<(Vec3, Vec3)>,
     /// What each pixel of the last scene view shows ([`Seen`]).
     seen: Vec<Seen>,
+    /// The scene mesh's smooth normals, worked out once per mesh.
+    normals: ObjectNormals,
+}
+
+/// The scene mesh's smooth normals, kept while the mesh stays the same (it does for a
+/// whole shot: only the snow on it changes).
+#[derive(Clone, Debug, Default)]
+struct ObjectNormals {
+    scene: Vec<[Vec3; 3]>,
+    normals: Vec<[Vec3; 3]>,
+}
+
+impl ObjectNormals {
+    /// [`smooth_normals`] of `scene`, from the last call's when the mesh is the same.
+    fn of(&mut self, scene: &[[Vec3; 3]]) -> &[[Vec3; 3]] {
+        if self.scene != scene {
+            self.normals = smooth_normals(scene);
+            self.scene = scene.to_vec();
+        }
+        &self.normals
+    }
 }
 
 /// What a pixel of the scene view shows.
@@ -221,6 +242,7 @@ impl SnowRenderer {
             depth: Vec::new(),
             lights: Vec::new(),
             seen: Vec::new(),
+            normals: ObjectNormals::default(),
         })
     }
 
@@ -240,8 +262,14 @@ impl SnowRenderer {
         let (w, h) = (self.frame.width(), self.frame.height());
         match self.settings.view {
             SnowView::Scene => {
-                (self.frame, self.depth, self.seen) =
-                    render_scene(sim, &self.settings, self.background.as_ref(), &self.lights, w, h)
+                (self.frame, self.depth, self.seen) = render_scene(
+                    sim,
+                    &self.settings,
+                    (self.background.as_ref(), &self.lights),
+                    &mut self.normals,
+                    w,
+                    h,
+                )
             }
             SnowView::Probability => {
                 (self.frame, self.depth, self.seen) = (render_probability(sim, w, h), Vec::new(), Vec::new())
@@ -265,7 +293,7 @@ impl SnowRenderer {
     pub fn render_over(&mut self, sim: &SnowSim, behind: &Frame) -> &Frame {
         let (w, h) = (self.frame.width(), self.frame.height());
         (self.frame, self.depth, self.seen) =
-            render_scene(sim, &self.settings, Some(behind), &self.lights, w, h);
+            render_scene(sim, &self.settings, (Some(behind), &self.lights), &mut self.normals, w, h);
         &self.frame
     }
 
@@ -363,8 +391,8 @@ fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height:
 fn render_scene(
     sim: &SnowSim,
     settings: &SnowRenderSettings,
-    background: Option<&Frame>,
-    lights: &[(Vec3, Vec3)],
+    (background, lights): (Option<&Frame>, &[(Vec3, Vec3)]),
+    normals: &mut ObjectNormals,
     width: usize,
     height: usize,
 ) -> (Frame, Vec<f32>, Vec<Seen>) {
@@ -392,7 +420,7 @@ fn render_scene(
         sky_seen: SkyVisibility { sim, fp: sim.footprint() },
         lights,
     };
-    let object_normals = smooth_normals(scene);
+    let object_normals = normals.of(scene);
     // Rows in parallel, each pixel on its own: the same bits for any thread count.
     let shade = |x: usize, y: usize| -> Vec3 {
         let id = buf.id_at(x, y);
@@ -471,8 +499,9 @@ fn draw_glitter(
             [t[0], t[1], t[2], centre].iter().all(|&p| m.lit(p, 1.0) == 0.0)
         })
     };
+    // In parallel; rayon's collect keeps the triangles' order.
     let up: Vec<[Vec3; 3]> = snow
-        .iter()
+        .par_iter()
         .copied()
         .filter(|t| {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);

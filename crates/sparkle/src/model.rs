@@ -14,6 +14,9 @@
 //! a normal in its cap with exactly probability ∫_cap f: the candidates are an exact
 //! thinning of the full population, and their count over N virtual particles is
 //! binomial. Where q would reach 1 the cell draws normals from f directly instead.
+//! (In the periodic box with a lobe, births use adaptively split cells with a Poisson
+//! count each and, out in the lobe's tail, normals from f inside a window of angles
+//! around the cap instead: `sim::CellTable::split`.)
 
 use glam::Vec3;
 use phenomena_core::rng::Stream;

@@ -12,7 +12,8 @@
 //! **The stochastic model** holds only the facets seen now, plus "ghosts": facets that
 //! stopped being seen within the last `memory_frames` frames, still followed unseen. Frame
 //! 0 draws the seen facets directly (module `model`: a binomial count, positions uniform,
-//! normals in the cone around each position's own H). A step moves each held facet with
+//! normals in the cone around each position's own H; in the box with a lobe, a Poisson
+//! count per split cell of [`CellTable::split`]). A step moves each held facet with
 //! the same dynamics; seen ones that left the cone become ghosts (§2's "delete", delayed),
 //! ghosts that turn back into the cone are seen again where they are, ghosts unseen for
 //! longer than the memory are dropped. Then the newcomers are added (§2's "stochastically
@@ -1357,7 +1358,8 @@ fn carve_face_slabs(
     (cmin, cmax)
 }
 
-/// The inner angle β of an interior cell of [`Regions`]: how far H can turn for a facet
+/// The inner angle β of an interior cell of [`Regions`] (or a split cell, through
+/// [`InnerSplit`]): how far H can turn for a facet
 /// that ends in the cell (η, from the bound e on the change of u = L + V), so that
 /// normals within β = θ' - η of ±H_{t+1} were certainly seen at t.
 struct InnerCap {
@@ -1411,24 +1413,30 @@ impl InnerCap {
 /// Candidate probabilities per cell for one frame (module `model`'s thinning).
 ///
 /// In the box with a lobe the cells are split adaptively (an extension for speed, not
-/// in the paper): each of the 16³ equal cells whose bound would make more than
+/// in the paper): each of the 16³ equal cells whose windows would draw more than
 /// [`SPLIT_DRAWS`] candidates is cut into eight, recursively, down to [`SPLIT_DEPTH`]
-/// halvings. The bound of a cell is the lobe's density at the least angle any normal in
-/// the cap around ±H can make with the axis anywhere in it, so smaller cells near the
-/// eye (where H turns fastest) and along the light's mirror direction bound the density
-/// far more tightly; the thinning then rejects fewer. Every cell still bounds the
-/// density over its own points, so the candidates have the same distribution (the cells
-/// partition the box; test `split_cells_draw_the_grids_distribution`).
+/// halvings (within [`SPLIT_BUDGET`]). Each split cell and side has a [`Window`]: the
+/// lobe restricted to angles that hold the cap around ±H(x) for every x of the cell
+/// (kept when in the cap), or, where that draws more, normals uniform in the cap thinned
+/// by the lobe's density over its bound there. Smaller cells near the eye (where H turns
+/// fastest) and along the light's mirror direction bound far more tightly. Either way a
+/// cell's accepted candidates are the lobe's normals in the cap (less the inner cap β
+/// certainly seen before), so the distribution is the equal cells' (test
+/// `a_windows_candidates_carry_the_caps_lobe_mass` against a quadrature, and the
+/// brute-force comparisons of `tests/stochastic_matches_brute_force.rs`).
 struct CellTable {
     cells: usize,
     /// Cumulative candidate weight over cells (equal cells: their probability; split
-    /// cells: probability times volume share).
+    /// cells: expected draws per facet times volume share).
     cumulative: Vec<f64>,
-    /// Mean candidate probability per virtual facet.
+    /// Mean candidate probability per virtual facet (split cells: expected draws per
+    /// facet, up to 2 with two sides).
     mean_q: f64,
-    /// Per cell: bound of the normal density on the +H and −H caps (0 for an unused side).
+    /// Per equal cell: bound of the normal density on the +H and −H caps (0 for an
+    /// unused side); empty for split cells.
     bound: Vec<[f64; 2]>,
-    /// Per cell: draw normals from the lobe directly (q would reach 1).
+    /// Per equal cell: draw normals from the lobe directly (q would reach 1); empty for
+    /// split cells.
     direct: Vec<bool>,
     one_minus_cos_alpha: f64,
     uniform: bool,
@@ -1443,6 +1451,11 @@ struct CellTable {
 const SPLIT_DRAWS: f64 = 64.0;
 /// Most halvings of a 16³ cell (down to 1/512 of the box per axis).
 const SPLIT_DEPTH: u32 = 5;
+/// Most cells one of the 16³ cells is split into (a cell is split only while its cells
+/// filed so far and the eight new ones stay within this), so the table holds at most
+/// about 4096 · 424 cells of 144 bytes (250 MB) whatever the scene asks for, before the
+/// memory guard has seen the candidates it would draw. The sun pillar needs at most 246.
+const SPLIT_BUDGET: usize = 384;
 
 /// Where the normals of one side's candidates in a split cell are drawn: the lobe
 /// restricted to the polar band `w_lo..=w_hi` (cosines to the axis) and the azimuths
@@ -1476,14 +1489,17 @@ impl Window {
         let r = alpha + spread;
         let (w_lo, w_hi, phi_c, half_width) = match h {
             Some(h) if r < std::f64::consts::PI => {
-                let gamma = f64::from(h.y.clamp(-1.0, 1.0)).acos();
+                // From the components' ratio, not acos(h.y): exact near the poles whatever
+                // h's length (f32 rounding would otherwise move the band's edge there).
+                let h = h.as_dvec3();
+                let gamma = h.x.hypot(h.z).atan2(h.y);
                 let (g_lo, g_hi) = ((gamma - r).max(0.0), (gamma + r).min(std::f64::consts::PI));
                 let half_width = if gamma > r && gamma + r < std::f64::consts::PI {
                     (r.sin() / gamma.sin()).min(1.0).asin()
                 } else {
                     std::f64::consts::PI
                 };
-                (g_hi.cos(), g_lo.cos(), f64::from(h.z).atan2(f64::from(h.x)), half_width)
+                (g_hi.cos(), g_lo.cos(), h.z.atan2(h.x), half_width)
             }
             _ => (-1.0, 1.0, 0.0, std::f64::consts::PI),
         };
@@ -1509,17 +1525,18 @@ impl Window {
             return (rng.next_f64() * self.bound < lobe.density(f64::from(n.y))).then_some(n);
         }
         let n = self.sample(lobe, rng);
-        let omc = 1.0 - f64::from(n.dot(h));
-        (omc <= omc_alpha && omc >= self.omc_beta).then_some(n)
+        // 1 - cos of the angle as |n - h|²/2 of unit vectors in f64: no cancellation.
+        let omc = 0.5 * (n - h.as_dvec3().normalize()).length_squared();
+        (omc <= omc_alpha && omc >= self.omc_beta).then_some(n.as_vec3())
     }
 
     /// A normal of the lobe restricted to the window (axis +y).
     #[inline]
-    fn sample(&self, lobe: &Lobe, rng: &mut Stream) -> Vec3 {
+    fn sample(&self, lobe: &Lobe, rng: &mut Stream) -> glam::DVec3 {
         let w = lobe.polar_in(self.w_lo, self.w_hi, rng.next_f64());
         let phi = self.phi_c + (2.0 * rng.next_f64() - 1.0) * self.half_width.min(std::f64::consts::PI);
         let s = (1.0 - w * w).max(0.0).sqrt();
-        Vec3::new((s * phi.cos()) as f32, w as f32, (s * phi.sin()) as f32)
+        glam::DVec3::new(s * phi.cos(), w, s * phi.sin())
     }
 }
 
@@ -1654,9 +1671,10 @@ impl CellTable {
         }
     }
 
-    /// The box `min..min + size` cut into 16³ cells, each split further while its bound
-    /// draws more than [`SPLIT_DRAWS`] of the `facets` (depth first, children in x, y, z
-    /// order: the cells depend only on the geometry).
+    /// The box `min..min + size` cut into 16³ cells, each split further while its
+    /// windows draw more than [`SPLIT_DRAWS`] of the `facets` (depth first, children in
+    /// x, y, z order: the cells depend on the geometry, the facet count and the inner
+    /// caps, never on the thread count).
     fn split(inputs: &BoundInputs<'_>, min: Vec3, size: Vec3, facets: u64, omc: f64) -> Self {
         const TOP: usize = 16;
         let cell = size / TOP as f32;
@@ -1693,7 +1711,9 @@ impl CellTable {
             }
         }
         table.cells = table.boxes.len();
-        table.mean_q = total.min(1.0);
+        // Expected draws per facet: up to 2 with two sides (the chunks and the memory
+        // guard count draws; only the equal cells' binomial needs a probability).
+        table.mean_q = total;
         table
     }
 
@@ -1807,7 +1827,7 @@ fn visit(
         Window::default()
     };
     let q = plus.mass + minus.mass;
-    if facets * share * q > SPLIT_DRAWS && depth < SPLIT_DEPTH {
+    if facets * share * q > SPLIT_DRAWS && depth < SPLIT_DEPTH && out.len() + 8 <= SPLIT_BUDGET {
         let half = 0.5 * size;
         for k in 0..2 {
             for j in 0..2 {
@@ -1946,6 +1966,33 @@ mod tests {
             assert!(one.len() > 100, "{}", one.len());
             assert_eq!(one, run(3), "{method:?}");
         }
+        // Plates: the box's split cells (built in parallel) and their births.
+        let mut c = small(Method::Stochastic);
+        c.phong.two_sided = true;
+        c.light = crate::config::Light::Sun {
+            azimuth_deg: 0.0,
+            elevation_deg: 10.0,
+            azimuth_rate_deg_per_s: 0.0,
+            elevation_rate_deg_per_s: 0.0,
+        };
+        if let Population::DiamondDust(d) = &mut c.population {
+            d.density_per_m3 = 2.0;
+            d.normals = crate::config::Normals::Plates { tilt_deg: 4.0 };
+        }
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut sim = SparkleSim::new(c, 9).unwrap();
+                let mut births = 0;
+                for _ in 0..4 {
+                    births += sim.step().unwrap().births;
+                }
+                (sim.glints().clone(), births)
+            })
+        };
+        let (one, births) = run(1);
+        assert!(one.len() > 100 && births > 10, "{} glints, {births} births", one.len());
+        assert_eq!((one, births), run(3), "plates");
     }
 
     #[test]
