@@ -1156,7 +1156,7 @@ impl Births<'_> {
         seen: &mut Survivors,
         out: &mut Glints,
     ) -> u64 {
-        let (to, motion, space, table) = (self.to, self.walk.motion, self.walk.space, self.table);
+        let (to, space, table) = (self.to, self.walk.space, self.table);
         let (mut x1, mut n0) = (Vec::new(), Vec::new());
         let mut count = 0;
         let range = table.range(k, self.chunks);
@@ -1176,12 +1176,7 @@ impl Births<'_> {
             }
             // Test and walk back every batch, and what is left after the last cell.
             if x1.len() >= CANDIDATE_BATCH as usize || (c + 1 == last && !x1.is_empty()) {
-                for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
-                    let (x1, n0) = (V8::load(xc), V8::load(nc));
-                    let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, lanes);
-                    seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
-                }
-                self.walk.back(seen, lanes, out);
+                self.test_and_walk(&x1, &n0, lanes, seen, out);
                 x1.clear();
                 n0.clear();
             }
@@ -1200,7 +1195,7 @@ impl Births<'_> {
         seen: &mut Survivors,
         out: &mut Glints,
     ) -> u64 {
-        let (to, motion, space) = (self.to, self.walk.motion, self.walk.space);
+        let (to, space) = (self.to, self.walk.space);
         let (n, chunks) = (self.n, self.chunks);
         let len = n / chunks + u64::from(k < n % chunks);
         let count = rng.binomial(len, self.mean_q);
@@ -1217,14 +1212,28 @@ impl Births<'_> {
                     n0.push(n);
                 }
             }
-            for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
-                let (x1, n0) = (V8::load(xc), V8::load(nc));
-                let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, lanes);
-                seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
-            }
-            self.walk.back(seen, lanes, out);
+            self.test_and_walk(&x1, &n0, lanes, seen, out);
         }
         count
+    }
+
+    /// Candidates (positions `x1` at the new frame, normals `n0` at the one before): each
+    /// moved one step and tested in lanes into `seen`, then walked back into `out`.
+    fn test_and_walk(
+        &self,
+        x1: &[Vec3],
+        n0: &[Vec3],
+        lanes: &mut LaneRng,
+        seen: &mut Survivors,
+        out: &mut Glints,
+    ) {
+        let (to, motion, space) = (self.to, self.walk.motion, self.walk.space);
+        for (xc, nc) in x1.chunks(LANES).zip(n0.chunks(LANES)) {
+            let (x1, n0) = (V8::load(xc), V8::load(nc));
+            let (n1, c2) = first_frame(motion.as_ref(), to, space, x1, n0, lanes);
+            seen.push_seen(&x1, &n0, &n1, c2, (1u32 << xc.len()) - 1);
+        }
+        self.walk.back(seen, lanes, out);
     }
 }
 
