@@ -780,17 +780,13 @@ impl SkyRenderer {
         if chunks.len() < n {
             chunks.resize_with(n, BandedPoints::default);
         }
-        let small = match self.model {
-            Model::Physical { .. } => small_scale_now(sim),
-            Model::Paper { .. } => None,
-        };
-        let offsets = ColumnOffsets::new(frame_key(sim, self.salt));
+        let frame = FrameEmission::new(self, sim);
         chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
             points.reset(self.height, self.stride as f32);
             let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
             for i in (first..range.end).step_by(self.stride) {
-                self.emit_particle(sim, i, small.as_ref(), &offsets, points);
+                self.emit_particle(&frame, i, points);
             }
         });
         self.timings.emit_ms = t.ms();
@@ -801,32 +797,22 @@ impl SkyRenderer {
         self.timings.deposit_ms = t.ms();
     }
 
-    /// Append particle `i`'s emissions (physical mode: where `small` draws it, as bright
-    /// as it says).
-    fn emit_particle(
-        &self,
-        sim: &AuroraSim,
-        i: usize,
-        small: Option<&Prepared>,
-        offsets: &ColumnOffsets,
-        out: &mut BandedPoints,
-    ) {
-        let particles = sim.particles();
-        let grid = sim.grid();
-        let centre = grid.origin_km + grid.extent_km() * 0.5;
+    /// Append particle `i`'s emissions (physical mode: where the frame's small-scale
+    /// motion draws it, as bright as it says).
+    fn emit_particle(&self, frame: &FrameEmission<'_>, i: usize, out: &mut BandedPoints) {
+        let particles = frame.sim.particles();
         let (drawn, gain) =
-            small.map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
+            frame.small.as_ref().map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
         if gain <= 0.0 {
             return;
         }
-        let p = drawn - centre;
-        let top = f64::from(self.settings.top_altitude_km);
+        let p = drawn - frame.centre;
+        let top = frame.top;
         let foot = DVec3::new(f64::from(p.x), top, f64::from(p.y));
-        let (down, drift) = self.settings.field();
+        let (down, drift) = (frame.down, frame.drift);
         match &self.model {
             Model::Paper { air, emission } => {
-                let frame_key = frame_key(sim, self.salt);
-                let mut rng = Stream::new(frame_key, EMIT, particles.id[i]);
+                let mut rng = Stream::new(frame.key, EMIT, particles.id[i]);
                 self.emit_fall(foot, down, air, emission, &mut rng, out);
             }
             Model::Physical { sampler, points, photons, .. } => {
@@ -835,22 +821,22 @@ impl SkyRenderer {
                 // radiance P/(4π d² Ω), i.e. P/(d² Ω 1e6) R. With P = column · area ·
                 // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
                 // column · area / (points · 1e6) / (d_km² Ω).
-                let area_km2 = f64::from(gain) / f64::from(sim.field().rest_density.max(1e-12));
+                let area_km2 = f64::from(gain) / frame.rest_density;
                 let column = ParticleColumn {
                     sampler,
                     points,
                     photons,
                     area_km2,
-                    xi: offsets.of(i),
+                    xi: frame.offsets.of(i),
                     foot: foot.as_vec3(),
                     top_km: top as f32,
                     drift: drift.as_vec3(),
                 };
-                if let Some(ph) = self.view.pinhole().filter(|ph| ph.perspective && self.lanes) {
+                if let Some(ph) = &frame.lanes {
                     // The altitudes first, with the scalar path's draws in its order; then
                     // the projection in lanes ([`project_in_lanes`]): the same points.
                     column.altitudes(&mut out.lanes);
-                    project_in_lanes(&ph, column.foot, column.top_km, column.drift, out);
+                    project_in_lanes(ph, column.foot, column.top_km, column.drift, out);
                 } else {
                     self.emit_column(&column, out);
                 }
@@ -1179,6 +1165,50 @@ impl ParticleColumn<'_> {
                 let altitude = self.sampler.altitude_km(Line::ALL[k], u).min(self.top_km);
                 lanes.push((altitude, per_point, k as u8));
             }
+        }
+    }
+}
+
+/// What every particle's emission in one frame shares, worked out once a frame.
+struct FrameEmission<'a> {
+    sim: &'a AuroraSim,
+    /// The small-scale motion now (physical mode, if on).
+    small: Option<Prepared>,
+    /// The frame's key for the random streams ([`frame_key`]).
+    key: u64,
+    offsets: ColumnOffsets,
+    /// The plane's centre, km: it stands under the scene's origin.
+    centre: glam::Vec2,
+    /// Altitude of the particles' feet, km.
+    top: f64,
+    /// [`SkySettings::field`].
+    down: DVec3,
+    drift: DVec3,
+    /// The particles' rest density, km⁻² (at least 1e-12).
+    rest_density: f64,
+    /// A perspective camera's pinhole when points are projected in lanes.
+    lanes: Option<Pinhole>,
+}
+
+impl<'a> FrameEmission<'a> {
+    fn new(sky: &SkyRenderer, sim: &'a AuroraSim) -> Self {
+        let grid = sim.grid();
+        let key = frame_key(sim, sky.salt);
+        let (down, drift) = sky.settings.field();
+        Self {
+            sim,
+            small: match sky.model {
+                Model::Physical { .. } => small_scale_now(sim),
+                Model::Paper { .. } => None,
+            },
+            key,
+            offsets: ColumnOffsets::new(key),
+            centre: grid.origin_km + grid.extent_km() * 0.5,
+            top: f64::from(sky.settings.top_altitude_km),
+            down,
+            drift,
+            rest_density: f64::from(sim.field().rest_density.max(1e-12)),
+            lanes: sky.view.pinhole().filter(|ph| ph.perspective && sky.lanes),
         }
     }
 }
@@ -1559,14 +1589,13 @@ mod tests {
             let settings = SkySettings { camera, ..SkySettings::default() };
             let mut sky = SkyRenderer::new(settings, 320, 180, None).unwrap();
             let mut emitted = [BandedPoints::default(), BandedPoints::default()];
-            let small = small_scale_now(&sim);
-            assert!(small.is_some(), "the small-scale motion is on by default");
-            let offsets = ColumnOffsets::new(frame_key(&sim, 0));
+            assert!(small_scale_now(&sim).is_some(), "the small-scale motion is on by default");
             for (lanes, points) in [true, false].into_iter().zip(&mut emitted) {
                 sky.lanes = lanes;
                 points.reset(180, 1.0);
+                let frame = FrameEmission::new(&sky, &sim);
                 for i in 0..sim.particles().len() {
-                    sky.emit_particle(&sim, i, small.as_ref(), &offsets, points);
+                    sky.emit_particle(&frame, i, points);
                 }
             }
             assert!(emitted[0].len() > 10_000, "{} points", emitted[0].len());
