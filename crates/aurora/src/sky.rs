@@ -22,8 +22,9 @@
 //! colour-matching values of the lines (Table 2.1 in `paper` mode, the CIE 2015 observer
 //! otherwise; eq 2.29 with K = 683 lm/W) and then linear sRGB (eq 2.30).
 //!
-//! Determinism: each particle's random stream is keyed by (seed, frame, particle id);
-//! emissions are produced per fixed chunk of particles and deposited per fixed band of
+//! Determinism: in `paper` mode each particle's random stream is keyed by (seed, frame,
+//! particle id); in `physical` mode its sample offsets by (seed, frame) and its place in
+//! the store ([`SkyRenderer::set_sample_salt`] adds a salt to both); emissions are produced per fixed chunk of particles and deposited per fixed band of
 //! rows, chunk by chunk in order, so the result does not depend on the thread count.
 
 use glam::{DVec3, Vec3};
@@ -269,10 +270,10 @@ pub struct SkySettings {
     /// below which the shares (j + ξ)/m of its column are emitted, j = 0..m, with one
     /// uniform ξ per particle and line (systematic sampling: evenly spaced in the
     /// column), and neighbouring particles' ξ spread evenly over [0, 1) (a Weyl
-    /// sequence over the store's cell order, [`ColumnOffsets`]). 14 keep the thesis's
-    /// frame closer to a 512-point reference than 28 with independent offsets did, in
-    /// half the time; close-ups, where few columns share a pixel, are a little noisier
-    /// (test `sampling_quality` measures five views).
+    /// sequence over the store's cell order, [`ColumnOffsets`]). With 14, scene 2 seen
+    /// from the ground is closer to a 512-point reference than with 28 independent
+    /// offsets, with half the points to emit and deposit; close-ups, where few columns
+    /// share a pixel, are a little noisier (test `sampling_quality` measures seven views).
     pub points_per_particle: u32,
     /// `physical` mode: the precipitating electrons.
     pub precipitation: Precipitation,
@@ -483,7 +484,7 @@ pub struct SkyRenderer {
     salt: u64,
     /// Memory kept between frames: each emission chunk's points filed by band, the
     /// unblurred line images and the blur's intermediate image (a 1280x720
-    /// frame of 120,000 particles holds about 70 MB of points; allocated afresh every
+    /// frame of 120,000 particles at 14 points holds about 27 MB of points; allocated afresh every
     /// frame, their page faults and unmapping cost more than the deposit).
     chunks: Vec<BandedPoints>,
     /// Project the physical mode's points in lanes (false only to test the scalar path
@@ -710,10 +711,12 @@ impl SkyRenderer {
 
     /// A preview extension (not in the thesis): emit for the particles `i` with
     /// `i % stride == phase` only and weight their emissions `stride` times. The mean of
-    /// the `stride` phases' images is the full image (tested), so a live preview can
-    /// cut the emission work `stride`-fold at the price of noise. Particles are kept in
-    /// cell order, so one phase thins each region evenly. Stride 1 (the default)
-    /// renders every particle; 0 counts as 1 and the phase is taken modulo the stride.
+    /// the `stride` phases' images is the full image (exactly in `paper` mode, tested; in
+    /// `physical` mode in expectation: the sample offsets are spread over the subset's
+    /// particles, [`ColumnOffsets`]), so a live preview can cut the emission work
+    /// `stride`-fold at the price of noise. Particles are kept in cell order, so one
+    /// phase thins each region evenly. Stride 1 (the default) renders every particle; 0
+    /// counts as 1 and the phase is taken modulo the stride.
     pub fn set_particle_subset(&mut self, stride: usize, phase: usize) {
         self.stride = stride.max(1);
         self.phase = phase % self.stride;
@@ -801,8 +804,10 @@ impl SkyRenderer {
     /// motion draws it, as bright as it says).
     fn emit_particle(&self, frame: &FrameEmission<'_>, i: usize, out: &mut BandedPoints) {
         let particles = frame.sim.particles();
-        let (drawn, gain) =
-            frame.small.as_ref().map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
+        let (drawn, gain) = frame
+            .small
+            .as_ref()
+            .map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
         if gain <= 0.0 {
             return;
         }
@@ -827,13 +832,13 @@ impl SkyRenderer {
                     points,
                     photons,
                     area_km2,
-                    xi: frame.offsets.of(i),
+                    xi: frame.offsets.of(i / self.stride),
                     foot: foot.as_vec3(),
                     top_km: top as f32,
                     drift: drift.as_vec3(),
                 };
                 if let Some(ph) = &frame.lanes {
-                    // The altitudes first, with the scalar path's draws in its order; then
+                    // The altitudes first, in the scalar path's order; then
                     // the projection in lanes ([`project_in_lanes`]): the same points.
                     column.altitudes(&mut out.lanes);
                     project_in_lanes(ph, column.foot, column.top_km, column.drift, out);
@@ -1221,7 +1226,10 @@ fn frame_key(sim: &AuroraSim, salt: u64) -> u64 {
 }
 
 /// The offsets ξ of the physical model's systematic samples: particle `i`'s for line k is
-/// frac(r_k + i φ), φ = (√5 − 1)/2, with one uniform r_k per frame and line. Each ξ is
+/// frac(r_k + (i / stride) φ), φ = (√5 − 1)/2, with one uniform r_k per frame and line
+/// (the stride of [`SkyRenderer::set_particle_subset`]: consecutive members of a
+/// thinned subset are consecutive in the sequence; stepping it by a stride k instead
+/// would step the offsets by frac(k φ), as little as 0.034 for k = 13). Each ξ is
 /// uniform, so every particle's points have the distribution of independent offsets
 /// (the image's expectation is the same), but particles next to each other in the
 /// store (which keeps them in cell order: neighbours in the sky) take offsets spread
