@@ -270,7 +270,7 @@ pub struct SkySettings {
     /// below which the shares (j + ξ)/m of its column are emitted, j = 0..m, with one
     /// uniform ξ per particle and line (systematic sampling: evenly spaced in the
     /// column), and neighbouring particles' ξ spread evenly over [0, 1) (a Weyl
-    /// sequence over the store's cell order, [`ColumnOffsets`]). With 14, scene 2 seen
+    /// sequence over the store's cell order, `ColumnOffsets`). With 14, scene 2 seen
     /// from the ground is closer to a 512-point reference than with 28 independent
     /// offsets, with half the points to emit and deposit; close-ups, where few columns
     /// share a pixel, are a little noisier (test `sampling_quality` measures seven views).
@@ -713,7 +713,7 @@ impl SkyRenderer {
     /// `i % stride == phase` only and weight their emissions `stride` times. The mean of
     /// the `stride` phases' images is the full image (exactly in `paper` mode, tested; in
     /// `physical` mode in expectation: the sample offsets are spread over the subset's
-    /// particles, [`ColumnOffsets`]), so a live preview can cut the emission work
+    /// particles, `ColumnOffsets`), so a live preview can cut the emission work
     /// `stride`-fold at the price of noise. Particles are kept in cell order, so one
     /// phase thins each region evenly. Stride 1 (the default) renders every particle; 0
     /// counts as 1 and the phase is taken modulo the stride.
