@@ -24,8 +24,9 @@
 //!
 //! Determinism: in `paper` mode each particle's random stream is keyed by (seed, frame,
 //! particle id); in `physical` mode its sample offsets by (seed, frame) and its place in
-//! the store ([`SkyRenderer::set_sample_salt`] adds a salt to both); emissions are produced per fixed chunk of particles and deposited per fixed band of
-//! rows, chunk by chunk in order, so the result does not depend on the thread count.
+//! the store ([`SkyRenderer::set_sample_salt`] adds a salt to both); emissions are
+//! produced per fixed chunk of particles and deposited per fixed band of rows, chunk by
+//! chunk in order, so the result does not depend on the thread count.
 
 use glam::{DVec3, Vec3};
 use phenomena_core::camera::{Camera, CameraView, NEAR_M, Pinhole, Projection};
@@ -483,9 +484,9 @@ pub struct SkyRenderer {
     /// ([`SkyRenderer::set_sample_salt`]).
     salt: u64,
     /// Memory kept between frames: each emission chunk's points filed by band, the
-    /// unblurred line images and the blur's intermediate image (a 1280x720
-    /// frame of 120,000 particles at 14 points holds about 27 MB of points; allocated afresh every
-    /// frame, their page faults and unmapping cost more than the deposit).
+    /// unblurred line images and the blur's intermediate image (a 1280x720 frame of
+    /// 120,000 particles at 14 points holds about 27 MB of points; allocated afresh
+    /// every frame, their page faults and unmapping cost more than the deposit).
     chunks: Vec<BandedPoints>,
     /// Project the physical mode's points in lanes (false only to test the scalar path
     /// against them).
@@ -1154,8 +1155,8 @@ impl ParticleColumn<'_> {
         (column_rate * self.area_km2 * 1e-6 / f64::from(m)) as f32
     }
 
-    /// The points' (altitude km, per-point weight, line) into `lanes`, with the scalar
-    /// path's draws in its order: line by line, point j at u = (j + ξ)/m.
+    /// The points' (altitude km, per-point weight, line) into `lanes`, in the scalar
+    /// path's order: line by line, point j at u = (j + ξ)/m.
     fn altitudes(&self, lanes: &mut Vec<(f32, f32, u8)>) {
         lanes.clear();
         for (k, (&m, &column_rate)) in self.points.iter().zip(self.photons).enumerate() {
@@ -1233,11 +1234,11 @@ fn frame_key(sim: &AuroraSim, salt: u64) -> u64 {
 /// uniform, so every particle's points have the distribution of independent offsets
 /// (the image's expectation is the same), but particles next to each other in the
 /// store (which keeps them in cell order: neighbours in the sky) take offsets spread
-/// evenly over [0, 1) (a Weyl sequence: by the three-gap theorem, any run of n consecutive
-/// indices cuts the circle into gaps of at most three lengths, here none wider than
-/// 2/n), so the columns that land
-/// on the same pixels sample their profile together as one column with their points
-/// combined: less noise for the same points (test `sampling_quality`).
+/// evenly over [0, 1) (a Weyl sequence: by the three-gap theorem, any run of n
+/// consecutive indices cuts the circle into gaps of at most three lengths, here none
+/// wider than 2/n), so the columns that land on the same pixels sample their profile
+/// together as one column with their points combined: less noise for the same points
+/// (test `sampling_quality`).
 struct ColumnOffsets {
     base: [f64; 5],
 }
@@ -1615,7 +1616,7 @@ mod tests {
     fn neighbours_offsets_leave_no_gap_wider_than_two_over_n() {
         // Runs of n consecutive particles, anywhere in the store: their offsets for one
         // line, sorted round the circle, leave no gap over 2/n (the golden ratio's
-        // largest gap times n is 1.89 for every n < 600 and these starts).
+        // largest gap times n is at most 1.89 for n < 600, whatever the start).
         let offsets = ColumnOffsets::new(12345);
         for n in [2usize, 3, 10, 50, 233, 599] {
             for start in [0usize, 1, 977, 123_456, 399_000] {

@@ -25,17 +25,17 @@
 //! of 28. Measured that day, 28 points with independent offsets (the reference sharing
 //! the frame's offsets, as before) read 64.69 dB (thesis), 65.18 (ground at 1280 ×
 //! 720), 66.12 (preview size), 55.56 / 53.89 (every 9th / 13th particle: the studio's
-//! preview then, at 15,000 particles a frame), 32.59 (close-up),
-//! 90.08 (orbit) and 81.99 dB (dome). With spread offsets against an independent
-//! reference, 28 points read 72.23 (ground at 1280 × 720), 73.31, 33.40, 102.07 and
-//! 86.86 dB, and the new default of 14 points reads the floors below: 66.17 (thesis),
-//! 66.73 (ground at 1280 × 720), 67.92, 57.87 / 55.84 (every 5th / 7th: the studio's
-//! preview now, at 30,000 particles a frame and about as many points as before; every
-//! 9th / 13th read 54.20 / 51.80), 29.97, 96.76 and 80.51 dB. So half
-//! the points beat 28 independent ones where many columns share a pixel (the shipped
-//! scenes' ground views); a close-up, where few do, is 2.6 dB and the dome 1.5 dB
-//! noisier (16 points: 30.61 and 81.30 dB). That trade was taken for the live preview
-//! (issue 41); a close-up wants `points_per_particle` raised.
+//! preview then, at 15,000 particles a frame), 32.59 (close-up), 90.08 (orbit) and
+//! 81.99 dB (dome). With spread offsets against an independent reference, 28 points
+//! read 72.23 (ground at 1280 × 720), 73.31, 33.40, 102.07 and 86.86 dB, and the new
+//! default of 14 points reads the floors below: 66.17 (thesis), 66.73 (ground at 1280 ×
+//! 720), 67.92, 57.87 / 55.84 (every 5th / 7th: the studio's preview now, at 30,000
+//! particles a frame and about as many points as before; every 9th / 13th read 54.20 /
+//! 51.80), 29.97, 96.76 and 80.51 dB. So half the points beat 28 independent ones where
+//! many columns share a pixel (the shipped scenes' ground views); a close-up, where few
+//! do, is 2.6 dB and the dome 1.5 dB noisier (16 points: 30.61 and 81.30 dB). That
+//! trade was taken for the live preview (issue 41); a close-up wants
+//! `points_per_particle` raised.
 
 mod common;
 
