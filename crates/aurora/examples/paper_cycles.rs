@@ -5,7 +5,8 @@
 //!     RAYON_NUM_THREADS=1 perf stat -e task-clock target/release/examples/paper_cycles 2
 //!
 //! (subtract a run with 0 frames: the set-up). The first argument is the number of
-//! frames, the second the colour mode, `paper` (the default) or `physical`. Prints a
+//! frames, the second the colour mode, `paper` (the default) or `physical`, the third
+//! `each` for the paper mode's falls of each particle's own (`falls = "each"`). Prints a
 //! pixel sum, which two builds that should agree bit for bit must both print, and on
 //! standard error the wall time per frame and the renderer's last timings.
 use phenomena_aurora::{AuroraConfig, AuroraSim, ColourMode, SkyRenderer, SkySettings};
@@ -32,7 +33,10 @@ fn main() {
         Some("physical") => ColourMode::Physical,
         _ => ColourMode::Paper,
     };
-    let settings = SkySettings { mode, ..SkySettings::thesis() };
+    let mut settings = SkySettings { mode, ..SkySettings::thesis() };
+    if std::env::args().nth(3).as_deref() == Some("each") {
+        settings.paper.falls = phenomena_aurora::fall::Falls::Each;
+    }
     let mut sky = SkyRenderer::new(settings, 1280, 720, None).expect("sky");
     sky.set_clock(SharedClock::new(Wall(std::time::Instant::now())));
     let frames: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(2);

@@ -35,9 +35,10 @@
 //! stepping gives the same points where it is exact (a parallel projection whose image
 //! plane holds the fall).
 
-use glam::DVec3;
-use phenomena_core::rng::Stream;
+use glam::{DVec3, Vec3};
+use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::Issues;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::{Atmosphere, DALTON_KG, MASS_N2, MASS_O, Sample};
@@ -100,6 +101,32 @@ pub struct PaperFall {
     /// `exact_free_paths_give_the_stepped_collision_altitudes`), in O(1) work per
     /// collision instead of per 50 m step.
     pub free_path: FreePath,
+    /// Whose fall a particle's light takes in a frame: `pooled` (the default, an
+    /// extension) or `each` (§2.4 as printed).
+    pub falls: Falls,
+    /// `falls = "pooled"`: falls in the pool (a power of two between 256 and 2²⁰).
+    pub pool_size: u32,
+}
+
+/// Whose fall a particle's light takes in a frame (`[render.sky.paper] falls`).
+///
+/// A fall's collisions relative to where it starts depend only on the random draws:
+/// every particle starts at the same altitude, down the same field, through the same
+/// air. So a fall drawn for one particle is a fall drawn for any.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Falls {
+    /// Each particle, each frame, takes one fall of a pool of `pool_size` falls drawn
+    /// once per renderer (and seed), chosen by a uniform draw from its own stream, placed
+    /// at its foot: its emissions have the distribution of a fall of its own (the image's
+    /// expectation is that of `each`), for the cost of projecting them (test
+    /// `pooled_falls_draw_the_image_of_falls_of_their_own`). What it costs: two
+    /// particles that take the same fall in one frame have correlated noise, which adds
+    /// variance where many particles light the same pixels; the test measures it.
+    #[default]
+    Pooled,
+    /// Each particle falls anew each frame (§2.4).
+    Each,
 }
 
 /// Where §2.4.2's production ratios come from (`[render.sky.paper] production`).
@@ -171,6 +198,8 @@ impl Default for PaperFall {
             nitrogen_shares: [0.65, 0.20, 0.15],
             attenuation_per_km: 1.0 / 3000.0,
             free_path: FreePath::Exact,
+            falls: Falls::Pooled,
+            pool_size: 1 << 14,
         }
     }
 }
@@ -196,6 +225,9 @@ impl PaperFall {
             );
         }
         issues.range(&format!("{prefix}.attenuation_per_km"), self.attenuation_per_km, 0.0..=1.0);
+        if !self.pool_size.is_power_of_two() || !(256..=1 << 20).contains(&self.pool_size) {
+            issues.push(format!("{prefix}.pool_size"), self.pool_size, "a power of two from 256 to 1048576");
+        }
         let step_m = self.fall_speed_km_s * self.sub_step_s * 1e3;
         if step_m > 0.0 && step_m < 0.1 {
             issues.push(
@@ -459,6 +491,107 @@ fn fall_exact(
         dir = direction(down, jitter(rng));
     }
     made
+}
+
+/// The paper's emissions of one particle (§2.4): it falls from `foot` along `down` (eq
+/// 2.21-2.22, or its exact free paths) and each collision emits a line by `emission`
+/// (the red line displaced by its diffusion); `sink` takes each emission's point and
+/// line, in the order of the fall.
+pub(crate) fn paper_emissions(
+    foot: DVec3,
+    down: DVec3,
+    params: &PaperFall,
+    air: &AirTable,
+    emission: &PaperEmission,
+    rng: &mut Stream,
+    mut sink: impl FnMut(DVec3, Line),
+) {
+    let r = params.jitter;
+    fall(
+        foot,
+        down,
+        params,
+        air,
+        rng,
+        |s| jitter_in_ball(s, r),
+        |q, s| {
+            let u = s.next_f64();
+            let line = emission.choose(q.y, u);
+            let q = if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
+            if let Some(line) = line {
+                sink(q, line);
+            }
+        },
+    );
+}
+
+/// The streams of a [`FallPool`]'s falls.
+const FALL_POOL: Purpose = Purpose::named("aurora.sky.fall-pool");
+
+/// Falls drawn once and shared by the particles ([`Falls::Pooled`]): each fall's
+/// emissions (point relative to its start, km, and line index) in the fall's order.
+pub(crate) struct FallPool {
+    key: u64,
+    starts: Vec<u32>,
+    points: Vec<(Vec3, u8)>,
+}
+
+impl FallPool {
+    /// `params.pool_size` falls from the altitude `top_km` down `down`, fall k from the
+    /// stream (`key`, k): the same pool for any thread count.
+    pub(crate) fn new(
+        key: u64,
+        top_km: f64,
+        down: DVec3,
+        params: &PaperFall,
+        air: &AirTable,
+        emission: &PaperEmission,
+    ) -> Self {
+        let foot = DVec3::new(0.0, top_km, 0.0);
+        let falls: Vec<Vec<(Vec3, u8)>> = (0..u64::from(params.pool_size))
+            .into_par_iter()
+            .map(|k| {
+                let mut rng = Stream::new(key, FALL_POOL, k);
+                let mut points = Vec::new();
+                paper_emissions(foot, down, params, air, emission, &mut rng, |q, line| {
+                    points.push(((q - foot).as_vec3(), line.index() as u8));
+                });
+                points
+            })
+            .collect();
+        let mut starts = Vec::with_capacity(falls.len() + 1);
+        starts.push(0);
+        let mut points = Vec::with_capacity(falls.iter().map(Vec::len).sum());
+        for fall in falls {
+            points.extend(fall);
+            starts.push(points.len() as u32);
+        }
+        Self { key, starts, points }
+    }
+
+    /// The key the pool was drawn with.
+    pub(crate) fn key(&self) -> u64 {
+        self.key
+    }
+
+    /// The fall that the uniform 64-bit draw `u` picks: each of the pool's falls with
+    /// the same chance (the high bits of `u` times the pool's size).
+    #[inline]
+    pub(crate) fn pick(&self, u: u64) -> &[(Vec3, u8)] {
+        self.fall(self.index(u))
+    }
+
+    /// The index of the fall [`FallPool::pick`] takes for `u`.
+    #[inline]
+    fn index(&self, u: u64) -> usize {
+        ((u128::from(u) * (self.starts.len() - 1) as u128) >> 64) as usize
+    }
+
+    /// Fall `k`'s emissions.
+    #[inline]
+    fn fall(&self, k: usize) -> &[(Vec3, u8)] {
+        &self.points[self.starts[k] as usize..self.starts[k + 1] as usize]
+    }
 }
 
 /// (B + ω)/|B + ω|, falling back to B when ω cancels it.
@@ -1118,6 +1251,42 @@ mod tests {
             let sum: f64 = Line::ALL.iter().map(|&l| e.chance(z, l)).sum();
             assert!(sum <= 1.0 + 1e-12, "{z} km: {sum}");
         }
+    }
+
+    #[test]
+    fn a_pool_holds_falls_and_picks_each_alike() {
+        // Each fall of the pool is the fall its stream draws from the pool's start
+        // (emission by emission: the same lines, points within f32 rounding of the
+        // offsets, 1e-4 km at 300 km), for any place of its foot.
+        let air = Atmosphere::msis21();
+        let table = AirTable::new(air);
+        let params = PaperFall { pool_size: 256, ..PaperFall::default() };
+        let e = PaperEmission::new(air, &params, &Precipitation::default(), &Yields::default());
+        let down = DVec3::new(0.1, -1.0, 0.2).normalize();
+        let pool = FallPool::new(5, 300.0, down, &params, &table, &e);
+        let foot = DVec3::new(0.0, 300.0, 0.0);
+        for k in 0..256 {
+            let mut direct = Vec::new();
+            let mut rng = Stream::new(5, FALL_POOL, k);
+            paper_emissions(foot, down, &params, &table, &e, &mut rng, |q, line| direct.push((q, line)));
+            let pooled = pool.fall(k as usize);
+            assert!(!direct.is_empty() && pooled.len() == direct.len(), "fall {k}");
+            for (&(offset, line), &(q, want)) in pooled.iter().zip(&direct) {
+                assert_eq!(usize::from(line), want.index(), "fall {k}");
+                assert!((foot + offset.as_dvec3() - q).length() < 1e-4, "fall {k}: {offset} against {q}");
+            }
+        }
+        // Picks from uniform draws: every fall alike (χ² with 255 degrees of freedom:
+        // mean 255, standard deviation 22.6; the bound is 5 of them above).
+        let mut counts = vec![0u32; 256];
+        let mut rng = Stream::new(6, TEST, 0);
+        let draws = 256 * 400;
+        for _ in 0..draws {
+            counts[pool.index(rng.next_u64())] += 1;
+        }
+        let mean = f64::from(draws) / 256.0;
+        let chi2: f64 = counts.iter().map(|&c| (f64::from(c) - mean).powi(2) / mean).sum();
+        assert!(chi2 < 255.0 + 5.0 * 22.6, "χ² {chi2}");
     }
 
     #[test]

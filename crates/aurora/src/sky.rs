@@ -45,7 +45,7 @@ use wide::f32x8;
 use crate::atmosphere::Atmosphere;
 use crate::deposition::{AltitudeSampler, ColumnModel, Precipitation, Yields};
 use crate::emission::{Line, xyz_to_rgb_eq_2_30};
-use crate::fall::{AirTable, PaperEmission, PaperFall, attenuation, fall, jitter_in_ball};
+use crate::fall::{AirTable, FallPool, Falls, PaperEmission, PaperFall, attenuation, paper_emissions};
 use crate::night::{self, Airglow, Site};
 use crate::sim::AuroraSim;
 use crate::small_scale::Prepared;
@@ -55,6 +55,8 @@ const EMIT: Purpose = Purpose::named("aurora.sky.emit");
 const SALT: Purpose = Purpose::named("aurora.sky.salt");
 /// The per-frame offsets of the physical model's systematic samples.
 const EMIT_OFFSETS: Purpose = Purpose::named("aurora.sky.emit-offsets");
+/// The key of the paper mode's pool of falls, from the seed and the salt.
+const FALL_POOL_KEY: Purpose = Purpose::named("aurora.sky.fall-pool-key");
 
 /// The small-scale motion of `sim`'s current frame ([`crate::small_scale`]), if on.
 pub fn small_scale_now(sim: &AuroraSim) -> Option<Prepared> {
@@ -603,8 +605,19 @@ pub struct SkyTimings {
 }
 
 enum Model {
-    Paper { air: AirTable, emission: PaperEmission },
-    Physical { column: Box<ColumnModel>, sampler: AltitudeSampler, points: [u32; 5], photons: [f64; 5] },
+    /// `pool`: [`Falls::Pooled`]'s falls, drawn at the first frame (and again for another
+    /// seed or salt).
+    Paper {
+        air: AirTable,
+        emission: PaperEmission,
+        pool: Option<FallPool>,
+    },
+    Physical {
+        column: Box<ColumnModel>,
+        sampler: AltitudeSampler,
+        points: [u32; 5],
+        photons: [f64; 5],
+    },
 }
 
 impl SkyRenderer {
@@ -625,6 +638,7 @@ impl SkyRenderer {
             ColourMode::Paper => Model::Paper {
                 air: AirTable::new(air),
                 emission: PaperEmission::new(air, &settings.paper, &settings.precipitation, &settings.yields),
+                pool: None,
             },
             ColourMode::Physical => {
                 let column = ColumnModel::new(air, &settings.precipitation, &settings.yields);
@@ -784,6 +798,7 @@ impl SkyRenderer {
         if chunks.len() < n {
             chunks.resize_with(n, BandedPoints::default);
         }
+        self.draw_fall_pool(sim);
         let frame = FrameEmission::new(self, sim);
         chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
@@ -799,6 +814,22 @@ impl SkyRenderer {
         deposit_banded(&chunks[..n], &mut self.fresh);
         self.chunks = chunks;
         self.timings.deposit_ms = t.ms();
+    }
+
+    /// Draw the pool of [`Falls::Pooled`] unless it is drawn for `sim`'s seed and this
+    /// salt.
+    fn draw_fall_pool(&mut self, sim: &AuroraSim) {
+        let params = &self.settings.paper;
+        if let Model::Paper { air, emission, pool } = &mut self.model
+            && params.falls == Falls::Pooled
+        {
+            let key = Stream::new(sim.seed(), FALL_POOL_KEY, self.salt).next_u64();
+            if pool.as_ref().is_none_or(|p| p.key() != key) {
+                let (down, _) = self.settings.field();
+                let top = f64::from(self.settings.top_altitude_km);
+                *pool = Some(FallPool::new(key, top, down, params, air, emission));
+            }
+        }
     }
 
     /// Append particle `i`'s emissions (physical mode: where the frame's small-scale
@@ -817,9 +848,20 @@ impl SkyRenderer {
         let foot = DVec3::new(f64::from(p.x), top, f64::from(p.y));
         let (down, drift) = (frame.down, frame.drift);
         match &self.model {
-            Model::Paper { air, emission } => {
+            Model::Paper { pool: Some(pool), emission, .. } if self.settings.paper.falls == Falls::Pooled => {
                 let mut rng = Stream::new(frame.key, EMIT, particles.id[i]);
-                self.emit_fall(foot, down, air, emission, &mut rng, out);
+                let weight = emission.weight();
+                for &(offset, line) in pool.pick(rng.next_u64()) {
+                    self.push_paper_point(foot + offset.as_dvec3(), weight, line, out);
+                }
+            }
+            Model::Paper { air, emission, .. } => {
+                let mut rng = Stream::new(frame.key, EMIT, particles.id[i]);
+                let weight = emission.weight();
+                let params = &self.settings.paper;
+                paper_emissions(foot, down, params, air, emission, &mut rng, |q, line| {
+                    self.push_paper_point(q, weight, line.index() as u8, out);
+                });
             }
             Model::Physical { sampler, points, photons, .. } => {
                 // Footprint of one particle at the rest density, km². A point carrying P
@@ -850,40 +892,14 @@ impl SkyRenderer {
         }
     }
 
-    /// The paper's model: the particle falls from `foot` along `down` (eq 2.21-2.22) and
-    /// each collision emits a line by `emission` (the red line displaced by its
-    /// diffusion), projected with the attenuation to the eye.
-    fn emit_fall(
-        &self,
-        foot: DVec3,
-        down: DVec3,
-        air: &AirTable,
-        emission: &PaperEmission,
-        rng: &mut Stream,
-        out: &mut BandedPoints,
-    ) {
-        let params = &self.settings.paper;
-        let r = params.jitter;
-        fall(
-            foot,
-            down,
-            params,
-            air,
-            rng,
-            |s| jitter_in_ball(s, r),
-            |q, s| {
-                let u = s.next_f64();
-                let line = emission.choose(q.y, u);
-                let weight = emission.weight();
-                let q = if line == Some(Line::O630) { q + emission.red_diffusion_km(q.y, s) } else { q };
-                if let Some(line) = line
-                    && let Some(pr) = self.view.project(q.as_vec3())
-                {
-                    let c = attenuation(params.attenuation_per_km, f64::from(pr.depth)) * weight;
-                    out.push(Splat { x: pr.x_px, y: pr.y_px, weight: c as f32, line: line.index() as u8 });
-                }
-            },
-        );
+    /// A paper-mode emission at `q` (km) of line index `line`, counting `weight`,
+    /// projected with the attenuation to the eye (eq 2.27).
+    #[inline]
+    fn push_paper_point(&self, q: DVec3, weight: f64, line: u8, out: &mut BandedPoints) {
+        if let Some(pr) = self.view.project(q.as_vec3()) {
+            let c = attenuation(self.settings.paper.attenuation_per_km, f64::from(pr.depth)) * weight;
+            out.push(Splat { x: pr.x_px, y: pr.y_px, weight: c as f32, line });
+        }
     }
 
     /// The physical model's points of `column`, projected one at a time: each adds its
