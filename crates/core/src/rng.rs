@@ -44,6 +44,55 @@ const fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// The 64-bit key of `(seed, purpose, index)`.
+#[inline]
+const fn key_of(seed: u64, purpose: Purpose, index: u64) -> u64 {
+    // Each stage adds a distinct odd constant so that zero keys do not mix to zero.
+    let key = mix64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
+    let key = mix64(key ^ purpose.0.wrapping_add(0xd1b5_4a32_d192_ed03));
+    mix64(key ^ index.wrapping_add(0x8cb9_2ba7_2f3d_8dd7))
+}
+
+/// Random numbers addressed by a counter for one `(seed, purpose, index)` key: number
+/// `i` is SplitMix64's `i`-th output from the key (Steele, Lea, Flood 2014), computed on
+/// its own. For draws that may be skipped: a [`Stream`] must be stepped through every
+/// number before the one wanted, a `Counter` is read anywhere, so work that looks at a
+/// number and decides it needs no more pays for only that one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Counter {
+    key: u64,
+}
+
+impl Counter {
+    /// The numbers of `(seed, purpose, index)` (another sequence than the [`Stream`] of
+    /// the same key).
+    #[inline]
+    pub const fn new(seed: u64, purpose: Purpose, index: u64) -> Self {
+        Self { key: key_of(seed, purpose, index) }
+    }
+
+    /// Number `i`, 64 bits.
+    #[inline]
+    pub const fn u64_at(&self, i: u64) -> u64 {
+        mix64(self.key.wrapping_add(i.wrapping_add(1).wrapping_mul(0x9e37_79b9_7f4a_7c15)))
+    }
+
+    /// Number `i` as a uniform in [0, 1) with 53 random bits.
+    #[inline]
+    pub fn f64_at(&self, i: u64) -> f64 {
+        (self.u64_at(i) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Number `i` as two uniforms in [0, 1) with 24 random bits each (its bits 40-63 and
+    /// 8-31).
+    #[inline]
+    pub fn f32_pair_at(&self, i: u64) -> (f32, f32) {
+        let b = self.u64_at(i);
+        let scale = 1.0 / (1u32 << 24) as f32;
+        ((b >> 40) as f32 * scale, ((b >> 8) & 0xff_ffff) as f32 * scale)
+    }
+}
+
 /// A deterministic random stream (xoshiro256++) for one `(seed, purpose, index)` key.
 #[derive(Clone, Debug)]
 pub struct Stream {
@@ -53,11 +102,7 @@ pub struct Stream {
 impl Stream {
     /// Open the stream for `(seed, purpose, index)`.
     pub fn new(seed: u64, purpose: Purpose, index: u64) -> Self {
-        // Each stage adds a distinct odd constant so that zero keys do not mix to zero.
-        let key = mix64(seed.wrapping_add(0x9e37_79b9_7f4a_7c15));
-        let key = mix64(key ^ purpose.0.wrapping_add(0xd1b5_4a32_d192_ed03));
-        let key = mix64(key ^ index.wrapping_add(0x8cb9_2ba7_2f3d_8dd7));
-        Self { rng: Xoshiro256PlusPlus::seed_from_u64(key) }
+        Self { rng: Xoshiro256PlusPlus::seed_from_u64(key_of(seed, purpose, index)) }
     }
 
     /// Next raw 64 bits.
@@ -186,6 +231,29 @@ mod tests {
         assert_eq!(s.binomial(0, 0.5), 0);
         assert_eq!(s.binomial(7, 1.0), 7);
         assert_eq!(s.binomial(7, f64::NAN), 0);
+    }
+
+    #[test]
+    fn counters_are_splitmix_from_the_key_and_uniform() {
+        // SplitMix64's first outputs from seed 0 (its reference sequence) for a key of 0.
+        let zero = Counter { key: 0 };
+        assert_eq!([zero.u64_at(0), zero.u64_at(1)], [0xe220_a839_7b1d_cdaf, 0x6e78_9e6a_a1b9_65f4]);
+        // Pinned so that a change of the key mixing is noticed.
+        assert_eq!(Counter::new(42, Purpose::named("flame.emit"), 7).u64_at(3), 0x6a20_134b_86da_7bc3);
+        assert_ne!(Counter::new(1, P, 2), Counter::new(1, P, 3));
+        // Means of n uniforms (1/2 ± 5/sqrt(12 n)) and the correlation of a pair's two
+        // halves (0 ± 5/sqrt(n)).
+        let c = Counter::new(9, P, 0);
+        let n = 100_000u64;
+        let mean = (0..n).map(|i| c.f64_at(i)).sum::<f64>() / n as f64;
+        assert!((mean - 0.5).abs() < 5.0 / (12.0 * n as f64).sqrt(), "{mean}");
+        let pairs: Vec<(f64, f64)> =
+            (0..n).map(|i| c.f32_pair_at(i)).map(|(a, b)| (f64::from(a) - 0.5, f64::from(b) - 0.5)).collect();
+        for m in [pairs.iter().map(|p| p.0).sum::<f64>(), pairs.iter().map(|p| p.1).sum::<f64>()] {
+            assert!((m / n as f64).abs() < 5.0 / (12.0 * n as f64).sqrt(), "{m}");
+        }
+        let r = pairs.iter().map(|(a, b)| a * b).sum::<f64>() / n as f64 * 12.0;
+        assert!(r.abs() < 5.0 / (n as f64).sqrt(), "correlation {r}");
     }
 
     #[test]

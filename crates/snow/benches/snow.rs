@@ -46,6 +46,45 @@ fn village(c: &mut Criterion) {
     group.finish();
 }
 
+/// The snow's glitter (`glitter::glints`) on the village of `scenes/snow-village.toml`
+/// after 3 h of snow, seen from its camera under the default sun: the upper faces of the
+/// snow that face the eye and the sun (the renderer also drops faces out of the frame
+/// or wholly in shadow).
+fn glitter(c: &mut Criterion) {
+    use phenomena_snow::glitter::{Viewing, glints};
+    let params = SnowConfig {
+        map_resolution: 200,
+        directions: 64,
+        rate_cm_per_h: 5.0,
+        time_step_h: 0.1,
+        repose_deg: 45.0,
+        ..SnowConfig::default()
+    };
+    let mut sim = SnowSim::new(village_scene(), params, 1).expect("village");
+    for _ in 0..30 {
+        sim.step().expect("step");
+    }
+    let snow = phenomena_snow::export::snow_mesh(&sim);
+    let eye = glam::Vec3::new(24.0, 14.0, 30.0);
+    let sun = phenomena_snow::SnowRenderSettings::default().sun_direction.normalize();
+    let faces: Vec<[glam::Vec3; 3]> = snow
+        .indices
+        .chunks_exact(3)
+        .map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize]))
+        .filter(|t| {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            n.y > 0.0 && n.dot(eye - t[0]) > 0.0 && n.dot(sun) > 0.0
+        })
+        .collect();
+    let g = phenomena_snow::Glitter::default();
+    let mut group = c.benchmark_group("snow_glitter");
+    group.sample_size(20);
+    group.bench_function(format!("village_{}_faces", faces.len()), |b| {
+        b.iter(|| black_box(glints(&faces, Viewing { eye, sun }, &g, 1).len()))
+    });
+    group.finish();
+}
+
 fn step(c: &mut Criterion) {
     // Fig 8: one group per object, 128×128 maps, repose 45°; 2 cm/h in 0.1 h steps,
     // measured from the state after 5 h (10 cm of snow).
@@ -139,5 +178,5 @@ fn yard_steps(fresh: &SnowSim) {
     eprintln!("  steps 24-47, ms: {}", row(24..STEPS));
 }
 
-criterion_group!(benches, reference::reference, probability, village, step, yard);
+criterion_group!(benches, reference::reference, probability, village, glitter, step, yard);
 criterion_main!(benches);

@@ -12,7 +12,8 @@
 //! [`CELLS`] cells of equal solid angle (bands of equal height in z, equal sectors in
 //! azimuth). The grains of a triangle whose normals fall in one cell are a Poisson count
 //! of mean ρ A / [`CELLS`] with positions and normals uniform in the triangle and the
-//! cell, drawn from a random stream keyed by the triangle's place and the cell: so each
+//! cell, drawn from random numbers keyed by the triangle's place and the cell (read by
+//! counter, so a grain whose normal cannot glint costs one number): so each
 //! cell's grains are fixed, frame after frame, and only the cells that meet the cone
 //! around ±H (widened by how much H can turn across the triangle) are ever drawn, a few of
 //! the 512. A Poisson process restricted to disjoint cells is independent Poisson
@@ -21,7 +22,7 @@
 //! every grain of every triangle.
 
 use glam::Vec3;
-use phenomena_core::rng::{Purpose, Stream};
+use phenomena_core::rng::{Counter, Purpose, Stream};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -170,31 +171,47 @@ fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) {
 
 /// A point uniform over the triangle.
 fn in_triangle(tri: &[Vec3; 3], s: &mut Stream) -> Vec3 {
-    let (mut u, mut v) = (s.next_f32(), s.next_f32());
+    let (u, v) = (s.next_f32(), s.next_f32());
+    in_triangle_at(tri, u, v)
+}
+
+/// The point of the triangle that two uniforms in [0, 1) pick, uniform over it when they
+/// are (the square folded along its diagonal onto the triangle's half).
+#[inline]
+fn in_triangle_at(tri: &[Vec3; 3], mut u: f32, mut v: f32) -> Vec3 {
     if u + v > 1.0 {
         (u, v) = (1.0 - u, 1.0 - v);
     }
     tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v
 }
 
+/// Means from which [`poisson`] leaves inversion for `rand_distr`.
+const INVERSION_BELOW: f64 = 30.0;
+
 /// A Poisson count of mean `mean`, with `e` = exp(−mean) given (a triangle's cells share
 /// it): by inversion of the distribution function below a mean of 30 (about mean + 1
 /// uniforms' worth of steps, one uniform), by `rand_distr` above.
 fn poisson(s: &mut Stream, mean: f64, e: f64) -> u64 {
-    if mean < 30.0 {
-        let u = s.next_f64();
-        let (mut k, mut p, mut cdf) = (0u64, e, e);
-        while u >= cdf && p > 0.0 {
-            k += 1;
-            p *= mean / k as f64;
-            cdf += p;
-        }
-        return k;
+    if mean < INVERSION_BELOW {
+        return poisson_inverted(s.next_f64(), mean, e);
     }
     match rand_distr::Poisson::new(mean) {
         Ok(d) => s.sample::<f64, _>(&d) as u64,
         Err(_) => 0,
     }
+}
+
+/// The Poisson count of mean `mean` (`e` = exp(−mean)) whose distribution function first
+/// exceeds the uniform `u`.
+#[inline]
+fn poisson_inverted(u: f64, mean: f64, e: f64) -> u64 {
+    let (mut k, mut p, mut cdf) = (0u64, e, e);
+    while u >= cdf && p > 0.0 {
+        k += 1;
+        p *= mean / k as f64;
+        cdf += p;
+    }
+    k
 }
 
 /// The glints of the grains on `tris` (the snow's surface) seen under `viewing`, made
@@ -247,8 +264,11 @@ fn triangle_glints(
     cells.dedup();
     // The heights z a normal within α of H can have (those near −H: the negated).
     let theta = h.z.clamp(-1.0, 1.0).acos();
-    let z_cap = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
-    grains_in(tri, (viewing, g, seed), cos_cone, cells, z_cap, out);
+    let z = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
+    // A glinting normal is within the cone of H at its grain, and that H within the turn
+    // of H at the centre: within α of ±H there (1e-3 more for rounding).
+    let cap = Cap { axis: h, cos_alpha: (alpha + 1e-3).min(std::f32::consts::PI).cos(), z };
+    grains_in(tri, (viewing, g, seed), cos_cone, cells, cap, out);
 }
 
 /// How far H may turn over the triangle from its value at the centre, radians: the eye's
@@ -269,14 +289,30 @@ fn half_vector_turn(tri: &[Vec3; 3], viewing: Viewing) -> f32 {
     if sum > 1e-3 { (delta / sum).min(std::f32::consts::PI) } else { std::f32::consts::PI }
 }
 
-/// The glints of the grains of `tri` whose normals lie in `cells` (normals outside the
-/// heights `z_cap` or their negation cannot glint and are not looked at), onto `out`.
+/// Where a triangle's glinting normals can be: within the angle of cosine `cos_alpha`
+/// of ±`axis`, so at heights z in `z` or its negation.
+#[derive(Clone, Copy)]
+struct Cap {
+    axis: Vec3,
+    cos_alpha: f32,
+    z: (f32, f32),
+}
+
+impl Cap {
+    /// The whole sphere.
+    #[cfg(test)]
+    const ALL: Cap = Cap { axis: Vec3::Z, cos_alpha: -1.0, z: (-1.0, 1.0) };
+}
+
+/// The glints of the grains of `tri` whose normals lie in `cells` (normals outside `cap`
+/// cannot glint and are not looked at: outside its heights before their azimuth is
+/// drawn, outside its angle before the grain is placed), onto `out`.
 fn grains_in(
     tri: &[Vec3; 3],
     (viewing, g, seed): (Viewing, &Glitter, u64),
     cos_cone: f32,
     cells: &[usize],
-    z_cap: (f32, f32),
+    cap: Cap,
     out: &mut Vec<Glint>,
 ) {
     let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
@@ -287,22 +323,35 @@ fn grains_in(
     let e = (-mean).exp();
     let k = key(tri);
     for &cell in cells {
-        let mut s = Stream::new(seed, GRAINS, k.wrapping_mul(CELLS as u64).wrapping_add(cell as u64));
+        // The cell's numbers by counter: its count is number 0, grain j's normal
+        // (height, azimuth) number 2j + 1 and its place number 2j + 2, so a grain whose
+        // normal cannot glint costs one number, and every grain has its own numbers
+        // whatever the view.
+        let index = k.wrapping_mul(CELLS as u64).wrapping_add(cell as u64);
+        let numbers = Counter::new(seed, GRAINS, index);
+        let count = if mean < INVERSION_BELOW {
+            poisson_inverted(numbers.f64_at(0), mean, e)
+        } else {
+            poisson(&mut Stream::new(seed, GRAINS, index), mean, e)
+        };
         let (z0, z1, p0, p1) = cell_bounds(cell);
-        for _ in 0..poisson(&mut s, mean, e) {
-            // Every grain draws its four numbers, seen or not: its stream is
-            // its own whatever the view.
-            let x = in_triangle(tri, &mut s);
-            let z = s.uniform(z0, z1);
-            let phi = s.uniform(p0, p1);
+        for j in 0..count {
+            let (a, b) = numbers.f32_pair_at(2 * j + 1);
+            let z = z0 + (z1 - z0) * a;
             // Outside both caps' heights: cannot glint (no trigonometry spent).
-            let near = (z_cap.0..=z_cap.1).contains(&z) || (-z_cap.1..=-z_cap.0).contains(&z);
+            let near = (cap.z.0..=cap.z.1).contains(&z) || (-cap.z.1..=-cap.z.0).contains(&z);
             if !near {
                 continue;
             }
+            let phi = p0 + (p1 - p0) * b;
             let r = (1.0 - z * z).max(0.0).sqrt();
             let (sin, cos) = phi.sin_cos();
             let n = Vec3::new(r * cos, r * sin, z);
+            if n.dot(cap.axis).abs() < cap.cos_alpha {
+                continue;
+            }
+            let (u, v) = numbers.f32_pair_at(2 * j + 2);
+            let x = in_triangle_at(tri, u, v);
             let h = viewing.half(x);
             if n.dot(h).abs() >= cos_cone
                 && let Some(intensity) = g.intensity(n, h)
@@ -356,7 +405,7 @@ mod tests {
             let tri = [c, c + Vec3::new(size, 0.0, 0.0), c + Vec3::new(0.0, 0.02 * size, -size)];
             let (mut chosen, mut every) = (Vec::new(), Vec::new());
             triangle_glints(&tri, viewing, &g, t, (cone, cos_cone), &mut cells, &mut chosen);
-            grains_in(&tri, (viewing, &g, t), cos_cone, &all, (-1.0, 1.0), &mut every);
+            grains_in(&tri, (viewing, &g, t), cos_cone, &all, Cap::ALL, &mut every);
             assert_eq!(chosen, every, "triangle {t}: {tri:?}");
             found += every.len();
         }
