@@ -104,7 +104,8 @@ pub struct PaperFall {
     /// Whose fall a particle's light takes in a frame: `pooled` (the default, an
     /// extension) or `each` (§2.4 as printed).
     pub falls: Falls,
-    /// `falls = "pooled"`: falls in the pool (a power of two between 256 and 2²⁰).
+    /// `falls = "pooled"`: falls in the pool (a power of two between 256 and 2²⁰; the
+    /// pool takes at most 16 bytes a collision).
     pub pool_size: u32,
 }
 
@@ -122,7 +123,10 @@ pub enum Falls {
     /// expectation is that of `each`), for the cost of projecting them (test
     /// `pooled_falls_draw_the_image_of_falls_of_their_own`). What it costs: two
     /// particles that take the same fall in one frame have correlated noise, which adds
-    /// variance where many particles light the same pixels; the test measures it.
+    /// variance where many particles light the same pixels; the test measures it. The
+    /// pool is drawn once per render (per seed and salt), so the part of that noise
+    /// that comes from the pool itself is the same in every frame: averaging frames of
+    /// one render does not average it away, averaging renders of other salts does.
     #[default]
     Pooled,
     /// Each particle falls anew each frame (§2.4).
@@ -297,14 +301,16 @@ impl AirTable {
         // Positive f64s order as their bits do, so a column's leading bits name a bucket
         // of columns in order; the buckets run from the smallest positive column (the
         // sample under the top) to the largest (the bottom).
-        let smallest = column[n - 2].max(f64::MIN_POSITIVE);
-        let first_bucket = smallest.to_bits() >> BUCKET_SHIFT;
-        let last_bucket = column[0].to_bits() >> BUCKET_SHIFT;
+        // (The smallest positive f64 is the subnormal of bits 1; a table with no positive
+        // column, all air underflowed, has one bucket.)
+        let tiniest = f64::from_bits(1);
+        let first_bucket = column[n - 2].max(tiniest).to_bits() >> BUCKET_SHIFT;
+        let last_bucket = (column[0].to_bits() >> BUCKET_SHIFT).max(first_bucket);
         let mut starts = Vec::with_capacity((last_bucket - first_bucket + 1) as usize);
         let mut j = n - 2; // the last sample with a column of at least the bucket's least
         for b in first_bucket..=last_bucket {
-            let least = if b == first_bucket { f64::MIN_POSITIVE } else { f64::from_bits(b << BUCKET_SHIFT) };
-            while column[j] < least {
+            let least = if b == first_bucket { tiniest } else { f64::from_bits(b << BUCKET_SHIFT) };
+            while j > 0 && column[j] < least {
                 j -= 1;
             }
             starts.push(j as u32);
@@ -564,7 +570,8 @@ impl FallPool {
         let mut points = Vec::with_capacity(falls.iter().map(Vec::len).sum());
         for fall in falls {
             points.extend(fall);
-            starts.push(points.len() as u32);
+            // At most 2²⁰ falls of 10⁵ collisions: below 2³² points.
+            starts.push(u32::try_from(points.len()).expect("fewer than 2^32 pooled points"));
         }
         Self { key, starts, points }
     }
@@ -1002,12 +1009,23 @@ mod tests {
     #[test]
     fn the_bucketed_search_finds_the_segment_holding_the_column() {
         // Against the definition: the last sample whose column reaches the target,
-        // for targets spread over every bucket and from every starting segment above.
+        // for targets spread over every bucket, the columns themselves and the buckets'
+        // edges, from starting segments above.
         let air = AirTable::new(Atmosphere::msis21());
         let n = air.column.len();
         let mut rng = Stream::new(7, phenomena_core::rng::Purpose::named("test"), 0);
         for _ in 0..20_000 {
-            let target = air.column[0] * (-60.0 * rng.next_f64()).exp();
+            let target = match rng.below(3) {
+                0 => air.column[0] * (-60.0 * rng.next_f64()).exp(),
+                1 => air.column[rng.below(n as u32 - 1) as usize],
+                _ => f64::from_bits(
+                    (air.first_bucket + u64::from(rng.below(air.starts.len() as u32))) << BUCKET_SHIFT,
+                )
+                .min(air.column[0]),
+            };
+            if !(target > 0.0) {
+                continue;
+            }
             let expected = (0..n).rev().find(|&i| air.column[i] >= target).expect("column[0] reaches it");
             for k in [n - 2, expected.min(n - 2), (expected + 7).min(n - 2)] {
                 let (j, _) = air.altitude_below(k, target).expect("within the table");

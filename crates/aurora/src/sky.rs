@@ -856,6 +856,8 @@ impl SkyRenderer {
                 }
             }
             Model::Paper { air, emission, .. } => {
+                // (`draw_fall_pool` draws the pool before any particle is emitted.)
+                debug_assert!(self.settings.paper.falls == Falls::Each, "pooled falls without a pool");
                 let mut rng = Stream::new(frame.key, EMIT, particles.id[i]);
                 let weight = emission.weight();
                 let params = &self.settings.paper;

@@ -64,8 +64,10 @@ pub struct Counter {
 }
 
 impl Counter {
-    /// The numbers of `(seed, purpose, index)` (another sequence than the [`Stream`] of
-    /// the same key).
+    /// The numbers of `(seed, purpose, index)`. Not independent of the [`Stream`] of the
+    /// same key (xoshiro256++ is seeded by SplitMix64 from the key: its state is this
+    /// counter's first four numbers): give a stream used beside a counter another
+    /// purpose.
     #[inline]
     pub const fn new(seed: u64, purpose: Purpose, index: u64) -> Self {
         Self { key: key_of(seed, purpose, index) }

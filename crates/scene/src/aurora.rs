@@ -127,8 +127,8 @@ impl Phenomenon for AuroraScene {
 
     /// Particles (up to twice the start after redistribution: scene 2 grows by 1.6x),
     /// the field's grid and charges, and in the sky view the emission points of a frame
-    /// (16 bytes each, filed by band as they are emitted and kept between frames) and
-    /// the line images.
+    /// (16 bytes each, filed by band as they are emitted and kept between frames), the
+    /// paper mode's pooled falls and the line images.
     fn estimate(&self, _background: &Option<Frame>) -> Estimate {
         let a = &self.aurora;
         let particles = f64::from(a.motion.particles) * if a.redistribution.enabled { 2.0 } else { 1.0 };
@@ -147,6 +147,12 @@ impl Phenomenon for AuroraScene {
         let work = match self.render.view {
             AuroraView::Sky => {
                 parts.push(("emission points of a frame", particles * per_particle * 16.0));
+                if sky.mode == ColourMode::Paper && sky.paper.falls == phenomena_aurora::fall::Falls::Pooled {
+                    // At most one point a collision, 16 bytes each, twice while the pool
+                    // is gathered.
+                    let pool = f64::from(sky.paper.pool_size) * f64::from(sky.paper.collisions) * 16.0;
+                    parts.push(("pooled falls", 2.0 * pool));
+                }
                 parts.push(("line images and frame", w * h * (10.0 * 4.0 + 12.0)));
                 format!(
                     "{particles:.0} particles at most × {per_particle:.0} emission points; a {}x{} field every {} frames; {w}x{h} pixels",

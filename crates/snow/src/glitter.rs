@@ -36,6 +36,9 @@ const SECTORS: usize = 32;
 pub const CELLS: usize = Z_BANDS * SECTORS;
 
 const GRAINS: Purpose = Purpose::named("snow.glitter.grains");
+/// A cell's count where its mean is too large for inversion (a stream of another purpose
+/// than [`GRAINS`]: a stream's state is the first numbers of the counter of its key).
+const GRAIN_COUNTS: Purpose = Purpose::named("snow.glitter.grain-counts");
 const BRUTE: Purpose = Purpose::named("snow.glitter.brute-force");
 
 /// Snow glitter settings (`[render.glitter]`).
@@ -332,7 +335,7 @@ fn grains_in(
         let count = if mean < INVERSION_BELOW {
             poisson_inverted(numbers.f64_at(0), mean, e)
         } else {
-            poisson(&mut Stream::new(seed, GRAINS, index), mean, e)
+            poisson(&mut Stream::new(seed, GRAIN_COUNTS, index), mean, e)
         };
         let (z0, z1, p0, p1) = cell_bounds(cell);
         for j in 0..count {

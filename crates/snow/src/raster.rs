@@ -54,6 +54,11 @@ pub enum Cull {
     /// the depth buffer is the same as with [`Cull::None`] (up to which face owns a
     /// pixel centre lying exactly on a silhouette), with fewer fragments drawn.
     BackAmongFirst(usize),
+    /// Skip back faces among the triangles from the `n`th on, draw both sides of those
+    /// before: for scenes that list their closed, outward-facing solids last (the
+    /// snow's, after the scene's own), with the same depth buffer as [`Cull::None`] as
+    /// for [`Cull::BackAmongFirst`].
+    BackFrom(usize),
 }
 
 /// What happened to the triangles of one rasterisation.
@@ -306,6 +311,8 @@ impl Job<'_> {
                 let cull = match self.cull {
                     Cull::BackAmongFirst(n) if t < n => Cull::Back,
                     Cull::BackAmongFirst(_) => Cull::None,
+                    Cull::BackFrom(n) if t >= n => Cull::Back,
+                    Cull::BackFrom(_) => Cull::None,
                     c => c,
                 };
                 if self.projector.surely_culled(tri, cull) {
@@ -861,6 +868,14 @@ mod tests {
         let mut r = Rasterizer::default();
         let _ = r.draw(&top_view(40, 10.0), &tris, None, Cull::None).unwrap();
         assert_eq!(r.draw(&view, &tris, None, Cull::BackAmongFirst(closed)).unwrap().0, &front);
+        // The same solids listed after the open floor (as the snow's after the scene's).
+        let mut last = vec![tris[closed]];
+        last.extend_from_slice(&tris[..closed]);
+        let (after, s_after) = rasterize(&view, &last, None, Cull::BackFrom(1)).unwrap();
+        assert_eq!(s_after.culled, s_front.culled, "{s_after:?}");
+        let (after_all, _) = rasterize(&view, &last, None, Cull::None).unwrap();
+        let differ = after.depth().iter().zip(after_all.depth()).filter(|(a, b)| a != b).count();
+        assert!(differ <= 2, "{differ} pixels differ");
     }
 
     #[test]

@@ -407,7 +407,10 @@ fn render_scene(
     let snow = snow_mesh(sim);
     let mut tris = scene.clone();
     tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
-    let Ok((buf, _)) = rasterize(&view, &tris, None, Cull::None) else {
+    // The snow's texel solids are closed and face outwards: their back faces (the
+    // bottoms, the far sides) are never what the eye or the sun sees first.
+    let cull = Cull::BackFrom(scene.len());
+    let Ok((buf, _)) = rasterize(&view, &tris, None, cull) else {
         let (d, seen) = none();
         return (frame, d, seen);
     };
@@ -416,7 +419,7 @@ fn render_scene(
     let lighting = Lighting {
         settings,
         sun,
-        shadows: SunShadow::new(&tris, sun, settings.shadow_map_px),
+        shadows: SunShadow::new(&tris, sun, settings.shadow_map_px, cull),
         sky_seen: SkyVisibility { sim, fp: sim.footprint() },
         lights,
     };
@@ -645,8 +648,9 @@ struct SunShadow {
 
 impl SunShadow {
     /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
-    /// side; `None` for no shadows (0 pixels, no sun, nothing to shade).
-    fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32) -> Option<Self> {
+    /// side, with faces skipped as `cull` says; `None` for no shadows (0 pixels, no sun,
+    /// nothing to shade).
+    fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
         if px == 0 || sun == Vec3::ZERO || tris.is_empty() {
             return None;
         }
@@ -661,7 +665,7 @@ impl SunShadow {
             projection: phenomena_core::camera::Projection::Orthographic { height_m: 2.0 * radius },
         };
         let view = camera.view(px as usize, px as usize)?;
-        let (buf, _) = rasterize(&view, tris, None, Cull::None).ok()?;
+        let (buf, _) = rasterize(&view, tris, None, cull).ok()?;
         Some(Self { view, buf, texel_m: 2.0 * radius / px as f32 })
     }
 
