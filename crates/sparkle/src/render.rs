@@ -494,7 +494,8 @@ impl BandRows {
         let (xi, yi, reach) = spread.window(dot);
         let (j0, j1) = ((yi - reach).max(self.row0), (yi + reach).min(self.row0 + self.rows - 1));
         for j in j0..=j1 {
-            for i in (xi - reach).max(0)..=(xi + reach).min(self.width as i64 - 1) {
+            let Some((i0, i1)) = spread.span(dot, j, (xi, reach)) else { continue };
+            for i in i0.max(0)..=i1.min(self.width as i64 - 1) {
                 let w = spread.weight(dot, i, j);
                 if w > 0.0 {
                     self.add(sum, i, j, w * scale);
@@ -870,12 +871,31 @@ impl LensSpread {
         }
     }
 
+    /// The columns of row `j` of the window ([`LensSpread::window`]) that may have a
+    /// weight above 0, a pixel wider each side than the circle where the weight ends
+    /// (r < radius + ½ for a disc, r < radius for a bloom): every column left out has
+    /// weight 0 exactly, so sums over the span are the sums over the window. `None`
+    /// for a row wholly outside.
+    fn span(&self, dot: &Dot, j: i64, (xi, reach): (i64, i64)) -> Option<(i64, i64)> {
+        let end = if self.disc { self.radius + 0.5 } else { self.radius };
+        let dy = j as f32 + 0.5 - dot.y;
+        let across = end * end - dy * dy;
+        if dy.abs() > end + 1.0 || !(across > -1.0) {
+            return None;
+        }
+        let half = across.max(0.0).sqrt();
+        let lo = floor_i64(dot.x - 0.5 - half) - 1;
+        let hi = floor_i64(dot.x - 0.5 + half) + 2;
+        Some((lo.max(xi - reach), hi.min(xi + reach)))
+    }
+
     /// The sum of the weights over the whole footprint.
     fn norm(&self, dot: &Dot) -> f32 {
         let (xi, yi, reach) = self.window(dot);
         let mut norm = 0.0;
         for j in yi - reach..=yi + reach {
-            for i in xi - reach..=xi + reach {
+            let Some((i0, i1)) = self.span(dot, j, (xi, reach)) else { continue };
+            for i in i0..=i1 {
                 norm += self.weight(dot, i, j);
             }
         }
