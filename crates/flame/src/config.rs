@@ -6,6 +6,7 @@
 //! the paper's scene has about 3,000 particles, a flame about 0.8 m tall, and a stable
 //! explicit step at 60 fps; each field says its unit.
 
+use crate::air::AirParams;
 use glam::Vec3;
 use phenomena_core::grid::MAX_CELLS;
 use phenomena_core::kernel::KernelKind;
@@ -196,6 +197,9 @@ pub struct Extended {
     pub buoyancy_m_s2_per_k: f32,
     /// Treat negative pressure as zero (a gas does not pull on itself).
     pub clamp_negative_pressure: bool,
+    /// The air around the flame ([`crate::air`]): when enabled, the air is buoyant and
+    /// carries the particles, and `buoyancy_m_s2_per_k` no longer acts on them directly.
+    pub air: AirParams,
 }
 
 impl Default for Extended {
@@ -206,6 +210,7 @@ impl Default for Extended {
             temperature_jitter_k: 80.0,
             buoyancy_m_s2_per_k: 1.0e-3,
             clamp_negative_pressure: true,
+            air: AirParams::default(),
         }
     }
 }
@@ -281,6 +286,10 @@ impl FlameConfig {
         i.range_open_low("extended.cooling_time_s", x.cooling_time_s, 0.0, 1e6);
         i.range("extended.temperature_jitter_k", x.temperature_jitter_k, 0.0..=10_000.0);
         i.range("extended.buoyancy_m_s2_per_k", x.buoyancy_m_s2_per_k, -1.0..=1.0);
+        x.air.validate("extended.air.", &mut i);
+        if self.mode == Mode::Extended && x.air.enabled && !(self.emitter.radius_m > 0.0) {
+            i.push("emitter.radius_m", self.emitter.radius_m, "a burner of positive radius: the air's grid is sized by its diameter (or set extended.air.enabled = false)");
+        }
 
         self.validate_domain(&mut i);
         i.into_result()

@@ -34,6 +34,7 @@
 //! # Feature flags
 //! None yet.
 
+pub mod air;
 mod config;
 mod render;
 mod sim;

@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use wide::f32x8;
 
+use crate::air::{Air, AirState};
 use crate::config::{FlameConfig, Mode};
 
 const EMIT: Purpose = Purpose::named("flame.emit");
@@ -207,6 +208,9 @@ pub struct FlameState {
     pub next_id: u64,
     /// The particles.
     pub particles: Particles,
+    /// The air around the flame, when it is solved (extended mode).
+    #[serde(default)]
+    pub air: Option<AirState>,
 }
 
 /// The flame simulation, created from a configuration and a seed and advanced by
@@ -235,6 +239,8 @@ pub struct FlameSim {
     density_kernel: Kernel,
     pressure_kernel: Kernel,
     scratch: Scratch,
+    /// The air around the flame (extended mode with `extended.air.enabled`).
+    air: Option<Air>,
 }
 
 impl FlameSim {
@@ -242,7 +248,11 @@ impl FlameSim {
     pub fn new(config: FlameConfig, seed: u64) -> Result<Self, FlameError> {
         config.validate().map_err(InvalidConfig::from)?;
         let d = config.sph.support_radius_m;
+        let x = &config.extended;
+        let air = (config.mode == Mode::Extended && x.air.enabled)
+            .then(|| Air::new(&x.air, &config.emitter, x.ambient_temperature_k));
         Ok(Self {
+            air,
             density_kernel: Kernel::new(KernelKind::Poly6, Dim::Three, d),
             pressure_kernel: Kernel::new(config.sph.pressure_kernel, Dim::Three, d),
             config,
@@ -274,6 +284,16 @@ impl FlameSim {
             return Err(FlameError::Shape(format!(
                 "particle {i} has a position or velocity that is not finite"
             )));
+        }
+        match (&mut self.air, &state.air) {
+            (Some(air), Some(a)) => air.restore(a).map_err(FlameError::Shape)?,
+            (None, None) => {}
+            (Some(_), None) => {
+                return Err(FlameError::Shape("the checkpoint has no air, the simulation does".into()));
+            }
+            (None, Some(_)) => {
+                return Err(FlameError::Shape("the checkpoint has air, the simulation none".into()));
+            }
         }
         self.frame = state.frame;
         self.next_id = state.next_id;
@@ -309,12 +329,20 @@ impl FlameSim {
             pressure_pa: vec![0.0; n],
             acceleration_m_s2: vec![Vec3::ZERO; n],
         };
-        Self::from_state(config, seed, FlameState { frame: 0, next_id: n as u64, particles })
+        let mut sim = Self::new(config, seed)?;
+        let air = sim.air.as_ref().map(Air::state);
+        sim.restore(FlameState { frame: 0, next_id: n as u64, particles, air })?;
+        Ok(sim)
     }
 
     /// A checkpoint of the current state.
     pub fn state(&self) -> FlameState {
-        FlameState { frame: self.frame, next_id: self.next_id, particles: self.particles.clone() }
+        FlameState {
+            frame: self.frame,
+            next_id: self.next_id,
+            particles: self.particles.clone(),
+            air: self.air.as_ref().map(Air::state),
+        }
     }
 
     /// The configuration.
@@ -348,6 +376,11 @@ impl FlameSim {
         &self.particles
     }
 
+    /// The air around the flame, when it is solved.
+    pub fn air(&self) -> Option<&Air> {
+        self.air.as_ref()
+    }
+
     /// Advance one frame by the loop of §4.3: (1) add particles at the burner, then per
     /// substep (2) neighbour search, (3) density (eq 3), (4) pressure (eq 11) and the
     /// symmetric pressure force (eq 12) plus the external force, (5) acceleration (eq 8)
@@ -360,7 +393,7 @@ impl FlameSim {
         for sub in 0..self.config.substeps {
             let t = self.time_s() as f32 + sub as f32 * h;
             self.evaluate_at(t)?;
-            self.integrate(h);
+            self.integrate(h, t);
             stats.neighbor_pairs = self.scratch.neighbors.iter().map(|c| c.index.len()).sum();
             // Remove after every substep, so the next neighbour search only sees
             // particles inside the (validated) domain.
@@ -487,6 +520,8 @@ impl FlameSim {
         let wind = self.config.wind.force_at(time_s);
         let (buoyancy, ambient) = match self.config.mode {
             Mode::Paper => (0.0, 0.0),
+            // The air is buoyant and carries the particles.
+            Mode::Extended if self.air.is_some() => (0.0, 0.0),
             Mode::Extended => {
                 (self.config.extended.buoyancy_m_s2_per_k, self.config.extended.ambient_temperature_k)
             }
@@ -522,8 +557,19 @@ impl FlameSim {
     }
 
     /// Step (5b): v += a·h, x += v·h (semi-implicit Euler); age and, in extended mode,
-    /// Newtonian cooling T = T_amb + (T_0 - T_amb)·exp(-age/τ).
-    fn integrate(&mut self, h: f32) {
+    /// Newtonian cooling T = T_amb + (T_0 - T_amb)·exp(-age/τ). With the air, the
+    /// velocity is dragged towards the air's between the two, and the air is advanced.
+    fn integrate(&mut self, h: f32, time_s: f32) {
+        if let Some(air) = &mut self.air {
+            let p = &mut self.particles;
+            for (v, a) in p.velocity_m_s.iter_mut().zip(&p.acceleration_m_s2) {
+                *v += *a * h;
+            }
+            air.drag(h, &p.position_m, &mut p.velocity_m_s, &p.mass_kg, &p.age_s);
+            air.step(h, self.config.wind.force_at(time_s));
+        }
+        // With the air, the velocity has already taken its step.
+        let kick = if self.air.is_some() { 0.0 } else { h };
         let p = &mut self.particles;
         let cooling = match self.config.mode {
             Mode::Extended => {
@@ -540,7 +586,7 @@ impl FlameSim {
             .zip(p.birth_temperature_k.par_chunks(CHUNK))
             .for_each(|(((((x, v), a), age), temp), birth)| {
                 for i in 0..x.len() {
-                    v[i] += a[i] * h;
+                    v[i] += a[i] * kick;
                     x[i] += v[i] * h;
                     age[i] += h;
                     if let Some((ambient, tau)) = cooling {
