@@ -565,7 +565,7 @@ impl FlameSim {
             for (v, a) in p.velocity_m_s.iter_mut().zip(&p.acceleration_m_s2) {
                 *v += *a * h;
             }
-            air.drag(h, &p.position_m, &mut p.velocity_m_s, &p.mass_kg, &p.age_s);
+            air.drag(h, &p.position_m, &mut p.velocity_m_s);
             air.step(h, self.config.wind.force_at(time_s));
         }
         // With the air, the velocity has already taken its step.
@@ -594,6 +594,18 @@ impl FlameSim {
                     }
                 }
             });
+        // With the air, a particle is no hotter than the air around it: where the
+        // flame's gas has mixed with entrained air, it dims.
+        if let Some(air) = &self.air {
+            let p = &mut self.particles;
+            p.temperature_k.par_chunks_mut(CHUNK).zip(p.position_m.par_chunks(CHUNK)).for_each(
+                |(temp, x)| {
+                    for (t, x) in temp.iter_mut().zip(x) {
+                        *t = t.min(air.temperature_at(*x));
+                    }
+                },
+            );
+        }
     }
 
     /// Remove particles past their lifetime or outside the domain. The paper does not
