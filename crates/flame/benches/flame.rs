@@ -2,7 +2,8 @@
 //! the two together, at 10,000 and 30,000 particles and the
 //! paper's 3,000.
 //!
-//! Also one OpenVDB frame of 30,000 particles (`flame_vdb`).
+//! Also one OpenVDB frame of 30,000 particles (`flame_vdb`), and the 30,000-particle
+//! flame with the air around it (`flame_air`).
 //!
 //! Run with `cargo bench -p phenomena-flame --bench flame`. The flame is the campfire-like
 //! configuration below, warmed up until its particle count is steady.
@@ -77,6 +78,42 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
+/// The air around the flame (`[flame.extended.air]`, issue 43): one step of the
+/// 30,000-particle flame with the air on (D = 0.51 m), and the air's own share: one
+/// frame of the air alone over the same burner.
+fn air(c: &mut Criterion) {
+    let n = 30_000;
+    let mut cfg = config(n);
+    cfg.extended.air.enabled = true;
+    let mut sim = FlameSim::new(cfg.clone(), 1).expect("valid config");
+    for _ in 0..120 {
+        sim.step().expect("step");
+    }
+    let mut g = c.benchmark_group("flame_air");
+    g.sample_size(10).measurement_time(Duration::from_secs(8)).warm_up_time(Duration::from_secs(2));
+    g.bench_with_input(BenchmarkId::new("step", n), &n, |b, _| {
+        let mut s = sim.clone();
+        b.iter(|| black_box(s.step().expect("step")));
+    });
+    let mut r = renderer(n, 0.5);
+    g.bench_with_input(BenchmarkId::new("step_render_1280x720_scale0.5", n), &n, |b, _| {
+        let mut s = sim.clone();
+        b.iter(|| {
+            s.step().expect("step");
+            black_box(r.render(&s).width())
+        });
+    });
+    let air = sim.air().expect("the air is on").clone();
+    g.bench_function("air_alone_frame", |b| {
+        let mut a = air.clone();
+        b.iter(|| {
+            a.step(cfg.frame_time_s, Vec3::ZERO);
+            black_box(a.grid().max_speed())
+        });
+    });
+    g.finish();
+}
+
 /// Target: one VDB frame of 30,000 particles at 1 cm voxels (voxelising the
 /// three grids and encoding the file) within 50 ms. `frame_*` is a frame of an animation
 /// as the VDB sink writes it (the voxeliser's grids and the file buffer kept from the
@@ -130,5 +167,5 @@ fn volume(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, reference::reference, bench, volume);
+criterion_group!(benches, reference::reference, bench, volume, air);
 criterion_main!(benches);
