@@ -85,8 +85,39 @@ impl AirParams {
         i.range_open_low(&format!("{prefix}drag_time_s"), self.drag_time_s, 0.0, 100.0);
         i.range(&format!("{prefix}inflow_m_s"), self.inflow_m_s, 0.0..=100.0);
         i.range(&format!("{prefix}max_courant"), self.max_courant, 0.1..=4.0);
+        // The projection's cost grows as nz² · nr: bound the grid's rows and columns.
+        let (nr, nz) = self.cells();
+        if nz > MAX_ROWS {
+            i.push(
+                format!("{prefix}height_diameters"),
+                self.height_diameters,
+                format!("at most {MAX_ROWS} rows of cells: cells_per_diameter × height_diameters is {nz}"),
+            );
+        }
+        if nr > MAX_COLUMNS {
+            i.push(
+                format!("{prefix}radius_diameters"),
+                self.radius_diameters,
+                format!(
+                    "at most {MAX_COLUMNS} rings of cells: cells_per_diameter × radius_diameters is {nr}"
+                ),
+            );
+        }
+    }
+
+    /// Cells along r and z.
+    fn cells(&self) -> (usize, usize) {
+        let cpd = self.cells_per_diameter as f32;
+        let nr = ((self.radius_diameters * cpd).round() as usize).max(2);
+        let nz = ((self.height_diameters * cpd).round() as usize).max(2);
+        (nr, nz)
     }
 }
+
+/// Most rows of air cells (the projection's transform is nz² · nr).
+const MAX_ROWS: usize = 1024;
+/// Most rings of air cells.
+const MAX_COLUMNS: usize = 256;
 
 /// The air on its grid: velocity on the faces, temperature excess in the cells.
 ///
@@ -379,8 +410,7 @@ impl Air {
         let (origin, radius_m, flame_k) = (burner.position_m, burner.radius_m, burner.temperature_k);
         let cpd = params.cells_per_diameter as usize;
         let dx = 2.0 * radius_m / cpd as f32;
-        let nr = ((params.radius_diameters * cpd as f32).round() as usize).max(2);
-        let nz = ((params.height_diameters * cpd as f32).round() as usize).max(2);
+        let (nr, nz) = params.cells();
         let grid = AirGrid::new(nr, nz, dx, ambient_k);
         let cells = (0..nr).take_while(|&i| (i as f32 + 0.5) * dx < radius_m).count().max(1);
         Self {
@@ -727,6 +757,23 @@ mod tests {
             "ambient air heated to {} K above ambient",
             a.theta_at(1.5 * d, 0.5 * d)
         );
+    }
+
+    #[test]
+    fn the_grid_is_bounded_and_its_problems_are_named() {
+        let mut i = Issues::default();
+        AirParams::default().validate("air.", &mut i);
+        assert!(i.is_empty());
+        let p = AirParams {
+            cells_per_diameter: 128,
+            height_diameters: 32.0,
+            radius_diameters: 4.0,
+            ..Default::default()
+        };
+        let mut i = Issues::default();
+        p.validate("air.", &mut i);
+        let fields: Vec<String> = i.into_result().unwrap_err().into_iter().map(|e| e.field).collect();
+        assert_eq!(fields, ["air.height_diameters", "air.radius_diameters"]);
     }
 
     #[test]
