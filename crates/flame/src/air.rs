@@ -58,7 +58,9 @@ pub struct AirParams {
     /// own buoyancy; the particles' launch speed (`emitter.velocity_m_s`) decays into
     /// the air's within `drag_time_s`.
     pub inflow_m_s: f32,
-    /// Largest Courant number of one air substep (cells crossed in one substep).
+    /// Largest Courant number of one air substep (cells crossed in one substep), kept
+    /// with up to 16 air substeps a simulation substep; faster air than that crosses
+    /// more cells a substep (the transport stays stable, less accurate).
     pub max_courant: f32,
 }
 
@@ -114,10 +116,11 @@ impl AirParams {
     }
 }
 
-/// Most rows of air cells (the projection's transform is nz² · nr).
-const MAX_ROWS: usize = 1024;
+/// Most rows of air cells (the projection's transform is nz² · nr multiply-adds: at
+/// 512 × 128, 3.4·10⁷ per air substep).
+const MAX_ROWS: usize = 512;
 /// Most rings of air cells.
-const MAX_COLUMNS: usize = 256;
+const MAX_COLUMNS: usize = 128;
 
 /// The air on its grid: velocity on the faces, temperature excess in the cells.
 ///
@@ -383,10 +386,17 @@ impl AirGrid {
 /// The grid is axisymmetric, so the wind cannot blow across it; instead each row of the
 /// grid carries a horizontal drift velocity, pushed by the wind's force density (as the
 /// air's, ρ = 1.2 kg/m³) and carried up with the air rising in the flame's core, and the
-/// row's axis is displaced by the drift it has accumulated. Air entering at the ground
-/// has no drift, so the column leans with the time its air has spent in the wind, as a
-/// plume in a crossflow does; the grid's own flow (the necking, the vortex rings) is
-/// solved about the leaning axis.
+/// row's axis is displaced by the drift it has accumulated. Air enters the lowest row
+/// from the ground without drift, so the column leans with the time its air has spent
+/// in the wind, as a plume in a crossflow does; the grid's own flow (the necking, the
+/// vortex rings) is solved about the leaning axis. Rows whose core does not rise keep
+/// gaining drift while the wind blows (no drag slows the air's drift). The particles
+/// also still feel the wind's force directly, as in the paper; dragged to the air within
+/// `drag_time_s`, that adds a slip of F·τ/ρ, millimetres a second.
+///
+/// Outside the air's cylinder (beyond `radius_diameters` or above `height_diameters`)
+/// the air is ambient: a particle there is cooled to the ambient temperature, and moves
+/// with the air at the cylinder's edge.
 #[derive(Clone, Debug)]
 pub struct Air {
     grid: AirGrid,
@@ -530,9 +540,15 @@ impl Air {
         if let Some((name, got, want)) = expect.iter().find(|(_, a, b)| a != b) {
             return Err(format!("air.{name} has {got} values, the grid {want}"));
         }
-        let finite = state.ur.iter().chain(&state.uz).chain(&state.theta).all(|v| v.is_finite());
+        let finite = state.ur.iter().chain(&state.uz).chain(&state.theta).all(|v| v.is_finite())
+            && state.drift.iter().chain(&state.offset).flatten().all(|v| v.is_finite());
         if !finite {
             return Err("air has a value that is not finite".into());
+        }
+        // The transport only interpolates and the burner only heats: the air is never
+        // colder than ambient.
+        if let Some(t) = state.theta.iter().find(|&&t| t < 0.0) {
+            return Err(format!("air.theta has {t} K, below ambient"));
         }
         self.grid.ur.clone_from(&state.ur);
         self.grid.uz.clone_from(&state.uz);

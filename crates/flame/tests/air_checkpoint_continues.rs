@@ -37,3 +37,35 @@ fn the_paper_mode_has_no_air() {
     assert!(sim.air().is_none());
     assert!(sim.state().air.is_none());
 }
+
+#[test]
+fn a_checkpoint_with_broken_air_is_refused_and_changes_nothing() {
+    let mut c = FlameConfig::default();
+    c.extended.air.enabled = true;
+    c.extended.air.cells_per_diameter = 8;
+    let mut sim = FlameSim::new(c, 3).expect("valid");
+    for _ in 0..5 {
+        sim.step().expect("step");
+    }
+    let before = sim.state();
+    let mut nan = before.clone();
+    nan.air.as_mut().expect("air").drift[3][0] = f32::NAN;
+    let err = sim.restore(nan).expect_err("a drift that is not finite");
+    assert!(err.to_string().contains("not finite"), "{err}");
+    let mut cold = before.clone();
+    cold.air.as_mut().expect("air").theta[0] = -400.0;
+    let err = sim.restore(cold).expect_err("air colder than ambient");
+    assert!(err.to_string().contains("below ambient"), "{err}");
+    assert_eq!(sim.state(), before);
+}
+
+#[test]
+fn the_air_needs_an_ambient_above_absolute_zero() {
+    let mut c = FlameConfig::default();
+    c.extended.air.enabled = true;
+    c.extended.ambient_temperature_k = 0.0;
+    let errs = c.validate().expect_err("0 K with the air on");
+    assert!(errs.iter().any(|e| e.field == "extended.ambient_temperature_k"), "{errs:?}");
+    c.extended.air.enabled = false;
+    assert_eq!(c.validate(), Ok(()));
+}
