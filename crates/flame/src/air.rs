@@ -192,11 +192,6 @@ impl AirGrid {
         self.ambient_k
     }
 
-    /// Temperature above ambient of cell (i, j), kelvin.
-    pub fn theta(&self, i: usize, j: usize) -> f32 {
-        self.theta[j * self.nr + i]
-    }
-
     /// The air's velocity (radial, axial) at distance `r` from the axis and height `z`
     /// above the ground, m/s (held at the grid's edge values outside it).
     pub fn velocity(&self, r: f32, z: f32) -> (f32, f32) {
@@ -295,11 +290,7 @@ impl AirGrid {
         rhs.resize(nr * nz, 0.0);
         for j in 0..nz {
             for i in 0..nr {
-                let (ri, ro) = (i as f32, (i + 1) as f32);
-                let rc = i as f32 + 0.5;
-                let div_r = (ro * self.ur[j * (nr + 1) + i + 1] - ri * self.ur[j * (nr + 1) + i]) / rc;
-                let div_z = self.uz[(j + 1) * nr + i] - self.uz[j * nr + i];
-                rhs[j * nr + i] = (div_r + div_z) * scale;
+                rhs[j * nr + i] = self.divergence(i, j) * scale;
             }
         }
         let p = self.solve_poisson(&rhs);
@@ -326,7 +317,9 @@ impl AirGrid {
     fn solve_poisson(&mut self, rhs: &[f32]) -> Vec<f32> {
         let (nr, nz) = (self.nr, self.nz);
         // Into the z modes: rhs_k(i) = (2/nz) Σ_j C[k][j] rhs(j, i).
-        let mut hat = vec![0.0f32; nz * nr];
+        let mut hat = std::mem::take(&mut self.scratch[1]);
+        hat.clear();
+        hat.resize(nz * nr, 0.0);
         let modes = &self.modes;
         let norm = 2.0 / nz as f32;
         hat.par_chunks_mut(nr).enumerate().for_each(|(k, row)| {
@@ -352,19 +345,26 @@ impl AirGrid {
                 }
             }
         });
+        self.scratch[1] = hat;
         p
+    }
+
+    /// ∇·u × dx of cell (i, j), m/s: the cylindrical divergence (r·u_r through the
+    /// faces at radii i and i + 1 over the cell's centre radius, plus u_z's difference).
+    fn divergence(&self, i: usize, j: usize) -> f32 {
+        let nr = self.nr;
+        let (ri, ro, rc) = (i as f32, (i + 1) as f32, i as f32 + 0.5);
+        let div_r = (ro * self.ur[j * (nr + 1) + i + 1] - ri * self.ur[j * (nr + 1) + i]) / rc;
+        let div_z = self.uz[(j + 1) * nr + i] - self.uz[j * nr + i];
+        div_r + div_z
     }
 
     /// Largest |∇·u|·dx over the cells, m/s: zero up to rounding after a projection.
     pub fn max_divergence(&self) -> f32 {
-        let nr = self.nr;
         let mut worst = 0.0f32;
         for j in 0..self.nz {
-            for i in 0..nr {
-                let (ri, ro, rc) = (i as f32, (i + 1) as f32, i as f32 + 0.5);
-                let div_r = (ro * self.ur[j * (nr + 1) + i + 1] - ri * self.ur[j * (nr + 1) + i]) / rc;
-                let div_z = self.uz[(j + 1) * nr + i] - self.uz[j * nr + i];
-                worst = worst.max((div_r + div_z).abs());
+            for i in 0..self.nr {
+                worst = worst.max(self.divergence(i, j).abs());
             }
         }
         worst
@@ -621,7 +621,16 @@ fn split(f: f32, n: usize) -> (usize, f32) {
 /// diagonally dominant since λ < 0).
 fn thomas_radial(row: &mut [f32], lambda: f32) {
     let nr = row.len();
-    let mut c_prime = vec![0.0f32; nr];
+    // The grids a configuration can ask for fit on the stack; larger ones (only through
+    // `AirGrid::new`) take the heap.
+    let mut stack = [0.0f32; MAX_COLUMNS];
+    let mut heap = Vec::new();
+    let c_prime: &mut [f32] = if nr <= MAX_COLUMNS {
+        &mut stack[..nr]
+    } else {
+        heap.resize(nr, 0.0);
+        &mut heap
+    };
     let mut prev_c = 0.0f32;
     let mut prev_d = 0.0f32;
     for i in 0..nr {
