@@ -1,11 +1,13 @@
 """Blender as the real client of phenomena's outputs: import a flame OpenVDB
 frame as a volume object and render it with Cycles (the image must not be black), a
 flame PLY particle cache as a point mesh, and a snow GLB, checking what was imported
-against the files themselves (grid names, vertex counts, bounds).
+against the files themselves (grid names, vertex counts, bounds); and, when given, a
+flame VDB with the air around it, whose `velocity` grid Blender must take as the grid
+it motion-blurs the volume by.
 
 Run with Debian's Blender 3.4, headless:
   blender -b --python-exit-code 1 --python tools/blender-check/check.py -- \
-      FLAME.vdb FLAME.ply SNOW.glb OUT_DIR
+      FLAME.vdb FLAME.ply SNOW.glb OUT_DIR [AIR_FLAME.vdb]
 Exits non-zero (through --python-exit-code) on the first failed check.
 """
 
@@ -184,14 +186,37 @@ def check_mesh(path):
     return f"mesh {os.path.basename(path)}: {len(meshes)} object(s), {verts} vertices, bounds as in the file"
 
 
+def check_velocity(path):
+    """Import a VDB of the flame with the air around it: Blender finds its `velocity`
+    grid as a three-channel vector grid, the one it motion-blurs the volume by, with
+    the manifest's voxel count."""
+    clear_scene()
+    manifest = json.load(open(path + ".json"))
+    want = next((g for g in manifest["grids"] if g["name"] == "velocity"), None)
+    expect(want is not None, f"{path}: the manifest has no velocity grid")
+    bpy.ops.object.volume_import(filepath=path, align="WORLD", location=(0, 0, 0))
+    vol = [o for o in bpy.context.scene.objects if o.type == "VOLUME"][0]
+    grids = vol.data.grids
+    expect(grids.load(), f"{path}: Blender could not load the grids: {grids.error_message}")
+    velocity = next((g for g in grids if g.name == "velocity"), None)
+    expect(velocity is not None, f"{path}: Blender found no velocity grid in {[g.name for g in grids]}")
+    expect(velocity.data_type == "VECTOR_FLOAT" and velocity.channels == 3, f"{path}: velocity is {velocity.data_type}")
+    expect(vol.data.velocity_grid == "velocity", f"{path}: Blender's velocity grid is {vol.data.velocity_grid!r}")
+    expect(velocity.load(), f"{path}: Blender could not load the velocity grid")
+    return f"volume {os.path.basename(path)}: velocity grid {velocity.data_type}, Blender's motion-blur grid"
+
+
 def main():
     args = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-    if len(args) != 4:
+    if len(args) not in (4, 5):
         fail(__doc__)
-    vdb_path, ply_path, glb_path, out_dir = args
+    vdb_path, ply_path, glb_path, out_dir = args[:4]
     os.makedirs(out_dir, exist_ok=True)
     print(f"Blender {bpy.app.version_string}")
-    for line in [check_volume(vdb_path, out_dir), check_points(ply_path), check_mesh(glb_path)]:
+    checks = [check_volume(vdb_path, out_dir), check_points(ply_path), check_mesh(glb_path)]
+    if len(args) == 5:
+        checks.append(check_velocity(args[4]))
+    for line in checks:
         print("ok " + line)
     print("blender check passed")
 

@@ -456,6 +456,31 @@ impl Air {
         (r, z, dir)
     }
 
+    /// Whether `p` (world space) lies inside the air's cylinder: within its radius of
+    /// the (displaced) axis at its height, and between the ground and its top.
+    pub fn contains(&self, p: glam::Vec3) -> bool {
+        let (nr, nz, dx) = self.grid.shape();
+        let (r, z, _) = self.local(p);
+        r <= nr as f32 * dx && (0.0..=nz as f32 * dx).contains(&z)
+    }
+
+    /// The box (lowest and highest corner, world space, m) that holds the air's cylinder
+    /// with every row's axis where the wind has displaced it.
+    pub fn bounds(&self) -> (glam::Vec3, glam::Vec3) {
+        let (nr, nz, dx) = self.grid.shape();
+        let radius = nr as f32 * dx;
+        let (lo, hi) = self
+            .offset
+            .iter()
+            .fold((glam::Vec2::MAX, glam::Vec2::MIN), |(lo, hi), &o| (lo.min(o), hi.max(o)));
+        let foot = glam::Vec2::new(self.origin.x, self.origin.z);
+        let (lo, hi) = (foot + lo - glam::Vec2::splat(radius), foot + hi + glam::Vec2::splat(radius));
+        (
+            glam::Vec3::new(lo.x, self.origin.y, lo.y),
+            glam::Vec3::new(hi.x, self.origin.y + nz as f32 * dx, hi.y),
+        )
+    }
+
     /// The air's velocity at `p` (world space), m/s.
     pub fn velocity_at(&self, p: glam::Vec3) -> glam::Vec3 {
         let (r, z, dir) = self.local(p);

@@ -22,6 +22,7 @@ use phenomena_core::vdb::{Grid, GridClass, Transform, VdbError};
 use rayon::prelude::*;
 use wide::f32x8;
 
+use crate::air::Air;
 use crate::config::FlameConfig;
 use crate::render::{BlackbodyLut, RenderSettings};
 use crate::sim::Particles;
@@ -65,6 +66,17 @@ pub enum VolumeError {
         /// The voxel size, m.
         voxel_m: f64,
     },
+    /// The air around the flame reaches too far from the origin for its cell size (the
+    /// wind has carried its axis away).
+    #[error(
+        "the air around the flame reaches {position_m:?} m, more than 2^23 of its {voxel_m} m cells from the origin"
+    )]
+    AirExtent {
+        /// Where.
+        position_m: [f32; 3],
+        /// The air's cell size, m.
+        voxel_m: f64,
+    },
     /// The grid refused a value.
     #[error(transparent)]
     Grid(#[from] VdbError),
@@ -100,6 +112,59 @@ fn leaves_per_particle(config: &FlameConfig, voxel_m: f64) -> Result<u64, Volume
         return Err(VolumeError::TooLarge { voxels: (leaves * 512.0).min(u64::MAX as f64) as u64, voxel_m });
     }
     Ok(leaves as u64)
+}
+
+/// The air around the flame ([`crate::air`]) as a `velocity` grid: vec3, m/s, world
+/// space (y up), the wind's drift included, for a renderer to motion-blur the volume by
+/// (Blender's Cycles and Houdini look for a grid of this name) or a smoke solver to
+/// advect by. One voxel per air cell: voxel (i, j, k) is centred at (i, j, k) times the
+/// air's cell size, and every voxel whose centre lies inside the air's cylinder
+/// ([`Air::contains`]) holds the air's velocity there ([`Air::velocity_at`]). Outside
+/// the cylinder the air is not solved and the grid is empty.
+pub fn air_velocity(air: &Air) -> Result<Grid<[f32; 3]>, VolumeError> {
+    let (_, _, dx) = air.grid().shape();
+    let voxel_m = f64::from(dx);
+    let (lo, hi) = air_voxel_box(air)?;
+    let mut grid = Grid::new("velocity", Transform::new(voxel_m, [0.0; 3])?, GridClass::Unknown);
+    grid.insert_metadata("units", "m/s")?;
+    for x in lo[0]..=hi[0] {
+        for y in lo[1]..=hi[1] {
+            for z in lo[2]..=hi[2] {
+                let p = glam::Vec3::new(x as f32, y as f32, z as f32) * dx;
+                if air.contains(p) {
+                    grid.set([x, y, z], air.velocity_at(p).to_array());
+                }
+            }
+        }
+    }
+    Ok(grid)
+}
+
+/// Bytes [`air_velocity`] takes for `air` (the grid and its encoded copy: 12 bytes a
+/// voxel each, over the box that holds the cylinder: an upper bound), refused as it is.
+pub fn air_velocity_bytes(air: &Air) -> Result<u64, VolumeError> {
+    let (lo, hi) = air_voxel_box(air)?;
+    let voxels: u64 = (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product();
+    Ok(voxels * 24)
+}
+
+/// The voxels (lowest and highest index) of the box that holds the air's cylinder, at
+/// the air's cell size; refused beyond [`MAX_VOXELS`] or the grid's index range.
+fn air_voxel_box(air: &Air) -> Result<([i32; 3], [i32; 3]), VolumeError> {
+    let (_, _, dx) = air.grid().shape();
+    let voxel_m = f64::from(dx);
+    let (lo, hi) = air.bounds();
+    let (lo_i, hi_i) = ((lo / dx).floor(), (hi / dx).ceil());
+    let limit = (MAX_INDEX - 8) as f32;
+    if !(lo_i.is_finite() && hi_i.is_finite()) || lo_i.min_element() < -limit || hi_i.max_element() > limit {
+        let far = if lo_i.abs().max_element() > hi_i.abs().max_element() { lo } else { hi };
+        return Err(VolumeError::AirExtent { position_m: far.to_array(), voxel_m });
+    }
+    let voxels = (hi_i - lo_i + glam::Vec3::ONE).as_dvec3().element_product();
+    if voxels > MAX_VOXELS as f64 {
+        return Err(VolumeError::TooLarge { voxels: voxels as u64, voxel_m });
+    }
+    Ok((lo_i.as_ivec3().to_array(), hi_i.as_ivec3().to_array()))
 }
 
 /// Leaf coordinates fit in 21 bits each (voxel indices within ±2^23).
@@ -497,5 +562,58 @@ mod tests {
             })
         };
         assert_eq!(run(1), run(3));
+    }
+
+    /// The air's `velocity` grid holds the air's velocity at the centre of every voxel
+    /// inside its cylinder and nothing outside it; the hot gas rises above the burner
+    /// and the air flows in towards the axis beside its base.
+    #[test]
+    fn the_air_velocity_grid_is_the_air_at_its_voxels() {
+        let mut config = FlameConfig::default();
+        config.extended.air.enabled = true;
+        let inflow_m_s = config.extended.air.inflow_m_s;
+        let mut sim = FlameSim::new(config, 3).unwrap();
+        for _ in 0..60 {
+            sim.step().unwrap();
+        }
+        let air = sim.air().expect("the air is on");
+        let grid = air_velocity(air).unwrap();
+        let (nr, nz, dx) = air.grid().shape();
+        assert_eq!(grid.name(), "velocity");
+        assert_eq!(grid.transform().voxel_size_m(), f64::from(dx));
+        let (lo, hi) = air_voxel_box(air).unwrap();
+        let (mut inside, mut active) = (0u64, 0u64);
+        for x in lo[0] - 1..=hi[0] + 1 {
+            for y in lo[1] - 1..=hi[1] + 1 {
+                for z in lo[2] - 1..=hi[2] + 1 {
+                    let p = Vec3::new(x as f32, y as f32, z as f32) * dx;
+                    let v = grid.get([x, y, z]);
+                    if air.contains(p) {
+                        inside += 1;
+                        assert_eq!(v, air.velocity_at(p).to_array(), "voxel {x} {y} {z}");
+                    } else {
+                        assert_eq!(v, [0.0; 3], "voxel {x} {y} {z} outside the cylinder");
+                    }
+                    active += u64::from(v != [0.0; 3]);
+                }
+            }
+        }
+        // The cylinder's volume in voxels, within the voxels its surface cuts (a
+        // shell one voxel thick: 2πR·H + 2πR² voxel areas).
+        let (radius, height) = (nr as f64, nz as f64);
+        let volume = std::f64::consts::PI * radius * radius * height;
+        let shell = 2.0 * std::f64::consts::PI * radius * (height + radius);
+        assert!((inside as f64 - volume).abs() < shell, "{inside} voxels inside, cylinder {volume:.0}");
+        assert_eq!(grid.active_voxel_count(), active);
+        // Above the burner's centre the gas rises; beside the base the air moves in.
+        let origin = sim.config().emitter.position_m;
+        let radius_m = sim.config().emitter.radius_m;
+        let up =
+            grid.get(((origin + Vec3::new(0.0, 2.0 * radius_m, 0.0)) / dx).round().as_ivec3().to_array());
+        // Buoyancy has sped it up from the speed it entered at.
+        assert!(up[1] > 2.0 * inflow_m_s, "the gas above the burner rises at {} m/s", up[1]);
+        let side = (origin + Vec3::new(2.0 * radius_m, dx, 0.0)) / dx;
+        let inflow = grid.get(side.round().as_ivec3().to_array());
+        assert!(inflow[0] < 0.0, "the air beside the base moves in: {inflow:?}");
     }
 }

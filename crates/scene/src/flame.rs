@@ -179,11 +179,15 @@ impl Phenomenon for FlameScene {
         let voxel_m = options.voxel_m.unwrap_or(0.01);
         let config = built.sim.config();
         let particles = (peak_particles(config) as usize).max(built.sim.particles().len());
-        phenomena_flame::volume::volume_bytes(particles, config, voxel_m).map_err(|e| e.to_string())
+        let air = built.sim.air().map(phenomena_flame::volume::air_velocity_bytes).transpose();
+        phenomena_flame::volume::volume_bytes(particles, config, voxel_m)
+            .and_then(|n| Ok(n + air?.unwrap_or(0)))
+            .map_err(|e| e.to_string())
     }
 
     /// `density` (kg/m³), `temperature` (K) and `emission` (linear sRGB) grids in metres
-    /// ([`phenomena_flame::volume`]), 1 cm voxels by default.
+    /// ([`phenomena_flame::volume`]), 1 cm voxels by default; with the air around the
+    /// flame, also its `velocity` (m/s) at the air's own cells.
     fn volume(
         built: &Built<Self>,
         options: &VolumeOptions,
@@ -191,17 +195,23 @@ impl Phenomenon for FlameScene {
         out: &mut VolumeOut<'_>,
     ) -> Result<Value, String> {
         use phenomena_core::vdb::AnyGrid;
+        use phenomena_flame::volume::{air_velocity, air_velocity_bytes, volume_bytes};
         let voxel_m = options.voxel_m.unwrap_or(0.01);
-        let need =
-            phenomena_flame::volume::volume_bytes(built.sim.particles().len(), built.sim.config(), voxel_m)
-                .map_err(|e| e.to_string())?;
+        let air = built.sim.air();
+        let need = volume_bytes(built.sim.particles().len(), built.sim.config(), voxel_m)
+            .and_then(|n| Ok(n + air.map(air_velocity_bytes).transpose()?.unwrap_or(0)))
+            .map_err(|e| e.to_string())?;
         options.admit(need, &format!("{voxel_m} m"))?;
+        // With the air around the flame, its velocity (at the air's own cells).
+        let velocity = air.map(air_velocity).transpose().map_err(|e| e.to_string())?;
         let r = &built.renderer;
         let voxelizer = scratch.get::<phenomena_flame::volume::Voxelizer>();
         let v = voxelizer
             .voxelize(built.sim.particles(), built.sim.config(), r.settings(), r.lut(), voxel_m)
             .map_err(|e| e.to_string())?;
-        let grids = [AnyGrid::from(&v.density), AnyGrid::from(&v.temperature), AnyGrid::from(&v.emission)];
+        let mut grids =
+            vec![AnyGrid::from(&v.density), AnyGrid::from(&v.temperature), AnyGrid::from(&v.emission)];
+        grids.extend(velocity.as_ref().map(AnyGrid::from));
         Ok(crate::phenomenon::encode_volume(&grids, out))
     }
 
