@@ -290,6 +290,7 @@ impl FlameConfig {
         if self.mode == Mode::Extended && x.air.enabled && !(self.emitter.radius_m > 0.0) {
             i.push("emitter.radius_m", self.emitter.radius_m, "a burner of positive radius: the air's grid is sized by its diameter (or set extended.air.enabled = false)");
         }
+        x.air.validate_obstacles("extended.air.", self.emitter.radius_m.max(0.0), &mut i);
         // The air's buoyancy is g·(T - T_a)/T: it needs an ambient above absolute zero.
         if self.mode == Mode::Extended && x.air.enabled && !(x.ambient_temperature_k >= 1.0) {
             i.push(

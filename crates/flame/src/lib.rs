@@ -36,6 +36,7 @@
 
 pub mod air;
 mod config;
+mod obstacles;
 mod render;
 mod sim;
 pub mod volume;

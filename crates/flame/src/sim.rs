@@ -595,9 +595,11 @@ impl FlameSim {
                 }
             });
         // With the air, a particle is no hotter than the air around it: where the
-        // flame's gas has mixed with entrained air, it dims.
+        // flame's gas has mixed with entrained air, it dims. And it cannot enter the
+        // air's obstacles.
         if let Some(air) = &self.air {
             let p = &mut self.particles;
+            air.collide(&mut p.position_m, &mut p.velocity_m_s);
             p.temperature_k.par_chunks_mut(CHUNK).zip(p.position_m.par_chunks(CHUNK)).for_each(
                 |(temp, x)| {
                     for (t, x) in temp.iter_mut().zip(x) {
