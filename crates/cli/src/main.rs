@@ -74,6 +74,10 @@ struct OutputArgs {
     /// all frames, 2 px of margin); the descriptor says where they lie in the frame.
     #[arg(long)]
     crop: bool,
+    /// flipbook: also `flipbook_motion.png`, each cell's motion vectors (where its light
+    /// moves by the next frame), for shaders that blend frames along them (flame).
+    #[arg(long)]
+    motion: bool,
 }
 
 impl OutputArgs {
@@ -92,6 +96,7 @@ impl OutputArgs {
                 },
                 loop_frames: self.loop_frames,
                 crop: self.crop,
+                motion: self.motion,
             },
         }
     }

@@ -36,6 +36,7 @@
 
 pub mod air;
 mod config;
+pub mod motion;
 mod obstacles;
 mod render;
 mod sim;

@@ -38,11 +38,13 @@ pub struct FlipbookSettings {
     pub loop_frames: u32,
     /// Cells cut to the content's bounds over every frame ([`content_bounds`]).
     pub crop: bool,
+    /// A second atlas of motion vectors beside the colour ([`MotionAtlas`]).
+    pub motion: bool,
 }
 
 impl Default for FlipbookSettings {
     fn default() -> Self {
-        Self { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0, crop: false }
+        Self { power_of_two: false, alpha: Alpha::Straight, loop_frames: 0, crop: false, motion: false }
     }
 }
 
@@ -60,6 +62,8 @@ pub struct FlipbookOptions {
     pub loop_frames: u32,
     /// Cells cut to the content's bounds over every frame ([`content_bounds`]).
     pub crop: bool,
+    /// A second atlas of motion vectors ([`MotionAtlas`]).
+    pub motion: bool,
     /// Playback rate, frames per second (the scene's).
     pub fps: f64,
 }
@@ -174,7 +178,10 @@ impl Atlas {
     pub fn memory_bytes(layout: &Layout, options: &FlipbookOptions) -> u64 {
         let cell = u64::from(layout.frame_width) * u64::from(layout.frame_height);
         let image = u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4;
-        image * if options.crop { 2 } else { 1 } + u64::from(options.loop_frames) * cell * 12
+        let colour = image * if options.crop { 2 } else { 1 } + u64::from(options.loop_frames) * cell * 12;
+        // The motion atlas: its vectors (4 bytes a pixel), its image and crop, its heads.
+        let motion = image * 3 + u64::from(options.loop_frames) * cell * 8;
+        colour + if options.motion { motion } else { 0 }
     }
 
     /// The next frame (display-linear RGB, interleaved, the cell's size).
@@ -230,6 +237,110 @@ impl Atlas {
         Ok(self.rgba)
     }
 }
+
+/// Steps of a stored motion vector per pixel (vectors are kept as i16 until the
+/// largest is known: ±1023 pixels at 1/32 of a pixel).
+const MOTION_STEPS_PER_PX: f32 = 32.0;
+
+/// Motion vectors tiled as the colour atlas is (the same cells, cross-fade and crop),
+/// encoded once the largest is known: `R = 0.5 + 0.5 · dx / scale_px`, `G = 0.5 + 0.5 ·
+/// dy / scale_px` (8 bits each), `B = 0`, `A = 1`, with (dx, dy) the displacement of
+/// the cell's content from this frame to the next in cell pixels, x to the right and y
+/// down, and `scale_px` the largest |dx| or |dy| over every cell. A flipbook shader
+/// blending frames k and k + 1 at t samples frame k at uv − t·d and frame k + 1 at
+/// uv + (1 − t)·d.
+pub struct MotionAtlas {
+    layout: Layout,
+    loop_frames: u32,
+    /// Each atlas pixel's vector, in 1/[`MOTION_STEPS_PER_PX`] pixels.
+    steps: Vec<[i16; 2]>,
+    heads: Vec<Vec<[f32; 2]>>,
+    pushed: usize,
+    largest: i16,
+}
+
+impl MotionAtlas {
+    /// An empty motion atlas of `layout`.
+    pub fn new(layout: Layout, loop_frames: u32) -> Self {
+        Self { layout, loop_frames, steps: Vec::new(), heads: Vec::new(), pushed: 0, largest: 0 }
+    }
+
+    /// The next frame's vectors (cell pixels, the cell's size, row-major).
+    pub fn push(&mut self, vectors: Vec<[f32; 2]>) -> Result<(), String> {
+        let (k, n) = (self.loop_frames as usize, self.layout.frames as usize);
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        if vectors.len() != fw * fh {
+            return Err(format!("motion vectors of {} pixels for cells of {fw}x{fh}", vectors.len()));
+        }
+        if self.pushed >= n + k {
+            return Err(format!("more than the {} frames of a flipbook of {n} (+{k} cross-faded)", n + k));
+        }
+        if self.steps.is_empty() {
+            self.steps = vec![[0; 2]; self.layout.atlas_width as usize * self.layout.atlas_height as usize];
+        }
+        let j = self.pushed;
+        self.pushed += 1;
+        if j < k {
+            self.heads.push(vectors);
+        } else if j < n {
+            self.cell(j, &vectors);
+        } else {
+            // As the colour: tail frame n + i fades into head i.
+            let i = j - n;
+            let head = std::mem::take(&mut self.heads[i]);
+            let w = (i + 1) as f32 / (k + 1) as f32;
+            let faded: Vec<[f32; 2]> =
+                head.iter().zip(&vectors).map(|(a, b)| [0, 1].map(|c| w * a[c] + (1.0 - w) * b[c])).collect();
+            self.cell(i, &faded);
+        }
+        Ok(())
+    }
+
+    fn cell(&mut self, j: usize, vectors: &[[f32; 2]]) {
+        let (fw, fh) = (self.layout.frame_width as usize, self.layout.frame_height as usize);
+        let aw = self.layout.atlas_width as usize;
+        let (cx, cy) = (j % self.layout.columns as usize, j / self.layout.columns as usize);
+        let limit = f32::from(i16::MAX);
+        for y in 0..fh {
+            let row = (cy * fh + y) * aw + cx * fw;
+            for x in 0..fw {
+                let q = vectors[y * fw + x].map(|v| {
+                    let v = (v * MOTION_STEPS_PER_PX).round();
+                    if v.is_finite() { v.clamp(-limit, limit) as i16 } else { 0 }
+                });
+                self.largest = self.largest.max(q[0].abs()).max(q[1].abs());
+                self.steps[row + x] = q;
+            }
+        }
+    }
+
+    /// The atlas's RGBA8 pixels and its scale (pixels), once every frame was pushed.
+    pub fn finish(self) -> Result<(Vec<u8>, f32), String> {
+        let (k, n) = (self.loop_frames as usize, self.layout.frames as usize);
+        if self.pushed != n + k {
+            return Err(format!("{} motion frames for a flipbook of {} (+{k} cross-faded)", self.pushed, n));
+        }
+        let scale = f32::from(self.largest.max(1));
+        let byte = |v: i16| (255.0 * (0.5 + 0.5 * f32::from(v) / scale)).round() as u8;
+        let rgba = self.steps.iter().flat_map(|&[x, y]| [byte(x), byte(y), 0, 255]).collect();
+        Ok((rgba, scale / MOTION_STEPS_PER_PX))
+    }
+}
+
+/// How the motion atlas is written, for the descriptor.
+#[derive(Clone, Debug, Serialize)]
+pub struct MotionDescriptor {
+    /// The motion atlas's file name.
+    pub image: String,
+    /// The largest displacement component, cell pixels: R and G hold
+    /// 0.5 + 0.5 · d / scale_px.
+    pub scale_px: f32,
+    /// The encoding in words.
+    pub encoding: &'static str,
+}
+
+/// [`MotionDescriptor::encoding`].
+pub const MOTION_ENCODING: &str = "linear 8-bit R, G = 0.5 + 0.5 * d / scale_px, d the displacement of the cell's content from this frame to the next in cell pixels (x right, y down); B = 0, A = 1; not sRGB";
 
 /// Transparent pixels kept around the content when cropping, so that bilinear sampling
 /// at the cells' edges reads nothing of the next cell.
@@ -344,6 +455,9 @@ pub struct Descriptor {
     /// height]` pixels (of the frame as resampled to the uncropped cell size).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crop: Option<[u32; 4]>,
+    /// With `--motion`: the motion atlas beside it ([`MotionAtlas`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionDescriptor>,
 }
 
 #[cfg(test)]
@@ -351,7 +465,56 @@ mod tests {
     use super::*;
 
     fn opts(pot: bool, loop_frames: u32) -> FlipbookOptions {
-        FlipbookOptions { power_of_two: pot, alpha: Alpha::Straight, loop_frames, crop: false, fps: 60.0 }
+        FlipbookOptions {
+            power_of_two: pot,
+            alpha: Alpha::Straight,
+            loop_frames,
+            crop: false,
+            motion: false,
+            fps: 60.0,
+        }
+    }
+
+    /// Motion vectors go to the colour's cells: decoded, each pixel is its vector to
+    /// within an 8-bit step (scale / 127.5), the largest component sets the scale, and
+    /// a looped head cell is the colour's cross-fade of its vectors.
+    #[test]
+    fn motion_cells_decode_to_their_vectors() {
+        let l = layout(5, 3, 2, &opts(false, 1)).unwrap();
+        let mut m = MotionAtlas::new(l, 1);
+        let frame = |j: usize| -> Vec<[f32; 2]> {
+            (0..6).map(|i| [j as f32 - 2.0 + 0.25 * i as f32, -(i as f32) * 0.5]).collect()
+        };
+        for j in 0..5 {
+            m.push(frame(j)).unwrap();
+        }
+        assert!(m.push(frame(5)).is_err(), "a sixth frame");
+        let (rgba, scale) = m.finish().unwrap();
+        // The largest component: frame 3's 1 + 1.25 = 2.25 px, or 2.5 px down.
+        assert_eq!(scale, 2.5);
+        let decode = |v: u8| (2.0 * f32::from(v) / 255.0 - 1.0) * scale;
+        let want = |j: usize, i: usize| -> [f32; 2] {
+            if j == 0 {
+                // Head 0 faded with tail 4 at w = 1/2.
+                let (a, b) = (frame(0)[i], frame(4)[i]);
+                [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
+            } else {
+                frame(j)[i]
+            }
+        };
+        for j in 0..4 {
+            let (cx, cy) = (j % l.columns as usize * 3, j / l.columns as usize * 2);
+            for i in 0..6 {
+                let at = ((cy + i / 3) * l.atlas_width as usize + cx + i % 3) * 4;
+                let got = [decode(rgba[at]), decode(rgba[at + 1])];
+                let w = want(j, i);
+                assert!(
+                    (got[0] - w[0]).abs() <= scale / 127.5 && (got[1] - w[1]).abs() <= scale / 127.5,
+                    "cell {j} pixel {i}: {got:?} {w:?}"
+                );
+                assert_eq!((rgba[at + 2], rgba[at + 3]), (0, 255));
+            }
+        }
     }
 
     /// Cropping keeps every lit pixel of every cell (at its place in the cell, less the
@@ -466,8 +629,14 @@ mod tests {
         for (rendered, k, alpha) in
             [(7, 0, Alpha::Straight), (12, 3, Alpha::Premultiplied), (10, 5, Alpha::Straight)]
         {
-            let options =
-                FlipbookOptions { power_of_two: false, alpha, loop_frames: k, crop: false, fps: 30.0 };
+            let options = FlipbookOptions {
+                power_of_two: false,
+                alpha,
+                loop_frames: k,
+                crop: false,
+                motion: false,
+                fps: 30.0,
+            };
             let l = layout(rendered, 5, 3, &options).unwrap();
             let frames: Vec<Vec<f32>> = (0..rendered)
                 .map(|f| (0..45).map(|v| ((f * 45 + v) as f32 * 0.618).fract() * 1.2).collect())

@@ -23,7 +23,8 @@ use crate::budget::{Estimate, Limits, Report};
 use crate::checkpoint::{self, CheckpointError, Header};
 use crate::error::{BuildError, SinkError};
 use crate::phenomenon::{
-    Built, Capability, ExportKind, Exported, Phenomenon, Scratch, Steer, View, VolumeOptions, VolumeOut,
+    Built, Capability, ExportKind, Exported, MotionVectors, Phenomenon, Scratch, Steer, View, VolumeOptions,
+    VolumeOut,
 };
 use crate::settings::SceneSettings;
 use crate::source::{Unread, deserialize_all};
@@ -169,6 +170,7 @@ pub(crate) trait Dispatch: Sync {
     ) -> Result<Value, SinkError>;
     fn volume_bytes(&self, built: &dyn Any, options: &VolumeOptions) -> Result<u64, SinkError>;
     fn points(&self, built: &dyn Any) -> Result<Vec<u8>, SinkError>;
+    fn motion(&self, built: &dyn Any) -> Result<MotionVectors, SinkError>;
 }
 
 /// Phenomenon `P`'s [`Dispatch`].
@@ -424,5 +426,9 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
         let mut cache = P::points(&live::<P>(b).built).map_err(SinkError)?;
         cache.comments.push(format!("phenomena {} particles after {} frames", P::NAME, self.frames_done(b)));
         cache.to_ply().map_err(SinkError)
+    }
+
+    fn motion(&self, b: &dyn Any) -> Result<MotionVectors, SinkError> {
+        P::motion(&live::<P>(b).built).map_err(SinkError)
     }
 }

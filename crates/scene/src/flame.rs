@@ -14,7 +14,7 @@ use crate::budget::Estimate;
 use crate::cache::PointCache;
 use crate::error::BuildError;
 use crate::phenomenon::{
-    Built, Capability, Pass, Phenomenon, Scratch, Stage, Steer, View, VolumeOptions, VolumeOut,
+    Built, Capability, MotionVectors, Pass, Phenomenon, Scratch, Stage, Steer, View, VolumeOptions, VolumeOut,
 };
 use crate::settings::SceneSettings;
 
@@ -44,7 +44,8 @@ impl Phenomenon for FlameScene {
         View { name: "density", about: "particles as squares coloured by density (Fig 7)" },
     ];
     const STARTER: &'static str = include_str!("../starters/flame.toml");
-    const CAN: &'static [Capability] = &[Capability::Volume, Capability::Points, Capability::EmissionOnly];
+    const CAN: &'static [Capability] =
+        &[Capability::Volume, Capability::Points, Capability::EmissionOnly, Capability::Motion];
     type Sim = FlameSim;
     type Renderer = FlameRenderer;
     type Loaded = Option<Frame>;
@@ -226,6 +227,19 @@ impl Phenomenon for FlameScene {
         c.push_u32("id", p.id.iter().map(|&i| i as u32).collect());
         c.comments.push("units: position m (y up), velocity m/s, temperature K, density kg/m^3".into());
         Ok(c)
+    }
+
+    /// Where the flame's light moves in one frame time, per pixel of the last render
+    /// ([`phenomena_flame::motion`]).
+    fn motion(built: &Built<Self>) -> Result<MotionVectors, String> {
+        let sim = &built.sim;
+        let field = phenomena_flame::motion::motion_vectors(
+            &built.renderer,
+            sim.particles(),
+            sim.config(),
+            sim.config().frame_time_s,
+        );
+        Ok(MotionVectors { width: field.width, height: field.height, vectors: field.vectors })
     }
 
     /// The wind ([`WIND_PATH`]) changes live (the paper's §6 mouse drag).

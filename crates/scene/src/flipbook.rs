@@ -6,11 +6,13 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::atlas::{Atlas, Descriptor, FlipbookOptions, Layout};
+use crate::atlas::{
+    Atlas, Descriptor, FlipbookOptions, Layout, MOTION_ENCODING, MotionAtlas, MotionDescriptor,
+};
 use crate::error::SinkError;
 use crate::format::{OutputFormat, Target};
 use crate::output::{Files, ensure_dir, error, write_atomic, write_bytes_atomic};
-use crate::phenomenon::Capability;
+use crate::phenomenon::{Capability, MotionVectors};
 use crate::scene::Scene;
 use crate::sink::{FrameSink, Output};
 
@@ -45,11 +47,18 @@ impl OutputFormat for Flipbook {
             ));
         }
         let s = target.options.flipbook;
+        if s.motion && !target.phenomenon.can(Capability::Motion) {
+            return Err(SinkError(format!(
+                "--motion: {} scenes have no motion vectors (the flame's do: its gas moves on screen)",
+                target.phenomenon.name()
+            )));
+        }
         let options = FlipbookOptions {
             power_of_two: s.power_of_two,
             alpha: s.alpha,
             loop_frames: s.loop_frames,
             crop: s.crop,
+            motion: s.motion,
             fps: target.fps,
         };
         let (w, h) = target.size;
@@ -64,6 +73,8 @@ struct FlipbookSink {
     options: FlipbookOptions,
     layout: Layout,
     atlas: Option<Atlas>,
+    /// With `--motion`.
+    motion: Option<MotionAtlas>,
     first: Option<u32>,
     last: u32,
 }
@@ -85,6 +96,7 @@ impl FlipbookSink {
             options,
             layout,
             atlas: Some(Atlas::new(layout, options)),
+            motion: options.motion.then(|| MotionAtlas::new(layout, options.loop_frames)),
             first: None,
             last: 0,
         })
@@ -112,6 +124,10 @@ impl FrameSink for FlipbookSink {
             .ok_or_else(|| error("the flipbook is already written"))?
             .push(display)
             .map_err(SinkError)?;
+        if let Some(motion) = self.motion.as_mut() {
+            let m = out.data.motion()?;
+            motion.push(resized_vectors(&m, w, h)).map_err(SinkError)?;
+        }
         self.first.get_or_insert(out.index);
         self.last = out.index;
         Ok(())
@@ -120,10 +136,14 @@ impl FrameSink for FlipbookSink {
     fn finish(&mut self) -> Result<(), SinkError> {
         let atlas = self.atlas.take().ok_or_else(|| error("the flipbook is already written"))?;
         let mut rgba = atlas.finish().map_err(SinkError)?;
+        let mut motion = self.motion.take().map(MotionAtlas::finish).transpose().map_err(SinkError)?;
         let mut crop = None;
         if self.options.crop
             && let Some(rect) = crate::atlas::content_bounds(&rgba, &self.layout, self.options.power_of_two)
         {
+            if let Some((m, _)) = motion.as_mut() {
+                *m = crate::atlas::cropped(m, &self.layout, rect).0;
+            }
             (rgba, self.layout) = crate::atlas::cropped(&rgba, &self.layout, rect);
             crop = Some(rect);
         }
@@ -143,10 +163,50 @@ impl FrameSink for FlipbookSink {
             color_space: "sRGB",
             source_frames: [self.first.unwrap_or(0), self.last + 1],
             crop,
+            motion: motion.as_ref().map(|&(_, scale_px)| MotionDescriptor {
+                image: MOTION_IMAGE.into(),
+                scale_px,
+                encoding: MOTION_ENCODING,
+            }),
         };
+        if let Some((m, _)) = &motion {
+            write_atomic(&self.dir.join(MOTION_IMAGE), |tmp| {
+                image::save_buffer_with_format(tmp, m, w, h, image::ColorType::Rgba8, image::ImageFormat::Png)
+                    .map_err(error)
+            })?;
+        }
         let json = serde_json::to_string_pretty(&descriptor).map_err(error)?;
         write_bytes_atomic(&self.dir.join("flipbook.json"), json.as_bytes())
     }
+}
+
+/// The motion atlas's file name.
+const MOTION_IMAGE: &str = "flipbook_motion.png";
+
+/// `m` resampled to `w` × `h` (bilinear, at pixel centres), its vectors scaled to the
+/// new pixels.
+fn resized_vectors(m: &MotionVectors, w: usize, h: usize) -> Vec<[f32; 2]> {
+    if (m.width, m.height) == (w, h) || m.width == 0 || m.height == 0 {
+        return m.vectors.clone();
+    }
+    let (sx, sy) = (m.width as f32 / w as f32, m.height as f32 / h as f32);
+    let at = |x: usize, y: usize| m.vectors[y.min(m.height - 1) * m.width + x.min(m.width - 1)];
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        let fy = ((y as f32 + 0.5) * sy - 0.5).max(0.0);
+        let (y0, ty) = (fy as usize, fy.fract());
+        for x in 0..w {
+            let fx = ((x as f32 + 0.5) * sx - 0.5).max(0.0);
+            let (x0, tx) = (fx as usize, fx.fract());
+            let v = [0, 1].map(|c| {
+                let top = at(x0, y0)[c] * (1.0 - tx) + at(x0 + 1, y0)[c] * tx;
+                let bottom = at(x0, y0 + 1)[c] * (1.0 - tx) + at(x0 + 1, y0 + 1)[c] * tx;
+                top * (1.0 - ty) + bottom * ty
+            });
+            out.push([v[0] / sx, v[1] / sy]);
+        }
+    }
+    out
 }
 
 impl Files for FlipbookSink {

@@ -41,6 +41,8 @@ pub trait OutputFormat: Sync {
 
 /// Where and how a run writes its frames.
 pub struct Target<'a> {
+    /// The phenomenon written.
+    pub phenomenon: crate::Entry,
     /// The folder (created if missing).
     pub dir: &'a Path,
     /// Frames the run writes.

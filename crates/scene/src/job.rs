@@ -185,6 +185,7 @@ fn open_files(scene: &mut Scene, job: &Job, range: &Range<u32>) -> Result<Box<dy
     format.prepare(scene).map_err(refused)?;
     let (w, h) = (scene.settings().width, scene.settings().height);
     let target = Target {
+        phenomenon: scene.phenomenon(),
         dir: &job.out_dir,
         frames: range.len() as u32,
         size: (w, h),

@@ -80,8 +80,8 @@ pub use exr::write_exr;
 pub use format::{Format, OutputFormat, OutputOptions};
 pub use parse::{LoadError, MAX_SCENE_BYTES, load, parse};
 pub use phenomenon::{
-    Built, Capability, ExportKind, Exported, LeafGrid, PASSES, Pass, Phenomenon, Scratch, Stage, Steer, View,
-    VolumeOptions, VolumeOut, encode_volume,
+    Built, Capability, ExportKind, Exported, LeafGrid, MotionVectors, PASSES, Pass, Phenomenon, Scratch,
+    Stage, Steer, View, VolumeOptions, VolumeOut, encode_volume,
 };
 pub use runner::Runner;
 pub use scene::{Scene, set_path};

@@ -30,6 +30,20 @@ pub enum Capability {
     Points,
     /// Its light alone over black, for sprites ([`Phenomenon::emission_only`]).
     EmissionOnly,
+    /// Where its frame's light moves in one frame, per pixel ([`Phenomenon::motion`]).
+    Motion,
+}
+
+/// A frame's motion vectors: pixel (x, y)'s displacement over one frame at
+/// `[y * width + x]`, pixels, x to the right and y down ([`Phenomenon::motion`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MotionVectors {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Displacements, pixels.
+    pub vectors: Vec<[f32; 2]>,
 }
 
 /// A way a phenomenon can draw its frames (`[render] view` and `--view`).
@@ -410,6 +424,12 @@ pub trait Phenomenon:
     /// The current particles as a point cache (the `ply` format).
     fn points(_built: &Built<Self>) -> Result<PointCache, String> {
         Err(format!("{} scenes write no particle caches", Self::NAME))
+    }
+
+    /// The last rendered frame's motion vectors (a flipbook's `--motion`; called only
+    /// when [`Phenomenon::CAN`] holds [`Capability::Motion`]).
+    fn motion(_built: &Built<Self>) -> Result<MotionVectors, String> {
+        Err(format!("{} scenes have no motion vectors", Self::NAME))
     }
 
     /// Give the simulation and renderer a clock for their timing breakdowns.

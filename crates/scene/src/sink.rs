@@ -95,6 +95,11 @@ impl State<'_> {
     pub fn points(&self) -> Result<Vec<u8>, SinkError> {
         self.entry.ops().points(self.built)
     }
+
+    /// The last rendered frame's motion vectors ([`crate::Phenomenon::motion`]).
+    pub fn motion(&self) -> Result<crate::phenomenon::MotionVectors, SinkError> {
+        self.entry.ops().motion(self.built)
+    }
 }
 
 /// Where rendered frames go.

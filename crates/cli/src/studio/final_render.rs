@@ -97,6 +97,7 @@ impl Request {
             alpha,
             loop_frames: self.loop_frames,
             crop: self.crop,
+            motion: false,
         };
         Ok(Plan {
             frames: first..last + 1,

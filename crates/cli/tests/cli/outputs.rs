@@ -186,6 +186,46 @@ fn volumes_and_caches_per_frame() {
     assert!(e.contains("voxel size 0 m"), "{e}");
 }
 
+/// `--motion` writes a motion atlas beside the colour, cell for cell (cropped and
+/// looped alike); decoded, the flame's light moves up the frame (its gas rises), more
+/// near its tip than its base (buoyancy accelerates it), and not sideways on average.
+#[test]
+fn a_motion_flipbook_says_where_the_flame_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = shipped("flame-paper.toml");
+    let args =
+        ["render", &scene, "--frames", "60..72", "--width", "96", "--height", "128", "--format", "flipbook"];
+    ok(dir.path(), &[&args[..], &["--out", "m", "--motion", "--crop", "--loop", "2"]].concat());
+    let out = dir.path().join("m");
+    let (json, colour) = cells(&out);
+    let scale = json["motion"]["scale_px"].as_f64().unwrap();
+    assert_eq!(json["motion"]["image"], "flipbook_motion.png");
+    assert!(scale > 0.0, "{json}");
+    let motion = image::open(out.join("flipbook_motion.png")).unwrap().to_rgba8();
+    let n = |k: &str| json[k].as_u64().unwrap() as u32;
+    assert_eq!((motion.width(), motion.height()), (n("atlas_width"), n("atlas_height")));
+    let (fw, fh, cols) = (n("frame_width"), n("frame_height"), n("columns"));
+    let decode = |v: u8| (2.0 * f64::from(v) / 255.0 - 1.0) * scale;
+    // Lit pixels' vectors, split at the middle of the lit rows.
+    let (mut low, mut high, mut sideways) = (Vec::new(), Vec::new(), Vec::new());
+    for (j, cell) in colour.iter().enumerate() {
+        let lit: Vec<(u32, u32)> =
+            (0..fw * fh).filter(|i| cell[*i as usize * 4 + 3] > 64).map(|i| (i % fw, i / fw)).collect();
+        let (top, bottom) = lit.iter().fold((u32::MAX, 0), |(t, b), p| (t.min(p.1), b.max(p.1)));
+        for &(x, y) in &lit {
+            let px = motion.get_pixel(j as u32 % cols * fw + x, j as u32 / cols * fh + y).0;
+            let (dx, dy) = (decode(px[0]), decode(px[1]));
+            sideways.push(dx);
+            if y < (top + bottom) / 2 { high.push(dy) } else { low.push(dy) }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (up_low, up_high) = (-mean(&low), -mean(&high));
+    assert!(up_low > 0.0 && up_high > up_low, "rising {up_low:.2} px low, {up_high:.2} px high");
+    // 8-bit steps are scale/127.5; the flame is symmetric about its axis.
+    assert!(mean(&sideways).abs() < 0.25 * up_high, "sideways {:.2} px", mean(&sideways));
+}
+
 #[test]
 fn formats_a_phenomenon_cannot_write_are_refused_first() {
     let dir = tempfile::tempdir().unwrap();
@@ -203,6 +243,9 @@ fn formats_a_phenomenon_cannot_write_are_refused_first() {
     assert!(e.contains("over 16384 a side"), "{e}");
     let e = fails(dir.path(), &["render", &scene, "--out", "o", "--format", "flipbook", "--resume"]);
     assert!(e.contains("--resume"), "{e}");
+    let sparkle = shipped("sparkle-paper.toml");
+    let e = fails(dir.path(), &["render", &sparkle, "--out", "o", "--format", "flipbook", "--motion"]);
+    assert!(e.contains("--motion: sparkle scenes have no motion vectors"), "{e}");
     assert!(!dir.path().join("o").join("flipbook.png").exists());
 }
 
