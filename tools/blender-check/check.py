@@ -188,8 +188,8 @@ def check_mesh(path):
 
 def check_velocity(path):
     """Import a VDB of the flame with the air around it: Blender finds its `velocity`
-    grid as a three-channel vector grid, the one it motion-blurs the volume by, with
-    the manifest's voxel count."""
+    grid (named in the manifest) as a three-channel vector grid, loads it, and takes it
+    as the grid it motion-blurs the volume by."""
     clear_scene()
     manifest = json.load(open(path + ".json"))
     want = next((g for g in manifest["grids"] if g["name"] == "velocity"), None)

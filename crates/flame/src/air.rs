@@ -25,7 +25,7 @@
 //! and open air at the outer radius, where the entrained air comes in).
 
 use crate::obstacles::Solids;
-pub use crate::obstacles::{MAX_BOUNDARY_CELLS, MAX_OBSTACLES, Obstacle};
+pub use crate::obstacles::{MAX_BOUNDARY_CELLS, MAX_CAPACITANCE_VALUES, MAX_OBSTACLES, Obstacle};
 use phenomena_core::validate::Issues;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -349,40 +349,23 @@ impl AirGrid {
                 rhs[j * nr + i] = self.divergence(i, j) * scale;
             }
         }
-        if self.solids.is_some() {
-            let p = self.solve_with_solids(&rhs);
-            self.subtract_gradient_where_open(&p, dt * inv_dx);
-            self.scratch[0] = rhs;
-            self.scratch[3] = p;
-            return;
-        }
-        let p = self.solve_poisson(&rhs);
+        let p = if self.solids.is_some() { self.solve_with_solids(&rhs) } else { self.solve_poisson(&rhs) };
         // u -= dt ∇p, with p in units where ∇ is a plain difference: p·dt/dx² scaled.
-        let g = dt * inv_dx;
-        for j in 0..nz {
-            for i in 1..=nr {
-                let outer = if i < nr { p[j * nr + i] } else { -p[j * nr + nr - 1] };
-                self.ur[j * (nr + 1) + i] -= g * (outer - p[j * nr + i - 1]);
-            }
-        }
-        for j in 1..=nz {
-            for i in 0..nr {
-                let above = if j < nz { p[j * nr + i] } else { -p[(nz - 1) * nr + i] };
-                self.uz[j * nr + i] -= g * (above - p[(j - 1) * nr + i]);
-            }
-        }
+        self.subtract_gradient(&p, dt * inv_dx);
         self.scratch[0] = rhs;
         self.scratch[3] = p;
     }
 
-    /// [`AirGrid::project`]'s u -= g ∇p through the open faces only (the closed ones
-    /// stay at rest).
-    fn subtract_gradient_where_open(&mut self, p: &[f32], g: f32) {
+    /// u -= g ∇p through every face the solids leave open (the closed ones stay at
+    /// rest); the outer and top faces take the ghost −p of p = 0 there.
+    fn subtract_gradient(&mut self, p: &[f32], g: f32) {
         let (nr, nz) = (self.nr, self.nz);
-        let Some(s) = &self.solids else { return };
+        let solids = self.solids.as_deref();
+        let ur_open = |f: usize| solids.is_none_or(|s| s.ur_open[f]);
+        let uz_open = |f: usize| solids.is_none_or(|s| s.uz_open[f]);
         for j in 0..nz {
             for i in 1..=nr {
-                if s.ur_open[j * (nr + 1) + i] {
+                if ur_open(j * (nr + 1) + i) {
                     let outer = if i < nr { p[j * nr + i] } else { -p[j * nr + nr - 1] };
                     self.ur[j * (nr + 1) + i] -= g * (outer - p[j * nr + i - 1]);
                 }
@@ -390,7 +373,7 @@ impl AirGrid {
         }
         for j in 1..=nz {
             for i in 0..nr {
-                if s.uz_open[j * nr + i] {
+                if uz_open(j * nr + i) {
                     let above = if j < nz { p[j * nr + i] } else { -p[(nz - 1) * nr + i] };
                     self.uz[j * nr + i] -= g * (above - p[(j - 1) * nr + i]);
                 }
@@ -492,8 +475,12 @@ impl AirGrid {
 /// row's axis is displaced by the drift it has accumulated. Air enters the lowest row
 /// from the ground without drift, so the column leans with the time its air has spent
 /// in the wind, as a plume in a crossflow does; the grid's own flow (the necking, the
-/// vortex rings) is solved about the leaning axis. Rows whose core does not rise keep
-/// gaining drift while the wind blows (no drag slows the air's drift). The particles
+/// vortex rings) is solved about the leaning axis. The drift forgets the wind over a
+/// second ([`DRIFT_MEMORY_S`]), so rows whose core does not rise (above the flame's
+/// tip, above an obstacle) reach a steady drift instead of gaining it without end, and
+/// no row's axis moves further than the cylinder's radius from the burner. Rows that
+/// hold an obstacle stay on the burner's axis (the obstacle is fixed to the ground),
+/// and the rows above lean from there. The particles
 /// also still feel the wind's force directly, as in the paper; dragged to the air within
 /// `drag_time_s`, that adds a slip of F·τ/ρ, millimetres a second.
 ///
@@ -511,6 +498,8 @@ pub struct Air {
     offset: Vec<glam::Vec2>,
     /// Cells within the burner's radius (the flame's core, whose rise carries the drift).
     core: usize,
+    /// Per row: it holds an obstacle (or lies just under one), so it does not drift.
+    anchored: Vec<bool>,
     burner: Burner,
     params: AirParams,
 }
@@ -526,6 +515,13 @@ impl Air {
         let (nr, nz) = params.cells();
         let mut grid = AirGrid::new(nr, nz, dx, ambient_k);
         grid.set_solid(crate::obstacles::solid_cells(&params.obstacles, nr, nz, dx));
+        // Rows whose span meets an obstacle's heights, or lies within a cell under it.
+        let anchored = (0..nz)
+            .map(|j| {
+                let (lo, hi) = (j as f32 * dx, (j + 1) as f32 * dx);
+                params.obstacles.iter().any(|o| hi >= o.bottom_m - dx && lo <= o.top_m)
+            })
+            .collect();
         let cells = (0..nr).take_while(|&i| (i as f32 + 0.5) * dx < radius_m).count().max(1);
         Self {
             grid,
@@ -533,6 +529,7 @@ impl Air {
             drift: vec![glam::Vec2::ZERO; nz],
             offset: vec![glam::Vec2::ZERO; nz],
             core: (cpd / 2).max(1),
+            anchored,
             burner: Burner { cells, inflow_m_s: params.inflow_m_s, theta: (flame_k - ambient_k).max(0.0) },
             params: params.clone(),
         }
@@ -566,6 +563,23 @@ impl Air {
         let (nr, nz, dx) = self.grid.shape();
         let (r, z, _) = self.local(p);
         r <= nr as f32 * dx && (0.0..=nz as f32 * dx).contains(&z)
+    }
+
+    /// Height of the ground (the burner's centre), world space, m.
+    pub fn ground_m(&self) -> f32 {
+        self.origin.y
+    }
+
+    /// Where the air's axis stands at `height_m` above the ground (world x, z, m): the
+    /// burner's centre displaced by that row's drift.
+    pub fn axis_at(&self, height_m: f32) -> glam::Vec2 {
+        glam::Vec2::new(self.origin.x, self.origin.z) + self.offset[self.row(height_m)]
+    }
+
+    /// Whether `p` (world space) lies inside one of the obstacles.
+    pub fn in_obstacle(&self, p: glam::Vec3) -> bool {
+        let r = glam::Vec2::new(p.x - self.origin.x, p.z - self.origin.z).length();
+        self.params.obstacles.iter().any(|o| o.contains(r, p.y - self.origin.y))
     }
 
     /// The box (lowest and highest corner, world space, m) that holds the air's cylinder
@@ -611,24 +625,28 @@ impl Air {
         });
     }
 
-    /// Moves every particle inside an obstacle out through the obstacle's nearest face
-    /// and takes away its velocity into that face (an inelastic wall). The obstacles
-    /// stand on the air's axis, as the air sees them: in a wind, whose drift displaces
-    /// the air's rows, they lean with the air's column. (Particles meeting obstacles
-    /// that stayed put, while the air's had moved, were dragged into them by air that
-    /// flowed where the particles' obstacle stood, and piled up under it until the SPH
-    /// refused the crowd: `docs/gallery/flame-pot.toml` in a wind, 2026-12-06.)
-    pub fn collide(&self, pos: &mut [glam::Vec3], vel: &mut [glam::Vec3]) {
+    /// Keeps the particles out of the obstacles ([`crate::obstacles::push_out`]): each
+    /// moved by its velocity `vel` over the last `h` seconds to `pos`. The obstacles
+    /// stand on the burner's axis; the rows of the air that hold them do not drift
+    /// with the wind ([`Air::step`]), so the air has them there too.
+    pub fn collide(&self, h: f32, pos: &mut [glam::Vec3], vel: &mut [glam::Vec3]) {
         let obstacles = &self.params.obstacles;
         if obstacles.is_empty() {
             return;
         }
+        let axis = self.origin;
         pos.par_chunks_mut(512).zip(vel.par_chunks_mut(512)).for_each(|(pos, vel)| {
             for (x, v) in pos.iter_mut().zip(vel.iter_mut()) {
-                for o in obstacles {
-                    let offset = self.offset[self.row(x.y - self.origin.y)];
-                    let axis = self.origin + glam::Vec3::new(offset.x, 0.0, offset.y);
-                    crate::obstacles::push_out(o, axis, x, v);
+                // Out of one obstacle may be into another (a pot on stones): again,
+                // a few times.
+                for _ in 0..4 {
+                    let mut moved = false;
+                    for o in obstacles {
+                        moved |= crate::obstacles::push_out(o, axis, x, v, h);
+                    }
+                    if !moved {
+                        break;
+                    }
                 }
             }
         });
@@ -641,6 +659,10 @@ impl Air {
         // (first-order upwind; air enters at the ground without either), pushed by the
         // wind.
         let push = glam::Vec2::new(wind.x, wind.z) / AIR_DENSITY * h;
+        // The drift forgets over DRIFT_MEMORY_S: a steady wind's force gives the air a
+        // steady speed (F τ / ρ) instead of accelerating air the flame does not renew
+        // (above its tip, above an obstacle) without end.
+        let keep = (-h / DRIFT_MEMORY_S).exp();
         let core = self.core.min(nr);
         let rise = |j: usize| {
             let w: f32 = (0..core).map(|i| self.grid.uz[(j + 1) * nr + i]).sum::<f32>() / core as f32;
@@ -655,11 +677,18 @@ impl Air {
             };
             let c = rises[j];
             let (drift, offset) = (self.drift[j], self.offset[j]);
-            self.drift[j] = drift + (below_drift - drift) * c + push;
+            self.drift[j] = (drift + (below_drift - drift) * c) * keep + push;
             self.offset[j] = offset + (below_offset - offset) * c;
         }
+        let reach = nr as f32 * dx;
         for j in 0..nz {
-            self.offset[j] += self.drift[j] * h;
+            self.offset[j] = (self.offset[j] + self.drift[j] * h).clamp_length_max(reach);
+        }
+        // The obstacles are fixed to the ground: their rows (and the row under each,
+        // whose rise they close off) stay on the burner's axis, and the rows above
+        // lean from there.
+        for (j, _) in self.anchored.iter().enumerate().filter(|(_, a)| **a) {
+            (self.drift[j], self.offset[j]) = (glam::Vec2::ZERO, glam::Vec2::ZERO);
         }
         let n = self.grid.substeps(h, self.params.max_courant);
         for _ in 0..n {
@@ -761,6 +790,10 @@ pub struct AirState {
 
 /// Ambient air density, kg/m³.
 const AIR_DENSITY: f32 = 1.2;
+
+/// Time over which the air's drift forgets the wind, seconds: a steady wind of force
+/// density F moves the air no faster than F · 1 s / ρ (0.17 m/s for 0.2 N/m³).
+const DRIFT_MEMORY_S: f32 = 1.0;
 
 /// Lower index and weight of a clamped linear interpolation at `f` over `n` samples.
 fn split(f: f32, n: usize) -> (usize, f32) {

@@ -291,6 +291,14 @@ impl FlameConfig {
             i.push("emitter.radius_m", self.emitter.radius_m, "a burner of positive radius: the air's grid is sized by its diameter (or set extended.air.enabled = false)");
         }
         x.air.validate_obstacles("extended.air.", self.emitter.radius_m.max(0.0), &mut i);
+        let air_on = self.mode == Mode::Extended && x.air.enabled;
+        if !x.air.obstacles.is_empty() && !air_on {
+            i.push(
+                "extended.air.obstacles",
+                format!("{} obstacles", x.air.obstacles.len()),
+                "obstacles stand in the air around the flame: set extended.air.enabled = true, with mode = \"extended\"",
+            );
+        }
         // The air's buoyancy is g·(T - T_a)/T: it needs an ambient above absolute zero.
         if self.mode == Mode::Extended && x.air.enabled && !(x.ambient_temperature_k >= 1.0) {
             i.push(

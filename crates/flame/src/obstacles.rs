@@ -81,9 +81,11 @@ fn boundary_cells(cell: &[bool], nr: usize, nz: usize) -> Vec<usize> {
 }
 
 /// The obstacles' problems, into `i` (fields under `prefix`): each a finite solid at
-/// least one air cell (`cell_m`) thick that leaves at least one cell of air above a
-/// burner of `burner_radius_m`, and all of them touching at most
-/// [`MAX_BOUNDARY_CELLS`] cells of the `nr` × `nz` grid.
+/// least one air cell (`cell_m`) thick, inside the air's cylinder of `nr` × `nz` cells,
+/// leaving at least one cell of air above a burner of `burner_radius_m`; together they
+/// seal no air off from the open boundaries (where the projection would have no
+/// solution) and touch at most [`MAX_BOUNDARY_CELLS`] cells, and at most
+/// [`MAX_CAPACITANCE_VALUES`] values of W.
 pub(crate) fn validate(
     obstacles: &[Obstacle],
     prefix: &str,
@@ -96,42 +98,111 @@ pub(crate) fn validate(
         i.push(&list, obstacles.len(), format!("at most {MAX_OBSTACLES} obstacles"));
         return;
     }
+    let before = i.len();
     for (k, o) in obstacles.iter().enumerate() {
-        let at = |field: &str| format!("{list}[{k}].{field}");
-        i.range(&at("inner_radius_m"), o.inner_radius_m, 0.0..=1000.0);
-        i.range_open_low(&at("outer_radius_m"), o.outer_radius_m, 0.0, 1000.0);
-        i.range(&at("bottom_m"), o.bottom_m, 0.0..=1000.0);
-        i.range_open_low(&at("top_m"), o.top_m, 0.0, 1000.0);
-        let thin = |from: f32, to: f32| !(to - from >= cell_m);
-        if thin(o.inner_radius_m, o.outer_radius_m) {
-            let text = format!(
-                "at least one air cell ({cell_m} m: the burner's diameter / cells_per_diameter) beyond inner_radius_m = {}",
-                o.inner_radius_m
-            );
-            i.push(at("outer_radius_m"), o.outer_radius_m, text);
-        }
-        if thin(o.bottom_m, o.top_m) {
-            let text = format!("at least one air cell ({cell_m} m) above bottom_m = {}", o.bottom_m);
-            i.push(at("top_m"), o.top_m, text);
-        }
-        if o.inner_radius_m < burner_radius_m && !(o.bottom_m >= cell_m) {
-            let text = format!(
-                "at least one air cell ({cell_m} m) above the burner, which it covers (inner_radius_m below the burner's {burner_radius_m} m)"
-            );
-            i.push(at("bottom_m"), o.bottom_m, text);
-        }
+        validate_one(o, &format!("{list}[{k}]."), burner_radius_m, (nr, nz, cell_m), i);
     }
-    if obstacles.is_empty() || !(cell_m > 0.0) || nr * nz > 1 << 20 {
+    if obstacles.is_empty() || i.len() > before || !(cell_m > 0.0) || nr * nz > 1 << 20 {
         return;
     }
     let cell = solid_cells(obstacles, nr, nz, cell_m);
     let touched = boundary_cells(&cell, nr, nz).len();
-    if touched > MAX_BOUNDARY_CELLS {
+    let named = format!("{} obstacles", obstacles.len());
+    if touched > MAX_BOUNDARY_CELLS || touched * nr * nz > MAX_CAPACITANCE_VALUES {
         let text = format!(
-            "obstacles that are solid in or beside at most {MAX_BOUNDARY_CELLS} air cells (these touch {touched}): smaller or fewer obstacles, or fewer cells_per_diameter"
+            "obstacles that are solid in or beside at most {MAX_BOUNDARY_CELLS} air cells, and at most {MAX_CAPACITANCE_VALUES} for all of them times the grid's {} cells (these touch {touched}): smaller or fewer obstacles, or fewer cells_per_diameter",
+            nr * nz
         );
-        i.push(&list, format!("{} obstacles", obstacles.len()), text);
+        i.push(&list, &named, text);
     }
+    if let Some((r, z)) = sealed_cell(&cell, nr, nz) {
+        let (r, z) = ((r as f32 + 0.5) * cell_m, (z as f32 + 0.5) * cell_m);
+        let text = format!(
+            "obstacles that leave every pocket of air open to the air beyond: the air at r = {r} m, {z} m up is sealed in (leave a gap of at least one air cell, {cell_m} m)"
+        );
+        i.push(&list, &named, text);
+    }
+}
+
+/// One obstacle's problems (see [`validate`]), fields under `at`.
+fn validate_one(
+    o: &Obstacle,
+    at: &str,
+    burner_radius_m: f32,
+    (nr, nz, cell_m): (usize, usize, f32),
+    i: &mut Issues,
+) {
+    let field = |name: &str| format!("{at}{name}");
+    let before = i.len();
+    i.range(&field("inner_radius_m"), o.inner_radius_m, 0.0..=1000.0);
+    i.range_open_low(&field("outer_radius_m"), o.outer_radius_m, 0.0, 1000.0);
+    i.range(&field("bottom_m"), o.bottom_m, 0.0..=1000.0);
+    i.range_open_low(&field("top_m"), o.top_m, 0.0, 1000.0);
+    if i.len() > before {
+        return;
+    }
+    if !(o.outer_radius_m - o.inner_radius_m >= cell_m) {
+        let text = format!(
+            "at least one air cell ({cell_m} m: the burner's diameter / cells_per_diameter) beyond inner_radius_m = {}",
+            o.inner_radius_m
+        );
+        i.push(field("outer_radius_m"), o.outer_radius_m, text);
+    }
+    if !(o.top_m - o.bottom_m >= cell_m) {
+        let text = format!("at least one air cell ({cell_m} m) above bottom_m = {}", o.bottom_m);
+        i.push(field("top_m"), o.top_m, text);
+    }
+    if o.inner_radius_m < burner_radius_m && !(o.bottom_m >= cell_m) {
+        let text = format!(
+            "at least one air cell ({cell_m} m) above the burner, which it covers (inner_radius_m below the burner's {burner_radius_m} m)"
+        );
+        i.push(field("bottom_m"), o.bottom_m, text);
+    }
+    let (radius, height) = (nr as f32 * cell_m, nz as f32 * cell_m);
+    if o.inner_radius_m >= radius {
+        let text = format!(
+            "inside the air's cylinder ({radius:.3} m: radius_diameters burner diameters), where the air can flow round it"
+        );
+        i.push(field("inner_radius_m"), o.inner_radius_m, text);
+    }
+    if o.bottom_m >= height {
+        let text =
+            format!("inside the air's cylinder ({height:.3} m tall: height_diameters burner diameters)");
+        i.push(field("bottom_m"), o.bottom_m, text);
+    }
+}
+
+/// Most values of W (k boundary cells × n grid cells, f32): 64 MiB.
+pub const MAX_CAPACITANCE_VALUES: usize = 1 << 24;
+
+/// An air cell of `cell` (solid cells) that no path through open faces joins to the
+/// open boundaries (the outer radius and the top), if any.
+fn sealed_cell(cell: &[bool], nr: usize, nz: usize) -> Option<(usize, usize)> {
+    let mut reached = vec![false; nr * nz];
+    let mut stack: Vec<usize> = (0..nz)
+        .map(|j| j * nr + nr - 1)
+        .chain((0..nr).map(|i| (nz - 1) * nr + i))
+        .filter(|&c| !cell[c])
+        .collect();
+    for &c in &stack {
+        reached[c] = true;
+    }
+    while let Some(c) = stack.pop() {
+        let (i, j) = (c % nr, c / nr);
+        let neighbours = [
+            (i > 0).then(|| c - 1),
+            (i + 1 < nr).then(|| c + 1),
+            (j > 0).then(|| c - nr),
+            (j + 1 < nz).then(|| c + nr),
+        ];
+        for n in neighbours.into_iter().flatten() {
+            if !cell[n] && !reached[n] {
+                reached[n] = true;
+                stack.push(n);
+            }
+        }
+    }
+    (0..nr * nz).find(|&c| !cell[c] && !reached[c]).map(|c| (c % nr, c / nr))
 }
 
 /// The grid's solid cells, the faces they close, and the capacitance solve of the
@@ -325,41 +396,138 @@ fn lu_solve(lu: &[f64], perm: &[usize], k: usize, b: &mut [f64]) {
     }
     for row in (0..k).rev() {
         let s: f64 = (row + 1..k).map(|c| lu[row * k + c] * x[c]).sum();
-        x[row] = (x[row] - s) / lu[row * k + row];
+        // A zero pivot is a singular C, which `validate` refuses (air sealed in): no
+        // infinities if one gets here.
+        let pivot = lu[row * k + row];
+        x[row] = if pivot != 0.0 { (x[row] - s) / pivot } else { 0.0 };
     }
     b.copy_from_slice(&x);
 }
 
-/// Moves `x` (world space), if inside `o` about the vertical axis through `origin`,
-/// out through the nearest of `o`'s faces (mirrored across it), and removes the part
-/// of `v` that points into `o` there (an inelastic wall).
-pub(crate) fn push_out(o: &Obstacle, origin: glam::Vec3, x: &mut glam::Vec3, v: &mut glam::Vec3) {
-    let d = glam::Vec2::new(x.x - origin.x, x.z - origin.z);
-    let (r, z) = (d.length(), x.y - origin.y);
-    if !o.contains(r, z) {
-        return;
+/// Keeps a particle out of `o`, a solid about the vertical axis through `axis`: the
+/// particle moved this step from x − v·h to `x`; if that path enters `o` (sampled at
+/// least twice per thickness of `o`, so no step passes through it), the particle is
+/// put back outside the face it entered by, mirrored across it (as far outside as it
+/// went in, at most half the thickness: particles arriving together keep their
+/// spacing instead of landing on one sheet, where their SPH neighbours would pile up),
+/// and its velocity into that face is removed (an inelastic wall). A particle that
+/// was already inside leaves by the nearest face. Returns whether it moved the
+/// particle. Never below the ground.
+pub(crate) fn push_out(
+    o: &Obstacle,
+    axis: glam::Vec3,
+    x: &mut glam::Vec3,
+    v: &mut glam::Vec3,
+    h: f32,
+) -> bool {
+    let prev = *x - *v * h;
+    let (z_prev, z_now) = (prev.y - axis.y, x.y - axis.y);
+    if (z_prev < o.bottom_m && z_now < o.bottom_m) || (z_prev > o.top_m && z_now > o.top_m) {
+        return false;
     }
-    let radial = if r > 0.0 { d / r } else { glam::Vec2::X };
-    let radial = glam::Vec3::new(radial.x, 0.0, radial.y);
-    // Depth to each face and the outward normal there (no inner face for a disc, no
-    // underside for a solid on the ground).
+    let local = |p: glam::Vec3| (glam::Vec2::new(p.x - axis.x, p.z - axis.z).length(), p.y - axis.y);
+    let (r, z) = local(prev);
+    if o.contains(r, z) {
+        return leave_by_nearest_face(o, axis, x, v);
+    }
+    let half = 0.5 * (o.outer_radius_m - o.inner_radius_m).min(o.top_m - o.bottom_m);
+    let steps = ((*x - prev).length() / half).ceil();
+    let steps = if steps.is_finite() { (steps as usize).clamp(1, 64) } else { 1 };
+    let mut before = (r, z);
+    for s in 1..=steps {
+        let p = prev.lerp(*x, s as f32 / steps as f32);
+        let (r, z) = local(p);
+        if !o.contains(r, z) {
+            before = (r, z);
+            continue;
+        }
+        // The face it entered by: the one the last point outside lay beyond.
+        let (rb, zb) = before;
+        let face = if zb < o.bottom_m {
+            Face::Bottom
+        } else if zb > o.top_m {
+            Face::Top
+        } else if rb > o.outer_radius_m {
+            Face::Outer
+        } else {
+            Face::Inner
+        };
+        *x = p;
+        place_outside(o, axis, face, half, x, v);
+        return true;
+    }
+    false
+}
+
+/// A face of an [`Obstacle`].
+#[derive(Clone, Copy)]
+enum Face {
+    Bottom,
+    Top,
+    Inner,
+    Outer,
+}
+
+/// Moves `x` (inside `o`) out through the nearest face (no inner face for a disc, no
+/// underside for a solid on the ground).
+fn leave_by_nearest_face(o: &Obstacle, axis: glam::Vec3, x: &mut glam::Vec3, v: &mut glam::Vec3) -> bool {
+    let r = glam::Vec2::new(x.x - axis.x, x.z - axis.z).length();
+    let z = x.y - axis.y;
     let faces = [
-        (o.outer_radius_m - r, radial),
-        (o.top_m - z, glam::Vec3::Y),
-        (if o.inner_radius_m > 0.0 { r - o.inner_radius_m } else { f32::INFINITY }, -radial),
-        (if o.bottom_m > 0.0 { z - o.bottom_m } else { f32::INFINITY }, -glam::Vec3::Y),
+        (o.outer_radius_m - r, Face::Outer),
+        (o.top_m - z, Face::Top),
+        (if o.inner_radius_m > 0.0 { r - o.inner_radius_m } else { f32::INFINITY }, Face::Inner),
+        (if o.bottom_m > 0.0 { z - o.bottom_m } else { f32::INFINITY }, Face::Bottom),
     ];
-    let Some(&(depth, normal)) = faces.iter().min_by(|a, b| a.0.total_cmp(&b.0)) else { return };
-    // Mirrored across the face, as far outside as it was inside: particles that hit
-    // the face together keep their spacing instead of landing on one sheet (where
-    // their SPH neighbours would pile up).
-    *x += normal * (2.0 * depth + 1e-5);
+    let Some(&(_, face)) = faces.iter().min_by(|a, b| a.0.total_cmp(&b.0)) else { return false };
+    let half = 0.5 * (o.outer_radius_m - o.inner_radius_m).min(o.top_m - o.bottom_m);
+    place_outside(o, axis, face, half, x, v);
+    true
+}
+
+/// Mirrors `x` (inside `o`) across `face`, at most `reach` outside it (and never below
+/// the ground or across the axis), and removes `v`'s part into the face.
+fn place_outside(
+    o: &Obstacle,
+    axis: glam::Vec3,
+    face: Face,
+    reach: f32,
+    x: &mut glam::Vec3,
+    v: &mut glam::Vec3,
+) {
+    // Just outside the face: f32 steps at the scale of the position.
+    let gap = 1e-5 * (1.0 + x.abs().max_element());
+    let d = glam::Vec2::new(x.x - axis.x, x.z - axis.z);
+    let r = d.length();
+    let radial = if r > 0.0 { d / r } else { glam::Vec2::X };
+    let z = x.y - axis.y;
+    let set_radius = |x: &mut glam::Vec3, radius: f32| {
+        let p = glam::Vec2::new(axis.x, axis.z) + radial * radius;
+        (x.x, x.z) = (p.x, p.y);
+    };
+    let normal = match face {
+        Face::Bottom => {
+            x.y = axis.y + (o.bottom_m - (z - o.bottom_m).min(reach) - gap).max(0.0);
+            -glam::Vec3::Y
+        }
+        Face::Top => {
+            x.y = axis.y + o.top_m + (o.top_m - z).min(reach) + gap;
+            glam::Vec3::Y
+        }
+        Face::Outer => {
+            set_radius(x, o.outer_radius_m + (o.outer_radius_m - r).min(reach) + gap);
+            glam::Vec3::new(radial.x, 0.0, radial.y)
+        }
+        Face::Inner => {
+            set_radius(x, (o.inner_radius_m - (r - o.inner_radius_m).min(reach) - gap).max(0.0));
+            -glam::Vec3::new(radial.x, 0.0, radial.y)
+        }
+    };
     let into = v.dot(normal);
     if into < 0.0 {
         *v -= normal * into;
     }
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -439,6 +607,18 @@ mod tests {
         assert!(nan.contains("air.obstacles[0].outer_radius_m"), "{nan}");
         let big = problems(&[o(0.0, 0.3, 0.1, 1.0)]);
         assert!(big.contains("air.obstacles") && big.contains("at most 1024"), "{big}");
+        // A pot resting on a ring of stones seals the air around the burner in.
+        let sealed = problems(&[o(0.2, 0.24, 0.0, 0.15), o(0.0, 0.24, 0.15, 0.17)]);
+        assert!(sealed.contains("air.obstacles") && sealed.contains("sealed in"), "{sealed}");
+        assert_eq!(problems(&[o(0.2, 0.24, 0.0, 0.12), o(0.0, 0.24, 0.15, 0.17)]), "", "a gap under the pot");
+        // Beyond the air's cylinder (40 cells of 8 mm: 0.32 m; 160 cells: 1.28 m).
+        let out = problems(&[o(0.33, 0.4, 0.0, 0.1)]);
+        assert!(out.contains("air.obstacles[0].inner_radius_m") && out.contains("0.320 m"), "{out}");
+        let high = problems(&[o(0.0, 0.1, 1.3, 1.4)]);
+        assert!(high.contains("air.obstacles[0].bottom_m") && high.contains("1.280 m tall"), "{high}");
+        // A value that is not a number is named once, not blamed on another field.
+        let nan = problems(&[o(f32::NAN, 0.1, 0.3, 0.4)]);
+        assert!(nan.contains("inner_radius_m") && !nan.contains("outer_radius_m"), "{nan}");
         let many = problems(&vec![o(0.0, 0.1, 0.3, 0.32); MAX_OBSTACLES + 1]);
         assert!(many.contains("at most 16 obstacles"), "{many}");
     }

@@ -599,7 +599,7 @@ impl FlameSim {
         // air's obstacles.
         if let Some(air) = &self.air {
             let p = &mut self.particles;
-            air.collide(&mut p.position_m, &mut p.velocity_m_s);
+            air.collide(h, &mut p.position_m, &mut p.velocity_m_s);
             p.temperature_k.par_chunks_mut(CHUNK).zip(p.position_m.par_chunks(CHUNK)).for_each(
                 |(temp, x)| {
                     for (t, x) in temp.iter_mut().zip(x) {

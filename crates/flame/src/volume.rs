@@ -120,18 +120,30 @@ fn leaves_per_particle(config: &FlameConfig, voxel_m: f64) -> Result<u64, Volume
 /// advect by. One voxel per air cell: voxel (i, j, k) is centred at (i, j, k) times the
 /// air's cell size, and every voxel whose centre lies inside the air's cylinder
 /// ([`Air::contains`]) holds the air's velocity there ([`Air::velocity_at`]). Outside
-/// the cylinder the air is not solved and the grid is empty.
+/// the cylinder the air is not solved, and inside its obstacles there is none: the
+/// grid is empty there.
 pub fn air_velocity(air: &Air) -> Result<Grid<[f32; 3]>, VolumeError> {
-    let (_, _, dx) = air.grid().shape();
+    let (nr, nz, dx) = air.grid().shape();
     let voxel_m = f64::from(dx);
-    let (lo, hi) = air_voxel_box(air)?;
     let mut grid = Grid::new("velocity", Transform::new(voxel_m, [0.0; 3])?, GridClass::Unknown);
     grid.insert_metadata("units", "m/s")?;
-    for x in lo[0]..=hi[0] {
-        for y in lo[1]..=hi[1] {
-            for z in lo[2]..=hi[2] {
+    let (radius, ground) = (nr as f32 * dx, air.ground_m());
+    let limit = (MAX_INDEX - 8) as f32;
+    let (y_lo, y_hi) = ((ground / dx).floor(), ((ground + nz as f32 * dx) / dx).ceil());
+    // Row by row, over the square around that row's (displaced) axis.
+    for y in y_lo as i64..=y_hi as i64 {
+        let axis = air.axis_at(y as f32 * dx - ground);
+        let (lo, hi) = (((axis - radius) / dx).floor(), ((axis + radius) / dx).ceil());
+        let corners = [lo.x, lo.y, hi.x, hi.y, y as f32];
+        if corners.iter().any(|c| !(c.abs() <= limit)) {
+            let position_m = [axis.x, y as f32 * dx, axis.y];
+            return Err(VolumeError::AirExtent { position_m, voxel_m });
+        }
+        let y = y as i32;
+        for x in lo.x as i32..=hi.x as i32 {
+            for z in lo.y as i32..=hi.y as i32 {
                 let p = glam::Vec3::new(x as f32, y as f32, z as f32) * dx;
-                if air.contains(p) {
+                if air.contains(p) && !air.in_obstacle(p) {
                     grid.set([x, y, z], air.velocity_at(p).to_array());
                 }
             }
@@ -140,31 +152,14 @@ pub fn air_velocity(air: &Air) -> Result<Grid<[f32; 3]>, VolumeError> {
     Ok(grid)
 }
 
-/// Bytes [`air_velocity`] takes for `air` (the grid and its encoded copy: 12 bytes a
-/// voxel each, over the box that holds the cylinder: an upper bound), refused as it is.
-pub fn air_velocity_bytes(air: &Air) -> Result<u64, VolumeError> {
-    let (lo, hi) = air_voxel_box(air)?;
-    let voxels: u64 = (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product();
-    Ok(voxels * 24)
-}
-
-/// The voxels (lowest and highest index) of the box that holds the air's cylinder, at
-/// the air's cell size; refused beyond [`MAX_VOXELS`] or the grid's index range.
-fn air_voxel_box(air: &Air) -> Result<([i32; 3], [i32; 3]), VolumeError> {
-    let (_, _, dx) = air.grid().shape();
-    let voxel_m = f64::from(dx);
-    let (lo, hi) = air.bounds();
-    let (lo_i, hi_i) = ((lo / dx).floor(), (hi / dx).ceil());
-    let limit = (MAX_INDEX - 8) as f32;
-    if !(lo_i.is_finite() && hi_i.is_finite()) || lo_i.min_element() < -limit || hi_i.max_element() > limit {
-        let far = if lo_i.abs().max_element() > hi_i.abs().max_element() { lo } else { hi };
-        return Err(VolumeError::AirExtent { position_m: far.to_array(), voxel_m });
-    }
-    let voxels = (hi_i - lo_i + glam::Vec3::ONE).as_dvec3().element_product();
-    if voxels > MAX_VOXELS as f64 {
-        return Err(VolumeError::TooLarge { voxels: voxels as u64, voxel_m });
-    }
-    Ok((lo_i.as_ivec3().to_array(), hi_i.as_ivec3().to_array()))
+/// Bytes [`air_velocity`] takes for `air` at most, however the wind has displaced its
+/// rows: the grid and its encoded copy (12 bytes a voxel each) over the 8³ leaves each
+/// row of voxels can touch, the leaves of a square of the cylinder's diameter.
+pub fn air_velocity_bytes(air: &Air) -> u64 {
+    let (nr, nz, _) = air.grid().shape();
+    // A row's square spans 2 nr + 3 voxels: at most ⌈(2 nr + 3)/8⌉ + 1 leaves a side.
+    let side = ((2 * nr + 3).div_ceil(8) + 1) as u64;
+    (nz as u64 + 2) * side * side * 512 * 24
 }
 
 /// Leaf coordinates fit in 21 bits each (voxel indices within ±2^23).
@@ -581,7 +576,8 @@ mod tests {
         let (nr, nz, dx) = air.grid().shape();
         assert_eq!(grid.name(), "velocity");
         assert_eq!(grid.transform().voxel_size_m(), f64::from(dx));
-        let (lo, hi) = air_voxel_box(air).unwrap();
+        let (lo, hi) = air.bounds();
+        let (lo, hi) = ((lo / dx).floor().as_ivec3().to_array(), (hi / dx).ceil().as_ivec3().to_array());
         let (mut inside, mut active) = (0u64, 0u64);
         for x in lo[0] - 1..=hi[0] + 1 {
             for y in lo[1] - 1..=hi[1] + 1 {

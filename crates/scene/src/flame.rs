@@ -180,9 +180,9 @@ impl Phenomenon for FlameScene {
         let voxel_m = options.voxel_m.unwrap_or(0.01);
         let config = built.sim.config();
         let particles = (peak_particles(config) as usize).max(built.sim.particles().len());
-        let air = built.sim.air().map(phenomena_flame::volume::air_velocity_bytes).transpose();
+        let air = built.sim.air().map_or(0, phenomena_flame::volume::air_velocity_bytes);
         phenomena_flame::volume::volume_bytes(particles, config, voxel_m)
-            .and_then(|n| Ok(n + air?.unwrap_or(0)))
+            .map(|n| n + air)
             .map_err(|e| e.to_string())
     }
 
@@ -200,7 +200,7 @@ impl Phenomenon for FlameScene {
         let voxel_m = options.voxel_m.unwrap_or(0.01);
         let air = built.sim.air();
         let need = volume_bytes(built.sim.particles().len(), built.sim.config(), voxel_m)
-            .and_then(|n| Ok(n + air.map(air_velocity_bytes).transpose()?.unwrap_or(0)))
+            .map(|n| n + air.map_or(0, air_velocity_bytes))
             .map_err(|e| e.to_string())?;
         options.admit(need, &format!("{voxel_m} m"))?;
         // With the air around the flame, its velocity (at the air's own cells).
