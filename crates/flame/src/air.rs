@@ -476,7 +476,7 @@ impl AirGrid {
 /// from the ground without drift, so the column leans with the time its air has spent
 /// in the wind, as a plume in a crossflow does; the grid's own flow (the necking, the
 /// vortex rings) is solved about the leaning axis. The drift forgets the wind over a
-/// second ([`DRIFT_MEMORY_S`]), so rows whose core does not rise (above the flame's
+/// second, so rows whose core does not rise (above the flame's
 /// tip, above an obstacle) reach a steady drift instead of gaining it without end, and
 /// no row's axis moves further than the cylinder's radius from the burner. Rows that
 /// hold an obstacle stay on the burner's axis (the obstacle is fixed to the ground),
@@ -625,7 +625,7 @@ impl Air {
         });
     }
 
-    /// Keeps the particles out of the obstacles ([`crate::obstacles::push_out`]): each
+    /// Keeps the particles out of the obstacles (see [`Obstacle`]): each
     /// moved by its velocity `vel` over the last `h` seconds to `pos`. The obstacles
     /// stand on the burner's axis; the rows of the air that hold them do not drift
     /// with the wind ([`Air::step`]), so the air has them there too.

@@ -37,7 +37,7 @@
 pub mod air;
 mod config;
 pub mod motion;
-mod obstacles;
+pub mod obstacles;
 mod render;
 mod sim;
 pub mod volume;
