@@ -180,7 +180,7 @@ impl Atlas {
         let image = u64::from(layout.atlas_width) * u64::from(layout.atlas_height) * 4;
         let colour = image * if options.crop { 2 } else { 1 } + u64::from(options.loop_frames) * cell * 12;
         // The motion atlas: its vectors (4 bytes a pixel), its image and crop, its heads.
-        let motion = image * 3 + u64::from(options.loop_frames) * cell * 8;
+        let motion = image * 2 + u64::from(options.loop_frames) * cell * 8;
         colour + if options.motion { motion } else { 0 }
     }
 
@@ -238,21 +238,23 @@ impl Atlas {
     }
 }
 
-/// Steps of a stored motion vector per pixel (vectors are kept as i16 until the
-/// largest is known: ±1023 pixels at 1/32 of a pixel).
-const MOTION_STEPS_PER_PX: f32 = 32.0;
-
 /// Motion vectors tiled as the colour atlas is (the same cells, cross-fade and crop),
-/// encoded once the largest is known: `R = 0.5 + 0.5 · dx / scale_px`, `G = 0.5 + 0.5 ·
-/// dy / scale_px` (8 bits each), `B = 0`, `A = 1`, with (dx, dy) the displacement of
-/// the cell's content from this frame to the next in cell pixels, x to the right and y
-/// down, and `scale_px` the largest |dx| or |dy| over every cell. A flipbook shader
-/// blending frames k and k + 1 at t samples frame k at uv − t·d and frame k + 1 at
-/// uv + (1 − t)·d.
+/// encoded once the largest is known:
+/// `R = 128 + round(127 · dx / scale_px)`, `G = 128 + round(127 · dy / scale_px)`
+/// (8 bits each, so 128 is still), `B = 0`, `A = 255`,
+/// with (dx, dy) the displacement of the cell's content from this frame to the next in
+/// cell pixels, x to the right and y down, and `scale_px` the largest |dx| or |dy| over
+/// every cell (before any crop). Until then each vector is kept as an i16 in steps of
+/// 1/(32767 / the cell's longer side) pixel: a displacement up to the cell's size, far
+/// finer than an 8-bit code. A flipbook shader blending frames k and k + 1 at t samples
+/// frame k at uv − t·d and frame k + 1 at uv + (1 − t)·d, d in uv units (pixels over
+/// the atlas's size).
 pub struct MotionAtlas {
     layout: Layout,
     loop_frames: u32,
-    /// Each atlas pixel's vector, in 1/[`MOTION_STEPS_PER_PX`] pixels.
+    /// Steps of a stored vector per pixel.
+    steps_per_px: f32,
+    /// Each atlas pixel's vector, in steps.
     steps: Vec<[i16; 2]>,
     heads: Vec<Vec<[f32; 2]>>,
     pushed: usize,
@@ -262,7 +264,17 @@ pub struct MotionAtlas {
 impl MotionAtlas {
     /// An empty motion atlas of `layout`.
     pub fn new(layout: Layout, loop_frames: u32) -> Self {
-        Self { layout, loop_frames, steps: Vec::new(), heads: Vec::new(), pushed: 0, largest: 0 }
+        let side = layout.frame_width.max(layout.frame_height).max(1);
+        let steps_per_px = f32::from(i16::MAX) / side as f32;
+        Self {
+            layout,
+            loop_frames,
+            steps_per_px,
+            steps: Vec::new(),
+            heads: Vec::new(),
+            pushed: 0,
+            largest: 0,
+        }
     }
 
     /// The next frame's vectors (cell pixels, the cell's size, row-major).
@@ -304,9 +316,10 @@ impl MotionAtlas {
         for y in 0..fh {
             let row = (cy * fh + y) * aw + cx * fw;
             for x in 0..fw {
+                // Beyond the cell's size (or infinite): held at the largest step; not a
+                // number: still.
                 let q = vectors[y * fw + x].map(|v| {
-                    let v = (v * MOTION_STEPS_PER_PX).round();
-                    if v.is_finite() { v.clamp(-limit, limit) as i16 } else { 0 }
+                    if v.is_nan() { 0 } else { (v * self.steps_per_px).round().clamp(-limit, limit) as i16 }
                 });
                 self.largest = self.largest.max(q[0].abs()).max(q[1].abs());
                 self.steps[row + x] = q;
@@ -321,9 +334,9 @@ impl MotionAtlas {
             return Err(format!("{} motion frames for a flipbook of {} (+{k} cross-faded)", self.pushed, n));
         }
         let scale = f32::from(self.largest.max(1));
-        let byte = |v: i16| (255.0 * (0.5 + 0.5 * f32::from(v) / scale)).round() as u8;
+        let byte = |v: i16| (128.0 + (127.0 * f32::from(v) / scale).round()) as u8;
         let rgba = self.steps.iter().flat_map(|&[x, y]| [byte(x), byte(y), 0, 255]).collect();
-        Ok((rgba, scale / MOTION_STEPS_PER_PX))
+        Ok((rgba, scale / self.steps_per_px))
     }
 }
 
@@ -333,14 +346,14 @@ pub struct MotionDescriptor {
     /// The motion atlas's file name.
     pub image: String,
     /// The largest displacement component, cell pixels: R and G hold
-    /// 0.5 + 0.5 · d / scale_px.
+    /// 128 + round(127 · d / scale_px).
     pub scale_px: f32,
     /// The encoding in words.
     pub encoding: &'static str,
 }
 
 /// [`MotionDescriptor::encoding`].
-pub const MOTION_ENCODING: &str = "linear 8-bit R, G = 0.5 + 0.5 * d / scale_px, d the displacement of the cell's content from this frame to the next in cell pixels (x right, y down); B = 0, A = 1; not sRGB";
+pub const MOTION_ENCODING: &str = "linear 8-bit R, G = 128 + round(127 * d / scale_px), so d = (byte - 128) / 127 * scale_px: the displacement of the cell's content from this frame to the next in cell pixels (x right, y down; first order, v * dt); B = 0, A = 255; not sRGB";
 
 /// Transparent pixels kept around the content when cropping, so that bilinear sampling
 /// at the cells' edges reads nothing of the next cell.
@@ -476,23 +489,31 @@ mod tests {
     }
 
     /// Motion vectors go to the colour's cells: decoded, each pixel is its vector to
-    /// within an 8-bit step (scale / 127.5), the largest component sets the scale, and
+    /// within half an 8-bit code, still is 128, the largest component sets the scale, and
     /// a looped head cell is the colour's cross-fade of its vectors.
     #[test]
     fn motion_cells_decode_to_their_vectors() {
         let l = layout(5, 3, 2, &opts(false, 1)).unwrap();
         let mut m = MotionAtlas::new(l, 1);
         let frame = |j: usize| -> Vec<[f32; 2]> {
-            (0..6).map(|i| [j as f32 - 2.0 + 0.25 * i as f32, -(i as f32) * 0.5]).collect()
+            (0..6).map(|i| [j as f32 - 2.0 + 0.2371 * i as f32, -(i as f32) * 0.4993]).collect()
         };
         for j in 0..5 {
             m.push(frame(j)).unwrap();
         }
         assert!(m.push(frame(5)).is_err(), "a sixth frame");
         let (rgba, scale) = m.finish().unwrap();
-        // The largest component: frame 3's 1 + 1.25 = 2.25 px, or 2.5 px down.
-        assert_eq!(scale, 2.5);
-        let decode = |v: u8| (2.0 * f32::from(v) / 255.0 - 1.0) * scale;
+        // The largest component: 5 × 0.4993 = 2.4965 px down (frame 3's 1 + 5 × 0.2371
+        // = 2.19 px across is less), to a step of 1/(32767 / 3) px.
+        let step = 3.0 / 32767.0;
+        assert!((scale - 2.4965).abs() <= step, "scale {scale}");
+        let decode = |v: u8| (f32::from(v) - 128.0) / 127.0 * scale;
+        // Still is 128 exactly.
+        let mut still = MotionAtlas::new(l, 1);
+        for _ in 0..5 {
+            still.push(vec![[0.0, 0.0]; 6]).unwrap();
+        }
+        assert!(still.finish().unwrap().0.chunks(4).all(|p| p == [128, 128, 0, 255]));
         let want = |j: usize, i: usize| -> [f32; 2] {
             if j == 0 {
                 // Head 0 faded with tail 4 at w = 1/2.
@@ -508,8 +529,10 @@ mod tests {
                 let at = ((cy + i / 3) * l.atlas_width as usize + cx + i % 3) * 4;
                 let got = [decode(rgba[at]), decode(rgba[at + 1])];
                 let w = want(j, i);
+                // Half an 8-bit code (scale / 254) and the stored step's rounding.
+                let tolerance = scale / 254.0 + step;
                 assert!(
-                    (got[0] - w[0]).abs() <= scale / 127.5 && (got[1] - w[1]).abs() <= scale / 127.5,
+                    (got[0] - w[0]).abs() <= tolerance && (got[1] - w[1]).abs() <= tolerance,
                     "cell {j} pixel {i}: {got:?} {w:?}"
                 );
                 assert_eq!((rgba[at + 2], rgba[at + 3]), (0, 255));

@@ -232,6 +232,11 @@ impl Phenomenon for FlameScene {
     /// Where the flame's light moves in one frame time, per pixel of the last render
     /// ([`phenomena_flame::motion`]).
     fn motion(built: &Built<Self>) -> Result<MotionVectors, String> {
+        if built.renderer.settings().view != phenomena_flame::View::Flame {
+            return Err(
+                "--motion: the density view's squares have no motion vectors (use the flame view)".into()
+            );
+        }
         let sim = &built.sim;
         let field = phenomena_flame::motion::motion_vectors(
             &built.renderer,

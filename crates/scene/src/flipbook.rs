@@ -125,8 +125,7 @@ impl FrameSink for FlipbookSink {
             .push(display)
             .map_err(SinkError)?;
         if let Some(motion) = self.motion.as_mut() {
-            let m = out.data.motion()?;
-            motion.push(resized_vectors(&m, w, h)).map_err(SinkError)?;
+            motion.push(resized_vectors(out.data.motion()?, w, h)).map_err(SinkError)?;
         }
         self.first.get_or_insert(out.index);
         self.last = out.index;
@@ -185,9 +184,9 @@ const MOTION_IMAGE: &str = "flipbook_motion.png";
 
 /// `m` resampled to `w` × `h` (bilinear, at pixel centres), its vectors scaled to the
 /// new pixels.
-fn resized_vectors(m: &MotionVectors, w: usize, h: usize) -> Vec<[f32; 2]> {
+fn resized_vectors(m: MotionVectors, w: usize, h: usize) -> Vec<[f32; 2]> {
     if (m.width, m.height) == (w, h) || m.width == 0 || m.height == 0 {
-        return m.vectors.clone();
+        return m.vectors;
     }
     let (sx, sy) = (m.width as f32 / w as f32, m.height as f32 / h as f32);
     let at = |x: usize, y: usize| m.vectors[y.min(m.height - 1) * m.width + x.min(m.width - 1)];
@@ -221,7 +220,10 @@ impl Files for FlipbookSink {
     /// The atlas, the loop's head frames and one frame resized to its cell.
     fn memory_bytes(&self, _state: crate::sink::State<'_>) -> Result<u64, SinkError> {
         let cell = u64::from(self.layout.frame_width) * u64::from(self.layout.frame_height);
-        Ok(Atlas::memory_bytes(&self.layout, &self.options) + cell * 24)
+        // With motion, a frame's vectors as they are made (the renderer's frame: its
+        // sums and vectors, 20 bytes a pixel) and resized to the cell (8).
+        let motion = if self.options.motion { cell * 28 } else { 0 };
+        Ok(Atlas::memory_bytes(&self.layout, &self.options) + cell * 24 + motion)
     }
 
     fn summary(&self, _dir: &Path) -> String {
