@@ -501,6 +501,8 @@ pub struct SkyRenderer {
     /// Each catalogue star to the limiting magnitude: its linear sRGB per unit of
     /// transmission and solid angle (colour × illuminance / white), worked out once.
     star_light: Vec<Vec3>,
+    /// [`SkyRenderer::still_night`], worked out at the first frame (empty until then).
+    still_night: Vec<Option<Vec3>>,
 }
 
 /// Ray directions of the points (i, j) · [`NIGHT_STEP_PX`] of the image.
@@ -655,6 +657,7 @@ impl SkyRenderer {
         Ok(Self {
             night_dirs,
             star_light: Vec::new(),
+            still_night: Vec::new(),
             settings,
             width,
             height,
@@ -1011,46 +1014,70 @@ impl SkyRenderer {
     /// 0.5° cells, and interpolated), then the ground: everything below a horizon of low
     /// hills (1-3°, a sum of sines of the azimuth) is black. Each pixel's direction is
     /// interpolated from the grid of ray directions every [`NIGHT_STEP_PX`] pixels
-    /// (bilinear between unit vectors 4 px apart: under 10⁻⁴ of a degree off).
+    /// (bilinear between unit vectors 4 px apart: under 10⁻⁴ of a degree off). The
+    /// airglow and the ground do not change with time and are worked out at the first
+    /// frame only ([`SkyRenderer::still_night`]; the same values as every frame's pass).
     fn draw_night(&mut self, time_s: f64) {
         let airglow = self.settings.airglow && self.settings.mode == ColourMode::Physical;
         let (milky_way, ground) = (self.settings.milky_way, self.settings.ground);
         if !(airglow || milky_way || ground) {
             return;
         }
-        let glow = if airglow { self.airglow_table() } else { Vec::new() };
+        if self.still_night.is_empty() {
+            self.still_night = self.still_night(airglow, ground);
+        }
         let (mw, mw_rgb) = if milky_way { self.milky_way_now(time_s) } else { (Vec::new(), Vec3::ZERO) };
         let grid = &self.night_dirs;
         let w = self.width;
+        let still = &self.still_night;
         let [r, g, b] = self.frame.planes_mut();
         r.data_mut()
             .par_chunks_mut(w)
             .zip(g.data_mut().par_chunks_mut(w))
             .zip(b.data_mut().par_chunks_mut(w))
+            .zip(still.par_chunks(w))
             .enumerate()
-            .for_each(|(y, ((r, g), b))| {
+            .for_each(|(y, (((r, g), b), still))| {
                 for x in 0..w {
-                    let cell = grid.at(x, y);
-                    let d = NightGrid::lerp(&grid.dirs, grid.w, cell);
-                    let up = d.y / d.length();
-                    if ground && up < HILLS_TOP_SIN && up.asin() < hills_rad(d.x.atan2(d.z)) {
+                    let Some(mut add) = still[x] else {
                         (r[x], g[x], b[x]) = (0.0, 0.0, 0.0);
                         continue;
-                    }
-                    let mut add = Vec3::ZERO;
-                    if airglow && up >= 0.0 {
-                        let at = up.min(1.0) * AIRGLOW_STEPS as f32;
-                        let k = (at as usize).min(AIRGLOW_STEPS - 1);
-                        add += glow[k].lerp(glow[k + 1], at - k as f32);
-                    }
+                    };
                     if milky_way {
-                        add += mw_rgb * NightGrid::lerp(&mw, grid.w, cell);
+                        add += mw_rgb * NightGrid::lerp(&mw, grid.w, grid.at(x, y));
                     }
                     r[x] += add.x;
                     g[x] += add.y;
                     b[x] += add.z;
                 }
             });
+    }
+
+    /// The night's part that does not change with time, per pixel (row-major): `None`
+    /// where the ground hides the sky, else the airglow's linear sRGB (zero without it).
+    /// The view and the settings are fixed, so [`SkyRenderer::draw_night`] works it out
+    /// once.
+    fn still_night(&self, airglow: bool, ground: bool) -> Vec<Option<Vec3>> {
+        let glow = if airglow { self.airglow_table() } else { Vec::new() };
+        let grid = &self.night_dirs;
+        let w = self.width;
+        (0..w * self.height)
+            .into_par_iter()
+            .map(|k| {
+                let d = NightGrid::lerp(&grid.dirs, grid.w, grid.at(k % w, k / w));
+                let up = d.y / d.length();
+                if ground && up < HILLS_TOP_SIN && up.asin() < hills_rad(d.x.atan2(d.z)) {
+                    return None;
+                }
+                let mut add = Vec3::ZERO;
+                if airglow && up >= 0.0 {
+                    let at = up.min(1.0) * AIRGLOW_STEPS as f32;
+                    let j = (at as usize).min(AIRGLOW_STEPS - 1);
+                    add += glow[j].lerp(glow[j + 1], at - j as f32);
+                }
+                Some(add)
+            })
+            .collect()
     }
 
     /// The airglow's linear sRGB at sin(elevation) = k / [`AIRGLOW_STEPS`].
@@ -1305,7 +1332,9 @@ fn allocate_points(total: u32, photons: &[f64; 5]) -> [u32; 5] {
 /// `lanes_emit_the_scalar_points`).
 fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut BandedPoints) {
     const LANES: usize = 8;
-    let n = out.lanes.len();
+    // Taken out of `out` while its points are pushed (and put back, its memory kept).
+    let lanes = std::mem::take(&mut out.lanes);
+    let n = lanes.len();
     let splat = f32x8::splat;
     let (top8, near) = (splat(top), splat(NEAR_M));
     let (fx, fz) = (splat(foot.x), splat(foot.z));
@@ -1314,7 +1343,7 @@ fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut B
     let dot = |v: Vec3, x: f32x8, y: f32x8, z: f32x8| x * splat(v.x) + y * splat(v.y) + z * splat(v.z);
     let (cx, cy, scale) = (splat(ph.centre_px.0), splat(ph.centre_px.1), splat(ph.scale));
     for at in (0..n).step_by(LANES) {
-        let group = &out.lanes[at..(at + LANES).min(n)];
+        let group = &lanes[at..(at + LANES).min(n)];
         let mut a = [top; LANES];
         for (a, p) in a.iter_mut().zip(group) {
             *a = p.0;
@@ -1329,15 +1358,13 @@ fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut B
         let y = (cy - dot(ph.up, dx, dy, dz) * s).to_array();
         let inverse = (s * s * (dx * dx + dy * dy + dz * dz).sqrt() / depth).to_array();
         let ok = depth.simd_gt(near).to_bitmask();
-        let group: [(f32, f32, u8); LANES] =
-            std::array::from_fn(|l| group.get(l).copied().unwrap_or_default());
-        for l in 0..n.min(at + LANES) - at {
+        for (l, &(_, per_point, line)) in group.iter().enumerate() {
             if ok & (1 << l) != 0 {
-                let (_, per_point, line) = group[l];
                 out.push(Splat { x: x[l], y: y[l], weight: per_point * inverse[l], line });
             }
         }
     }
+    out.lanes = lanes;
 }
 
 /// ⌊v⌋ for |v| < 2³¹ (an inlined floor: the library call is not, on baseline x86-64).
