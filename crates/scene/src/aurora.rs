@@ -136,7 +136,8 @@ impl Phenomenon for AuroraScene {
         let (w, h) = (f64::from(self.scene.width), f64::from(self.scene.height));
         let sky = &self.render.sky;
         let per_particle = match sky.mode {
-            ColourMode::Physical => f64::from(sky.points_per_particle),
+            // Each of the five lines rounds to at least one point.
+            ColourMode::Physical => f64::from(sky.points_per_particle) + 5.0,
             ColourMode::Paper => f64::from(sky.paper.collisions),
         };
         let mut parts = vec![
