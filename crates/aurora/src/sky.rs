@@ -50,6 +50,8 @@ use crate::night::{self, Airglow, Site};
 use crate::sim::AuroraSim;
 use crate::small_scale::Prepared;
 
+mod tiles;
+
 const EMIT: Purpose = Purpose::named("aurora.sky.emit");
 /// Mixing a salt into the frame's key ([`SkyRenderer::set_sample_salt`]).
 const SALT: Purpose = Purpose::named("aurora.sky.salt");
@@ -505,6 +507,12 @@ pub struct SkyRenderer {
     star_light: Vec<Vec3>,
     /// [`SkyRenderer::still_night`], worked out at the first frame (empty until then).
     still_night: Vec<Option<Vec3>>,
+    /// The runs' tiles of the physical mode's deposit through a perspective camera
+    /// (`tiles.rs`), their memory kept between frames.
+    tiles: Vec<tiles::Tile>,
+    /// Take the tiles' path where it applies (false only to test the banded path
+    /// against it).
+    tiled: bool,
 }
 
 /// Ray directions of the points (i, j) · [`NIGHT_STEP_PX`] of the image.
@@ -660,6 +668,8 @@ impl SkyRenderer {
             night_dirs,
             star_light: Vec::new(),
             still_night: Vec::new(),
+            tiles: Vec::new(),
+            tiled: true,
             settings,
             width,
             height,
@@ -805,6 +815,14 @@ impl SkyRenderer {
         }
         self.draw_fall_pool(sim);
         let frame = FrameEmission::new(self, sim);
+        if let Some(ph) = &frame.lanes
+            && self.emit_in_tiles(&frame, ph)
+        {
+            // Emitted and deposited together; the deposit's time is the tiles' sum.
+            self.timings.emit_ms = t.ms() - self.timings.deposit_ms;
+            self.chunks = chunks;
+            return;
+        }
         chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
             points.reset(self.height, self.stride as f32);
@@ -841,17 +859,12 @@ impl SkyRenderer {
     /// motion draws it, as bright as it says).
     fn emit_particle(&self, frame: &FrameEmission<'_>, i: usize, out: &mut BandedPoints) {
         let particles = frame.sim.particles();
-        let (drawn, gain) = frame
-            .small
-            .as_ref()
-            .map_or((particles.position_km[i], 1.0), |s| s.apply(particles.position_km[i]));
+        let (drawn, gain) = frame.drawn(i);
         if gain <= 0.0 {
             return;
         }
-        let p = drawn - frame.centre;
-        let top = frame.top;
-        let foot = DVec3::new(f64::from(p.x), top, f64::from(p.y));
-        let (down, drift) = (frame.down, frame.drift);
+        let foot = frame.foot(drawn);
+        let down = frame.down;
         match &self.model {
             Model::Paper { pool: Some(pool), emission, .. } if self.settings.paper.falls == Falls::Pooled => {
                 let mut rng = Stream::new(frame.key, EMIT, particles.id[i]);
@@ -870,33 +883,49 @@ impl SkyRenderer {
                     self.push_paper_point(q, weight, line.index() as u8, out);
                 });
             }
-            Model::Physical { sampler, points, photons, .. } => {
-                // Footprint of one particle at the rest density, km². A point carrying P
-                // photons/s seen from d cm through a pixel of solid angle Ω adds a
-                // radiance P/(4π d² Ω), i.e. P/(d² Ω 1e6) R. With P = column · area ·
-                // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
-                // column · area / (points · 1e6) / (d_km² Ω).
-                let area_km2 = f64::from(gain) / frame.rest_density;
-                let column = ParticleColumn {
-                    sampler,
-                    points,
-                    photons,
-                    area_km2,
-                    xi: frame.offsets.of(i / self.stride),
-                    foot: foot.as_vec3(),
-                    top_km: top as f32,
-                    drift: drift.as_vec3(),
-                };
+            Model::Physical { .. } => {
+                let Some(column) = self.physical_column(frame, i, foot, gain) else { return };
                 if let Some(ph) = &frame.lanes {
                     // The altitudes first, in the scalar path's order; then
                     // the projection in lanes ([`project_in_lanes`]): the same points.
-                    column.altitudes(&mut out.lanes);
-                    project_in_lanes(ph, column.foot, column.top_km, column.drift, out);
+                    let mut lanes = std::mem::take(&mut out.lanes);
+                    column.altitudes(&mut lanes);
+                    project_in_lanes(ph, column.foot, column.top_km, column.drift, &lanes, |s| out.push(s));
+                    out.lanes = lanes;
                 } else {
                     self.emit_column(&column, out);
                 }
             }
         }
+    }
+
+    /// Particle `i`'s emission column in the physical model (`None` in paper mode),
+    /// standing on `foot` (km, [`FrameEmission::foot`]) with the small-scale motion's
+    /// brightness factor `gain`.
+    fn physical_column(
+        &self,
+        frame: &FrameEmission<'_>,
+        i: usize,
+        foot: DVec3,
+        gain: f32,
+    ) -> Option<ParticleColumn<'_>> {
+        let Model::Physical { sampler, points, photons, .. } = &self.model else { return None };
+        // Footprint of one particle at the rest density, km². A point carrying P
+        // photons/s seen from d cm through a pixel of solid angle Ω adds a
+        // radiance P/(4π d² Ω), i.e. P/(d² Ω 1e6) R. With P = column · area ·
+        // 1e10 / points (km² -> cm²) and d in km (d² · 1e10 cm²), that is
+        // column · area / (points · 1e6) / (d_km² Ω).
+        let area_km2 = f64::from(gain) / frame.rest_density;
+        Some(ParticleColumn {
+            sampler,
+            points,
+            photons,
+            area_km2,
+            xi: frame.offsets.of(i / self.stride),
+            foot: foot.as_vec3(),
+            top_km: frame.top as f32,
+            drift: frame.drift.as_vec3(),
+        })
     }
 
     /// A paper-mode emission at `q` (km) of line index `line`, counting `weight`,
@@ -1266,6 +1295,23 @@ impl<'a> FrameEmission<'a> {
     }
 }
 
+impl FrameEmission<'_> {
+    /// Where particle `i` is drawn (plane km) and its brightness factor: the frame's
+    /// small-scale motion applied, if on.
+    #[inline]
+    fn drawn(&self, i: usize) -> (glam::Vec2, f32) {
+        let at = self.sim.particles().position_km[i];
+        self.small.as_ref().map_or((at, 1.0), |s| s.apply(at))
+    }
+
+    /// The foot (km, at the top altitude) of the column of a particle drawn at `drawn`.
+    #[inline]
+    fn foot(&self, drawn: glam::Vec2) -> DVec3 {
+        let p = drawn - self.centre;
+        DVec3::new(f64::from(p.x), self.top, f64::from(p.y))
+    }
+}
+
 /// The key of `sim`'s current frame for the renderer's random streams (`salt`: see
 /// [`SkyRenderer::set_sample_salt`]; 0 leaves the key as it always was).
 fn frame_key(sim: &AuroraSim, salt: u64) -> u64 {
@@ -1327,17 +1373,22 @@ fn allocate_points(total: u32, photons: &[f64; 5]) -> [u32; 5] {
     })
 }
 
-/// The physical mode's points of one particle (`out.lanes`: altitude km, photons per
-/// point, line), projected eight at a time by a perspective camera and pushed to `out`
-/// in their order: the point at altitude a is q = (foot.x, a, foot.z) + drift (top - a),
+/// The physical mode's points of one particle (`lanes`: altitude km, photons per
+/// point, line), projected eight at a time by a perspective camera and given to `emit`
+/// in their order (those in front of the camera): the point at altitude a is q = (foot.x, a, foot.z) + drift (top - a),
 /// and its weight is the photons times 1/(d² Ω) = (f/depth)² · |q - eye|/depth. Every
 /// lane takes the scalar path's operations in its order ([`CameraView::project`] as
 /// [`Pinhole`] documents it), so the points have the same bits (test
 /// `lanes_emit_the_scalar_points`).
-fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut BandedPoints) {
+fn project_in_lanes(
+    ph: &Pinhole,
+    foot: Vec3,
+    top: f32,
+    drift: Vec3,
+    lanes: &[(f32, f32, u8)],
+    mut emit: impl FnMut(Splat),
+) {
     const LANES: usize = 8;
-    // Taken out of `out` while its points are pushed (and put back, its memory kept).
-    let lanes = std::mem::take(&mut out.lanes);
     let n = lanes.len();
     let splat = f32x8::splat;
     let (top8, near) = (splat(top), splat(NEAR_M));
@@ -1364,11 +1415,10 @@ fn project_in_lanes(ph: &Pinhole, foot: Vec3, top: f32, drift: Vec3, out: &mut B
         let ok = depth.simd_gt(near).to_bitmask();
         for (l, &(_, per_point, line)) in group.iter().enumerate() {
             if ok & (1 << l) != 0 {
-                out.push(Splat { x: x[l], y: y[l], weight: per_point * inverse[l], line });
+                emit(Splat { x: x[l], y: y[l], weight: per_point * inverse[l], line });
             }
         }
     }
-    out.lanes = lanes;
 }
 
 /// ⌊v⌋ for |v| < 2³¹ (an inlined floor: the library call is not, on baseline x86-64).

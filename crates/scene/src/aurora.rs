@@ -127,8 +127,10 @@ impl Phenomenon for AuroraScene {
 
     /// Particles (up to twice the start after redistribution: scene 2 grows by 1.6x),
     /// the field's grid and charges, and in the sky view the emission points of a frame
-    /// (16 bytes each, filed by band as they are emitted and kept between frames), the
-    /// paper mode's pooled falls and the line images.
+    /// (16 bytes each, filed by band as they are emitted and kept between frames; the
+    /// physical mode through a perspective camera deposits them as it emits them into
+    /// tiles of at most four images' line images, counted too, as a frame may take
+    /// either path), the paper mode's pooled falls and the line images.
     fn estimate(&self, _background: &Option<Frame>) -> Estimate {
         let a = &self.aurora;
         let particles = f64::from(a.motion.particles) * if a.redistribution.enabled { 2.0 } else { 1.0 };
@@ -148,6 +150,9 @@ impl Phenomenon for AuroraScene {
         let work = match self.render.view {
             AuroraView::Sky => {
                 parts.push(("emission points of a frame", particles * per_particle * 16.0));
+                if sky.mode == ColourMode::Physical {
+                    parts.push(("emission tiles", 4.0 * w * h * 5.0 * 4.0));
+                }
                 if sky.mode == ColourMode::Paper && sky.paper.falls == phenomena_aurora::fall::Falls::Pooled {
                     // At most one point a collision, 16 bytes each, twice while the pool
                     // is gathered.
