@@ -25,8 +25,9 @@ use glam::Vec2;
 use super::{FrameEmission, Model, Pinhole, Plane, SkyRenderer, Splat, floor_i32, project_in_lanes};
 use rayon::prelude::*;
 
-/// Particles a run at least (fewer particles make fewer runs).
-const PART_PARTICLES: usize = 16_384;
+/// Particles a run at most while there are fewer than [`MAX_PARTS`] runs (fewer
+/// particles make fewer runs; 30,000 make eight, enough for the cores to share).
+const PART_PARTICLES: usize = 4_096;
 /// Runs at most: each may hold an image's worth of line images.
 const MAX_PARTS: usize = 8;
 /// The tiles' total area, in images, above which the banded path is taken.
@@ -75,7 +76,7 @@ impl SkyRenderer {
             }
         }
         let n = frame.sim.particles().len();
-        let parts = (n / PART_PARTICLES).clamp(1, MAX_PARTS);
+        let parts = n.div_ceil(PART_PARTICLES).clamp(1, MAX_PARTS);
         let mut tiles = std::mem::take(&mut self.tiles);
         tiles.resize_with(parts, Tile::default);
         let run = |p: usize| {
@@ -279,10 +280,14 @@ mod tests {
         config.redistribution.enabled = false;
         let mut sim = AuroraSim::new(config, 5).unwrap();
         sim.step().unwrap();
-        assert!(sim.particles().len() >= 2 * PART_PARTICLES, "more than one run");
+        assert!(sim.particles().len() >= MAX_PARTS * PART_PARTICLES, "every run");
         let (w, h) = (320, 180);
-        let orbit =
-            SkyCamera::Orbit { altitude_km: 200.0, distance_km: 900.0, look_at_altitude_km: 150.0, fov_y_deg: 30.0 };
+        let orbit = SkyCamera::Orbit {
+            altitude_km: 200.0,
+            distance_km: 900.0,
+            look_at_altitude_km: 150.0,
+            fov_y_deg: 30.0,
+        };
         for (camera, stride) in [(SkyCamera::default(), 1), (SkyCamera::default(), 3), (orbit, 1)] {
             let settings = SkySettings { camera, ..SkySettings::default() };
             let mut sky = SkyRenderer::new(settings, w, h, None).unwrap();
@@ -318,7 +323,10 @@ mod tests {
                 for (p, (a, b)) in images[0][k].data().iter().zip(images[1][k].data()).enumerate() {
                     let n = terms[k * w * h + p];
                     let bound = n.saturating_sub(1) as f32 * f32::EPSILON * a.max(*b) * 1.001;
-                    assert!((a - b).abs() <= bound, "{camera:?} stride {stride}: line {k} pixel {p}: {a} vs {b} ({n} terms)");
+                    assert!(
+                        (a - b).abs() <= bound,
+                        "{camera:?} stride {stride}: line {k} pixel {p}: {a} vs {b} ({n} terms)"
+                    );
                     lit += usize::from(n > 0);
                 }
             }
