@@ -642,6 +642,14 @@ pub struct AltitudeSampler {
 }
 
 impl AltitudeSampler {
+    /// The lowest and highest altitude, km, that [`AltitudeSampler::altitude_km`] gives
+    /// for `line` (its knots' extremes: the interpolation stays between neighbours).
+    pub fn range_km(&self, line: Line) -> (f32, f32) {
+        self.knots[line.index()]
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &k| (lo.min(k), hi.max(k)))
+    }
+
     /// Altitude, km, below which the share `u` ∈ [0, 1) of `line`'s column is emitted.
     #[inline]
     pub fn altitude_km(&self, line: Line, u: f32) -> f32 {

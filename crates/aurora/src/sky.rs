@@ -612,7 +612,8 @@ pub struct SkyTimings {
     pub blur_ms: f64,
     /// Line images to linear sRGB.
     pub colour_ms: f64,
-    /// Emission points deposited.
+    /// Emission points deposited: those whose row touches the image (the banded
+    /// path) or whose pixels do (the physical mode's tiles, `sky/tiles.rs`).
     pub points: usize,
 }
 
@@ -1054,7 +1055,7 @@ impl SkyRenderer {
         if !(airglow || milky_way || ground) {
             return;
         }
-        if self.still_night.is_empty() {
+        if (airglow || ground) && self.still_night.is_empty() {
             self.still_night = self.still_night(airglow, ground);
         }
         let (mw, mw_rgb) = if milky_way { self.milky_way_now(time_s) } else { (Vec::new(), Vec3::ZERO) };
@@ -1066,11 +1067,12 @@ impl SkyRenderer {
             .par_chunks_mut(w)
             .zip(g.data_mut().par_chunks_mut(w))
             .zip(b.data_mut().par_chunks_mut(w))
-            .zip(still.par_chunks(w))
             .enumerate()
-            .for_each(|(y, (((r, g), b), still))| {
+            .for_each(|(y, ((r, g), b))| {
+                // (Empty with the Milky Way alone: nothing still to add.)
+                let still = still.get(y * w..(y + 1) * w);
                 for x in 0..w {
-                    let Some(mut add) = still[x] else {
+                    let Some(mut add) = still.map_or(Some(Vec3::ZERO), |row| row[x]) else {
                         (r[x], g[x], b[x]) = (0.0, 0.0, 0.0);
                         continue;
                     };
@@ -1740,7 +1742,10 @@ mod tests {
         let p = allocate_points(40, &[1.0, 0.3, 5.0, 0.5, 0.0]);
         assert_eq!(p[4], 0, "a dark line gets no points");
         assert!(p[2] > p[0] && p[2] > p[3], "{p:?}");
-        assert!(p.iter().all(|&n| n == 0 || n >= 1));
+        assert!(
+            p.iter().enumerate().all(|(k, &n)| k == 4 || n >= 1),
+            "every emitting line gets a point: {p:?}"
+        );
         let faint = allocate_points(5, &[1.0, 1e-6, 5.0, 1e-6, 0.0]);
         assert_eq!((faint[1], faint[3], faint[4]), (1, 1, 0), "a faint line still gets a point: {faint:?}");
     }

@@ -129,8 +129,9 @@ impl Phenomenon for AuroraScene {
     /// the field's grid and charges, and in the sky view the emission points of a frame
     /// (16 bytes each, filed by band as they are emitted and kept between frames; the
     /// physical mode through a perspective camera deposits them as it emits them into
-    /// tiles of at most four images' line images, counted too, as a frame may take
-    /// either path), the paper mode's pooled falls and the line images.
+    /// tiles, which keep at most eight images' line images, counted too, as a frame may
+    /// take either path), the paper mode's pooled falls, the line images and the night's
+    /// still part (16 bytes a pixel).
     fn estimate(&self, _background: &Option<Frame>) -> Estimate {
         let a = &self.aurora;
         let particles = f64::from(a.motion.particles) * if a.redistribution.enabled { 2.0 } else { 1.0 };
@@ -151,7 +152,7 @@ impl Phenomenon for AuroraScene {
             AuroraView::Sky => {
                 parts.push(("emission points of a frame", particles * per_particle * 16.0));
                 if sky.mode == ColourMode::Physical {
-                    parts.push(("emission tiles", 4.0 * w * h * 5.0 * 4.0));
+                    parts.push(("emission tiles", 8.0 * w * h * 5.0 * 4.0));
                 }
                 if sky.mode == ColourMode::Paper && sky.paper.falls == phenomena_aurora::fall::Falls::Pooled {
                     // At most one point a collision, 16 bytes each, twice while the pool
@@ -160,6 +161,7 @@ impl Phenomenon for AuroraScene {
                     parts.push(("pooled falls", 2.0 * pool));
                 }
                 parts.push(("line images and frame", w * h * (10.0 * 4.0 + 12.0)));
+                parts.push(("the night's still part", w * h * 16.0));
                 format!(
                     "{particles:.0} particles at most × {per_particle:.0} emission points; a {}x{} field every {} frames; {w}x{h} pixels",
                     a.plane.cells[0], a.plane.cells[1], a.shape.renew_every_frames

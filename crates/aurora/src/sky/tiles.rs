@@ -16,13 +16,14 @@
 //! between the images of its ends; so a run's tile is the box of its columns' two
 //! ends (the lowest and highest altitude any line's points reach), widened by
 //! [`MARGIN_PX`] for rounding and the bilinear footprint, and cut to the image. A column
-//! that crosses the camera's near plane makes the tile the whole image. If the tiles
+//! that crosses the camera's near plane makes the tile the whole image; one wholly
+//! behind it draws nothing and is left out. If the tiles
 //! would hold more than [`MAX_AREA_IMAGES`] images (runs spread over the whole sky),
 //! the banded path is taken instead.
 
 use glam::Vec2;
 
-use super::{FrameEmission, Model, Pinhole, Plane, SkyRenderer, Splat, floor_i32, project_in_lanes};
+use super::{FrameEmission, Model, NEAR_M, Pinhole, Plane, SkyRenderer, Splat, floor_i32, project_in_lanes};
 use rayon::prelude::*;
 
 /// Particles a run at most while there are fewer than [`MAX_PARTS`] runs (fewer
@@ -30,7 +31,8 @@ use rayon::prelude::*;
 const PART_PARTICLES: usize = 4_096;
 /// Runs at most: each may hold an image's worth of line images.
 const MAX_PARTS: usize = 8;
-/// The tiles' total area, in images, above which the banded path is taken.
+/// The tiles' total area, in images, above which the banded path is taken (a tile
+/// keeps at most twice its memory: eight images' line images at most in all).
 const MAX_AREA_IMAGES: usize = 4;
 /// Pixels added around a run's box of column ends: the bilinear footprint's one and
 /// one for rounding (a point's projection and its column ends' differ by a few ulps of
@@ -65,15 +67,17 @@ impl SkyRenderer {
         }
         let (width, height) = (self.width, self.height);
         let top = frame.top as f32;
-        // The lowest and highest altitude any line's points reach (the inverse CDF
-        // grows with its share u ∈ [0, 1]).
-        let (mut lo, mut hi) = (top, f32::NEG_INFINITY);
+        // The lowest and highest altitude any line's points reach.
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for (k, &m) in points.iter().enumerate() {
             if m > 0 {
-                let line = crate::emission::Line::ALL[k];
-                lo = lo.min(sampler.altitude_km(line, 0.0).min(top));
-                hi = hi.max(sampler.altitude_km(line, 1.0).min(top));
+                let (a, b) = sampler.range_km(crate::emission::Line::ALL[k]);
+                (lo, hi) = (lo.min(a.min(top)), hi.max(b.min(top)));
             }
+        }
+        if !(lo <= hi) {
+            // No line emits (or the table is not finite): the banded path's nothing.
+            return false;
         }
         let n = frame.sim.particles().len();
         let parts = n.div_ceil(PART_PARTICLES).clamp(1, MAX_PARTS);
@@ -85,13 +89,16 @@ impl SkyRenderer {
             (first..end).step_by(self.stride)
         };
         tiles.par_iter_mut().enumerate().for_each(|(p, tile)| {
-            tile.bound(self, frame, run(p), [lo, hi]);
+            tile.bound(self, frame, ph, run(p), [lo, hi]);
         });
         let area: usize = tiles.iter().map(|t| t.w * t.h).sum();
         if area > MAX_AREA_IMAGES * width * height {
+            // The memory of tiles this large is not kept.
+            tiles.iter_mut().for_each(|t| t.planes = Default::default());
             self.tiles = tiles;
             return false;
         }
+        tiles.par_iter_mut().for_each(Tile::clear);
         tiles.par_iter_mut().enumerate().for_each(|(p, tile)| {
             tile.emit(self, frame, ph, run(p));
         });
@@ -111,6 +118,7 @@ impl Tile {
         &mut self,
         sky: &SkyRenderer,
         frame: &FrameEmission<'_>,
+        ph: &Pinhole,
         run: impl Iterator<Item = usize>,
         ends: [f32; 2],
     ) {
@@ -125,14 +133,19 @@ impl Tile {
                 continue;
             }
             let foot = frame.foot(drawn).as_vec3();
-            for a in ends {
-                let q = glam::Vec3::new(foot.x, a, foot.z) + drift * (top - a);
+            let q = ends.map(|a| glam::Vec3::new(foot.x, a, foot.z) + drift * (top - a));
+            // Depth is linear along the column: with both ends well behind the near
+            // plane (half of it, for rounding), no point of it is drawn.
+            if q.iter().all(|q| ph.forward.dot(*q - ph.eye) < 0.5 * NEAR_M) {
+                continue;
+            }
+            for q in q {
                 match sky.view.project(q) {
                     Some(pr) if pr.x_px.is_finite() && pr.y_px.is_finite() => {
                         lo = lo.min(Vec2::new(pr.x_px, pr.y_px));
                         hi = hi.max(Vec2::new(pr.x_px, pr.y_px));
                     }
-                    // Behind the near plane (or not finite): the column may reach
+                    // Crossing the near plane (or not finite): the column may reach
                     // anywhere.
                     _ => whole = true,
                 }
@@ -154,9 +167,17 @@ impl Tile {
         };
         let ((x0, x1), (y0, y1)) = (span(lo.x, hi.x, sky.width), span(lo.y, hi.y, sky.height));
         (self.x0, self.y0, self.w, self.h) = (x0, y0, x1 - x0, y1 - y0);
+    }
+
+    /// The tile's images cleared over its pixels (memory over twice theirs let go).
+    fn clear(&mut self) {
+        let need = self.w * self.h;
         for plane in &mut self.planes {
             plane.clear();
-            plane.resize(self.w * self.h, 0.0);
+            if plane.capacity() > 2 * need {
+                plane.shrink_to(need);
+            }
+            plane.resize(need, 0.0);
         }
         self.points = 0;
     }
@@ -296,7 +317,7 @@ mod tests {
             let mut points = BandedPoints::default();
             points.reset(h, stride as f32);
             let frame = FrameEmission::new(&sky, &sim);
-            for i in (1..sim.particles().len()).step_by(stride) {
+            for i in (1 % stride..sim.particles().len()).step_by(stride) {
                 sky.emit_particle(&frame, i, &mut points);
             }
             let mut terms = vec![0u32; 5 * w * h];
@@ -315,6 +336,13 @@ mod tests {
                 sky.tiled = tiled;
                 sky.emit_and_deposit(&sim);
                 images.push(sky.fresh.clone());
+            }
+            // The tiles' images are the same bits on one thread and on three.
+            sky.tiled = true;
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                pool.install(|| sky.emit_and_deposit(&sim));
+                assert!(sky.fresh == images[0], "{camera:?}: other bits on {threads} threads");
             }
             let tiles_used = sky.tiles.iter().map(|t| t.w * t.h).sum::<usize>();
             assert!(tiles_used > 0 && tiles_used < 4 * w * h, "{camera:?}: tiles {tiles_used} px");
