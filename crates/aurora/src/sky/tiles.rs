@@ -113,7 +113,8 @@ impl SkyRenderer {
 
 impl Tile {
     /// Draw the run's particles `run` and find the pixels their columns can reach
-    /// (altitudes `ends`); the tile's images cleared over them.
+    /// (altitudes `ends`): the tile's bounds ([`Tile::clear`] makes its images once
+    /// the path is taken).
     fn bound(
         &mut self,
         sky: &SkyRenderer,
