@@ -825,10 +825,8 @@ impl SkyRenderer {
             return;
         }
         chunks[..n].par_iter_mut().enumerate().for_each(|(c, points)| {
-            let range = c * CHUNK..((c + 1) * CHUNK).min(particles.len());
             points.reset(self.height, self.stride as f32);
-            let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
-            for i in (first..range.end).step_by(self.stride) {
+            for i in self.strided(c * CHUNK..((c + 1) * CHUNK).min(particles.len())) {
                 self.emit_particle(&frame, i, points);
             }
         });
@@ -838,6 +836,13 @@ impl SkyRenderer {
         deposit_banded(&chunks[..n], &mut self.fresh);
         self.chunks = chunks;
         self.timings.deposit_ms = t.ms();
+    }
+
+    /// The particles of `range` in the subset [`SkyRenderer::set_particle_subset`] keeps
+    /// (every `stride`-th from `phase`), in order.
+    fn strided(&self, range: std::ops::Range<usize>) -> std::iter::StepBy<std::ops::Range<usize>> {
+        let first = range.start + (self.phase + self.stride - range.start % self.stride) % self.stride;
+        (first..range.end).step_by(self.stride)
     }
 
     /// Draw the pool of [`Falls::Pooled`] unless it is drawn for `sim`'s seed and this
@@ -1437,21 +1442,12 @@ fn floor_i32(v: f32) -> i32 {
 /// count.
 fn deposit_banded(chunks: &[BandedPoints], planes: &mut [Plane; 5]) {
     let (w, h) = (planes[0].width(), planes[0].height());
-    let [p0, p1, p2, p3, p4] = planes;
-    let n = w * BAND_ROWS;
-    let spills: Vec<Vec<f32>> = p0
-        .data_mut()
-        .par_chunks_mut(n)
-        .zip(p1.data_mut().par_chunks_mut(n))
-        .zip(p2.data_mut().par_chunks_mut(n))
-        .zip(p3.data_mut().par_chunks_mut(n))
-        .zip(p4.data_mut().par_chunks_mut(n))
+    let spills: Vec<Vec<f32>> = par_plane_chunks(planes, w * BAND_ROWS)
         .enumerate()
-        .map(|(band, ((((a, b), c), d), e))| {
+        .map(|(band, mut dst)| {
             let r_lo = band * BAND_ROWS;
-            let rows = a.len() / w;
+            let rows = dst[0].len() / w;
             let mut spill = vec![0.0f32; 5 * w];
-            let mut dst: [&mut [f32]; 5] = [a, b, c, d, e];
             for plane in dst.iter_mut() {
                 plane.fill(0.0);
             }
@@ -1477,29 +1473,54 @@ fn deposit_banded(chunks: &[BandedPoints], planes: &mut [Plane; 5]) {
     }
 }
 
+/// The five line images cut into chunks of `n` values, the chunks of the same rows
+/// together, in parallel.
+fn par_plane_chunks(
+    planes: &mut [Plane; 5],
+    n: usize,
+) -> impl IndexedParallelIterator<Item = [&mut [f32]; 5]> {
+    let [p0, p1, p2, p3, p4] = planes;
+    p0.data_mut()
+        .par_chunks_mut(n)
+        .zip(p1.data_mut().par_chunks_mut(n))
+        .zip(p2.data_mut().par_chunks_mut(n))
+        .zip(p3.data_mut().par_chunks_mut(n))
+        .zip(p4.data_mut().par_chunks_mut(n))
+        .map(|((((a, b), c), d), e)| [a, b, c, d, e])
+}
+
+/// Where a splat's bilinear footprint starts (the pixel ⌊x − ½⌋, ⌊y − ½⌋) and its four
+/// terms, the weight times each pixel's share, in the order (0, 0), (1, 0), (0, 1),
+/// (1, 1) of (dx, dy): the one arithmetic every deposit uses, so all give the same bits.
+#[inline]
+fn bilinear(s: &Splat) -> (i32, i32, [f32; 4]) {
+    let (fx, fy) = (s.x - 0.5, s.y - 0.5);
+    let (x0, y0) = (floor_i32(fx), floor_i32(fy));
+    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let (wx0, wy0) = (1.0 - tx, 1.0 - ty);
+    (x0, y0, [s.weight * wx0 * wy0, s.weight * tx * wy0, s.weight * wx0 * ty, s.weight * tx * ty])
+}
+
 /// Bilinear deposit of `s` into a band's rows `r_lo..r_lo + rows` of the five line
 /// images (`dst`, row-major, width `w`), the row after the band going to `spill`.
 #[inline]
 fn deposit(dst: &mut [&mut [f32]; 5], spill: &mut [f32], w: usize, r_lo: usize, rows: usize, s: &Splat) {
-    let (fx, fy) = (s.x - 0.5, s.y - 0.5);
-    let (x0, y0) = (floor_i32(fx), floor_i32(fy));
-    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let (x0, y0, terms) = bilinear(s);
     let k = usize::from(s.line);
     let (ly, x) = (i64::from(y0) - r_lo as i64, i64::from(x0));
     if ly >= 0 && ly + 1 < rows as i64 && x >= 0 && x + 1 < w as i64 {
-        // Both rows in the band and both columns in the image (nearly every point): the
-        // four terms below without the checks, in the same order and arithmetic.
+        // Both rows in the band and both columns in the image (nearly every point).
         let at = ly as usize * w + x as usize;
         let plane = &mut dst[k][at..at + w + 2];
-        let (wy0, wx0) = (1.0 - ty, 1.0 - tx);
-        plane[0] += s.weight * wx0 * wy0;
-        plane[1] += s.weight * tx * wy0;
-        plane[w] += s.weight * wx0 * ty;
-        plane[w + 1] += s.weight * tx * ty;
+        plane[0] += terms[0];
+        plane[1] += terms[1];
+        plane[w] += terms[2];
+        plane[w + 1] += terms[3];
         return;
     }
-    for (dy, wy) in [(0, 1.0 - ty), (1, ty)] {
-        let y = i64::from(y0) + dy - r_lo as i64;
+    for (c, term) in terms.into_iter().enumerate() {
+        let (dx, dy) = ((c & 1) as i64, (c >> 1) as i64);
+        let y = ly + dy;
         let row: &mut [f32] = if (0..rows as i64).contains(&y) {
             &mut dst[k][y as usize * w..(y as usize + 1) * w]
         } else if y == rows as i64 {
@@ -1507,11 +1528,9 @@ fn deposit(dst: &mut [&mut [f32]; 5], spill: &mut [f32], w: usize, r_lo: usize, 
         } else {
             continue;
         };
-        for (dx, wx) in [(0, 1.0 - tx), (1, tx)] {
-            let x = i64::from(x0) + dx;
-            if x >= 0 && (x as usize) < w {
-                row[x as usize] += s.weight * wx * wy;
-            }
+        let x = x + dx;
+        if x >= 0 && (x as usize) < w {
+            row[x as usize] += term;
         }
     }
 }

@@ -23,7 +23,10 @@
 
 use glam::Vec2;
 
-use super::{FrameEmission, Model, NEAR_M, Pinhole, Plane, SkyRenderer, Splat, floor_i32, project_in_lanes};
+use super::{
+    FrameEmission, Model, NEAR_M, Pinhole, Plane, SkyRenderer, Splat, bilinear, par_plane_chunks,
+    project_in_lanes,
+};
 use rayon::prelude::*;
 
 /// Particles a run at most while there are fewer than [`MAX_PARTS`] runs (fewer
@@ -83,11 +86,7 @@ impl SkyRenderer {
         let parts = n.div_ceil(PART_PARTICLES).clamp(1, MAX_PARTS);
         let mut tiles = std::mem::take(&mut self.tiles);
         tiles.resize_with(parts, Tile::default);
-        let run = |p: usize| {
-            let (start, end) = (p * n / parts, (p + 1) * n / parts);
-            let first = start + (self.phase + self.stride - start % self.stride) % self.stride;
-            (first..end).step_by(self.stride)
-        };
+        let run = |p: usize| self.strided(p * n / parts..(p + 1) * n / parts);
         tiles.par_iter_mut().enumerate().for_each(|(p, tile)| {
             tile.bound(self, frame, ph, run(p), [lo, hi]);
         });
@@ -218,8 +217,7 @@ impl Tile {
             return;
         }
         self.points += 1;
-        let (x0, y0) = (floor_i32(fx), floor_i32(fy));
-        let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+        let (x0, y0, terms) = bilinear(s);
         let (lx, ly) = (i64::from(x0) - self.x0 as i64, i64::from(y0) - self.y0 as i64);
         let w = self.w;
         let plane = &mut self.planes[usize::from(s.line)];
@@ -227,27 +225,23 @@ impl Tile {
             // All four pixels in the tile (nearly every point).
             let at = ly as usize * w + lx as usize;
             let p = &mut plane[at..at + w + 2];
-            let (wy0, wx0) = (1.0 - ty, 1.0 - tx);
-            p[0] += s.weight * wx0 * wy0;
-            p[1] += s.weight * tx * wy0;
-            p[w] += s.weight * wx0 * ty;
-            p[w + 1] += s.weight * tx * ty;
+            p[0] += terms[0];
+            p[1] += terms[1];
+            p[w] += terms[2];
+            p[w + 1] += terms[3];
             return;
         }
-        for (dy, wy) in [(0, 1.0 - ty), (1, ty)] {
-            let y = i64::from(y0) + dy;
-            for (dx, wx) in [(0, 1.0 - tx), (1, tx)] {
-                let x = i64::from(x0) + dx;
-                if x < 0 || y < 0 || x >= width as i64 || y >= height as i64 {
-                    continue;
-                }
-                let (lx, ly) = (x - self.x0 as i64, y - self.y0 as i64);
-                // The tile holds every pixel of the image its columns reach (its
-                // bounds above); a miss would be a bound too tight.
-                debug_assert!(lx >= 0 && ly >= 0 && lx < w as i64 && ly < self.h as i64, "outside the tile");
-                if lx >= 0 && ly >= 0 && lx < w as i64 && ly < self.h as i64 {
-                    plane[ly as usize * w + lx as usize] += s.weight * wx * wy;
-                }
+        for (c, term) in terms.into_iter().enumerate() {
+            let (x, y) = (i64::from(x0) + (c & 1) as i64, i64::from(y0) + (c >> 1) as i64);
+            if x < 0 || y < 0 || x >= width as i64 || y >= height as i64 {
+                continue;
+            }
+            let (lx, ly) = (x - self.x0 as i64, y - self.y0 as i64);
+            // The tile holds every pixel of the image its columns reach (its bounds
+            // above); a miss would be a bound too tight.
+            debug_assert!(lx >= 0 && ly >= 0 && lx < w as i64 && ly < self.h as i64, "outside the tile");
+            if lx >= 0 && ly >= 0 && lx < w as i64 && ly < self.h as i64 {
+                plane[ly as usize * w + lx as usize] += term;
             }
         }
     }
@@ -256,33 +250,24 @@ impl Tile {
 /// The five line images: zero, plus every tile in run order, rows in parallel.
 fn add_tiles(tiles: &[Tile], planes: &mut [Plane; 5]) {
     let w = planes[0].width();
-    let [p0, p1, p2, p3, p4] = planes;
-    p0.data_mut()
-        .par_chunks_mut(w)
-        .zip(p1.data_mut().par_chunks_mut(w))
-        .zip(p2.data_mut().par_chunks_mut(w))
-        .zip(p3.data_mut().par_chunks_mut(w))
-        .zip(p4.data_mut().par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, ((((a, b), c), d), e))| {
-            let rows: [&mut [f32]; 5] = [a, b, c, d, e];
-            for (k, row) in rows.into_iter().enumerate() {
-                row.fill(0.0);
-                for tile in tiles {
-                    if (tile.y0..tile.y0 + tile.h).contains(&y) {
-                        let from = &tile.planes[k][(y - tile.y0) * tile.w..(y - tile.y0 + 1) * tile.w];
-                        for (o, v) in row[tile.x0..tile.x0 + tile.w].iter_mut().zip(from) {
-                            *o += v;
-                        }
+    par_plane_chunks(planes, w).enumerate().for_each(|(y, rows)| {
+        for (k, row) in rows.into_iter().enumerate() {
+            row.fill(0.0);
+            for tile in tiles {
+                if (tile.y0..tile.y0 + tile.h).contains(&y) {
+                    let from = &tile.planes[k][(y - tile.y0) * tile.w..(y - tile.y0 + 1) * tile.w];
+                    for (o, v) in row[tile.x0..tile.x0 + tile.w].iter_mut().zip(from) {
+                        *o += v;
                     }
                 }
             }
-        });
+        }
+    });
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::{BandedPoints, FrameEmission, SkyCamera, SkySettings};
+    use super::super::{BandedPoints, FrameEmission, SkyCamera, SkySettings, floor_i32};
     use super::*;
     use crate::AuroraSim;
 
