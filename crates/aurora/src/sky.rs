@@ -896,7 +896,9 @@ impl SkyRenderer {
                     // the projection in lanes ([`project_in_lanes`]): the same points.
                     let mut lanes = std::mem::take(&mut out.lanes);
                     column.altitudes(&mut lanes);
-                    project_in_lanes(ph, column.foot, column.top_km, column.drift, &lanes, |s| out.push(s));
+                    project_in_lanes(ph, column.foot, column.top_km, column.drift, &lanes, |g| {
+                        g.splats().for_each(|s| out.push(s));
+                    });
                     out.lanes = lanes;
                 } else {
                     self.emit_column(&column, out);
@@ -1380,20 +1382,43 @@ fn allocate_points(total: u32, photons: &[f64; 5]) -> [u32; 5] {
     })
 }
 
+/// Eight points from [`project_in_lanes`]: pixel coordinates, weights and lines, lane l a
+/// point (one in front of the camera) iff bit l of `ok` is set.
+struct Projected8 {
+    x: f32x8,
+    y: f32x8,
+    weight: f32x8,
+    lines: [u8; 8],
+    ok: u32,
+}
+
+impl Projected8 {
+    /// The points, in lane order.
+    fn splats(&self) -> impl Iterator<Item = Splat> + '_ {
+        let (x, y, weight) = (self.x.to_array(), self.y.to_array(), self.weight.to_array());
+        (0..8).filter(|l| self.ok & (1 << l) != 0).map(move |l| Splat {
+            x: x[l],
+            y: y[l],
+            weight: weight[l],
+            line: self.lines[l],
+        })
+    }
+}
+
 /// The physical mode's points of one particle (`lanes`: altitude km, photons per
 /// point, line), projected eight at a time by a perspective camera and given to `emit`
-/// in their order (those in front of the camera): the point at altitude a is q = (foot.x, a, foot.z) + drift (top - a),
-/// and its weight is the photons times 1/(d² Ω) = (f/depth)² · |q - eye|/depth. Every
-/// lane takes the scalar path's operations in its order ([`CameraView::project`] as
-/// [`Pinhole`] documents it), so the points have the same bits (test
-/// `lanes_emit_the_scalar_points`).
+/// eight by eight in their order ([`Projected8`]: those in front of the camera): the
+/// point at altitude a is q = (foot.x, a, foot.z) + drift (top - a), and its weight is
+/// the photons times 1/(d² Ω) = (f/depth)² · |q - eye|/depth. Every lane takes the
+/// scalar path's operations in its order ([`CameraView::project`] as [`Pinhole`]
+/// documents it), so the points have the same bits (test `lanes_emit_the_scalar_points`).
 fn project_in_lanes(
     ph: &Pinhole,
     foot: Vec3,
     top: f32,
     drift: Vec3,
     lanes: &[(f32, f32, u8)],
-    mut emit: impl FnMut(Splat),
+    mut emit: impl FnMut(&Projected8),
 ) {
     const LANES: usize = 8;
     let n = lanes.len();
@@ -1406,9 +1431,9 @@ fn project_in_lanes(
     let (cx, cy, scale) = (splat(ph.centre_px.0), splat(ph.centre_px.1), splat(ph.scale));
     for at in (0..n).step_by(LANES) {
         let group = &lanes[at..(at + LANES).min(n)];
-        let mut a = [top; LANES];
-        for (a, p) in a.iter_mut().zip(group) {
-            *a = p.0;
+        let (mut a, mut per_point, mut lines) = ([top; LANES], [0.0; LANES], [0; LANES]);
+        for (l, p) in group.iter().enumerate() {
+            (a[l], per_point[l], lines[l]) = *p;
         }
         let a = f32x8::from(a);
         let t = top8 - a;
@@ -1416,15 +1441,14 @@ fn project_in_lanes(
         let (dx, dy, dz) = (qx - ex, qy - ey, qz - ez);
         let depth = dot(ph.forward, dx, dy, dz);
         let s = scale / depth;
-        let x = (cx + dot(ph.right, dx, dy, dz) * s).to_array();
-        let y = (cy - dot(ph.up, dx, dy, dz) * s).to_array();
-        let inverse = (s * s * (dx * dx + dy * dy + dz * dz).sqrt() / depth).to_array();
-        let ok = depth.simd_gt(near).to_bitmask();
-        for (l, &(_, per_point, line)) in group.iter().enumerate() {
-            if ok & (1 << l) != 0 {
-                emit(Splat { x: x[l], y: y[l], weight: per_point * inverse[l], line });
-            }
-        }
+        let inverse = s * s * (dx * dx + dy * dy + dz * dz).sqrt() / depth;
+        emit(&Projected8 {
+            x: cx + dot(ph.right, dx, dy, dz) * s,
+            y: cy - dot(ph.up, dx, dy, dz) * s,
+            weight: f32x8::from(per_point) * inverse,
+            lines,
+            ok: depth.simd_gt(near).to_bitmask() & ((1 << group.len()) - 1),
+        });
     }
 }
 
