@@ -294,9 +294,66 @@ fn add_tiles(tiles: &[Tile], planes: &mut [Plane; 5]) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{BandedPoints, FrameEmission, SkyCamera, SkySettings, floor_i32};
+    use super::super::{BandedPoints, FrameEmission, SkyCamera, SkySettings, Splat, bilinear, floor_i32};
     use super::*;
     use crate::AuroraSim;
+
+    #[test]
+    fn lanes_add_the_scalar_bilinear_terms() {
+        // Points over and around a 37x23 image (on its edges, outside it, at NaN, with
+        // an infinite weight), some lanes masked off: deposited eight at a time
+        // (`deposit8`), they leave the same bits as the scalar `bilinear` terms added
+        // one point at a time, and the same count.
+        use phenomena_core::rng::{Purpose, Stream};
+        let (w, h) = (37usize, 23usize);
+        let whole = || {
+            let mut t = Tile { w, h, ..Tile::default() };
+            t.clear();
+            t
+        };
+        let (mut lanes, mut scalar) = (whole(), whole());
+        let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), 0);
+        let scale = 3.0;
+        for group in 0..2_000 {
+            let splats: [Splat; 8] = std::array::from_fn(|l| Splat {
+                x: match (group + l) % 97 {
+                    0 => f32::NAN,
+                    1 => -0.5,
+                    2 => w as f32 + 0.5,
+                    _ => rng.next_f32() * (w as f32 + 6.0) - 3.0,
+                },
+                y: rng.next_f32() * (h as f32 + 6.0) - 3.0,
+                weight: if (group + l) % 89 == 0 { f32::INFINITY } else { rng.next_f32() },
+                line: (rng.next_u64() % 5) as u8,
+            });
+            let ok = (rng.next_u64() & 0xff) as u32;
+            let g = Projected8 {
+                x: f32x8::from(splats.map(|s| s.x)),
+                y: f32x8::from(splats.map(|s| s.y)),
+                weight: f32x8::from(splats.map(|s| s.weight)),
+                lines: splats.map(|s| s.line),
+                ok,
+            };
+            lanes.deposit8(&g, scale, w, h);
+            for (l, s) in splats.iter().enumerate() {
+                let s = Splat { weight: s.weight * scale, ..*s };
+                let (fx, fy) = (s.x - 0.5, s.y - 0.5);
+                let inside =
+                    fx >= -1.0 && fx < w as f32 && fy >= -1.0 && fy < h as f32 && s.weight.is_finite();
+                if ok & (1 << l) != 0 && inside {
+                    scalar.points += 1;
+                    let (x0, y0, terms) = bilinear(&s);
+                    scalar.add(x0, y0, s.line, terms, w, h);
+                }
+            }
+        }
+        assert!(scalar.points > 5_000, "{} points", scalar.points);
+        assert_eq!(lanes.points, scalar.points);
+        for k in 0..5 {
+            let bits = |t: &Tile| t.planes[k].iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&lanes), bits(&scalar), "line {k}");
+        }
+    }
 
     #[test]
     fn tiles_deposit_what_the_bands_deposit() {
