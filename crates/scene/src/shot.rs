@@ -42,6 +42,7 @@ use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use glam::Vec3;
 use phenomena_core::camera::{Camera, Projection};
+use phenomena_core::clock::SharedClock;
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{Layer, Renderer, Simulation};
 use phenomena_core::validate::{Issue, Issues};
@@ -489,8 +490,13 @@ impl Phenomenon for ShotScene {
             warnings.extend(part.warnings().iter().map(|m| format!("{}: {m}", file.name())));
             parts.push(Mutex::new(part));
         }
-        let renderer = ShotRenderer { stage: Stage::new(w, h), names: Vec::new() };
-        Ok(Built { sim: ShotSim { parts }, renderer, warnings })
+        let renderer = ShotRenderer {
+            stage: Stage::new(w, h),
+            names: Vec::new(),
+            clock: SharedClock::default(),
+            render_ms: Vec::new(),
+        };
+        Ok(Built { sim: ShotSim { parts, clock: SharedClock::default() }, renderer, warnings })
     }
 
     /// `vdb`: the volumes of the nearest phenomenon that has them (the flame, in the
@@ -512,6 +518,31 @@ impl Phenomenon for ShotScene {
             Some(part) => part.volume_bytes(options),
             None => Err(NO_VOLUME.to_string()),
         }
+    }
+
+    /// Every phenomenon's simulation and renderer on `clock`, and the shot's timing of
+    /// each one's step and composition.
+    fn set_clock(built: &mut Built<Self>, clock: &SharedClock) {
+        for part in &mut built.sim.parts {
+            part.get_mut().unwrap_or_else(PoisonError::into_inner).set_clock(clock);
+        }
+        built.sim.clock = clock.clone();
+        built.renderer.clock = clock.clone();
+    }
+
+    /// Each phenomenon's time in the last render (all its passes), ms, with its own
+    /// breakdown if it has one: `{"aurora": {"render_ms": …, "emit_ms": …}, …}`.
+    fn render_detail(built: &Built<Self>) -> Option<Value> {
+        let mut detail = serde_json::Map::new();
+        for (part, &(name, ms)) in built.sim.parts.iter().zip(&built.renderer.render_ms) {
+            let mut entry = serde_json::Map::new();
+            entry.insert("render_ms".into(), ms.into());
+            if let Some(Value::Object(own)) = open(part).render_detail() {
+                entry.extend(own);
+            }
+            detail.insert(name.into(), Value::Object(entry));
+        }
+        Some(Value::Object(detail))
     }
 
     /// Each phenomenon's own preview (the aurora's thinned particles in the studio).
@@ -637,6 +668,8 @@ trait Part: Send {
     fn restore(&mut self, bytes: &[u8]) -> Result<(), String>;
     fn compose(&mut self, pass: Pass, stage: &mut Stage);
     fn before_render(&mut self, preview: Option<u32>);
+    fn set_clock(&mut self, clock: &SharedClock);
+    fn render_detail(&self) -> Option<Value>;
     fn can(&self, what: Capability) -> bool;
     fn volume(
         &self,
@@ -689,6 +722,14 @@ impl<P: Phenomenon> Part for Built<P> {
         P::before_render(self, preview)
     }
 
+    fn set_clock(&mut self, clock: &SharedClock) {
+        P::set_clock(self, clock)
+    }
+
+    fn render_detail(&self) -> Option<Value> {
+        P::render_detail(self)
+    }
+
     fn can(&self, what: Capability) -> bool {
         P::CAN.contains(&what)
     }
@@ -721,6 +762,8 @@ pub struct ShotError(String);
 /// draw them from a shared reference; nothing else holds it).
 pub struct ShotSim {
     parts: Vec<Mutex<Box<dyn Part>>>,
+    /// Times each part's step (`step_ms` in its stats).
+    clock: SharedClock,
 }
 
 /// The part, whatever a panic elsewhere did to its lock (the shot's work is on one
@@ -739,7 +782,11 @@ impl Simulation for ShotSim {
         let mut stats = serde_json::Map::new();
         for part in &mut self.parts {
             let part = part.get_mut().unwrap_or_else(PoisonError::into_inner);
-            let s = part.step().map_err(|e| ShotError(format!("{}: {e}", part.name())))?;
+            let t = self.clock.stopwatch();
+            let mut s = part.step().map_err(|e| ShotError(format!("{}: {e}", part.name())))?;
+            if let Value::Object(map) = &mut s {
+                map.insert("step_ms".into(), t.ms().into());
+            }
             stats.insert(part.name().to_string(), s);
         }
         Ok(Value::Object(stats))
@@ -777,15 +824,21 @@ pub struct ShotRenderer {
     stage: Stage,
     /// The layers' channel names, made at each render.
     names: Vec<String>,
+    clock: SharedClock,
+    /// Each part's time in the last render, all passes, ms, in the parts' order.
+    render_ms: Vec<(&'static str, f64)>,
 }
 
 impl Renderer<ShotSim> for ShotRenderer {
     fn render(&mut self, sim: &ShotSim) -> &Frame {
         let (w, h) = (self.stage.image.width(), self.stage.image.height());
         self.stage = Stage::new(w, h);
+        self.render_ms = sim.parts.iter().map(|p| (open(p).name(), 0.0)).collect();
         for pass in PASSES {
-            for part in &sim.parts {
+            for (part, (_, ms)) in sim.parts.iter().zip(&mut self.render_ms) {
+                let t = self.clock.stopwatch();
                 open(part).compose(pass, &mut self.stage);
+                *ms += t.ms();
             }
         }
         self.names.clear();

@@ -253,3 +253,56 @@ fn a_shot_writes_its_flames_volumes_or_says_it_has_none() {
     assert!(e.to_string().contains("no phenomenon with volumes"), "{e}");
     assert!(std::fs::read_dir(&out).map_or(true, |mut d| d.next().is_none()), "nothing written");
 }
+
+/// A ticking clock: every reading 1 ms later than the one before.
+struct Ticks(std::sync::atomic::AtomicU64);
+
+impl phenomena_core::clock::Clock for Ticks {
+    fn now_ms(&self) -> f64 {
+        self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed) as f64
+    }
+}
+
+/// The frames' records, kept.
+#[derive(Default)]
+struct Records(Vec<phenomena_scene::FrameRecord>);
+
+impl phenomena_scene::Observer for Records {
+    fn frame(&mut self, record: &phenomena_scene::FrameRecord) -> std::ops::ControlFlow<()> {
+        self.0.push(record.clone());
+        std::ops::ControlFlow::Continue(())
+    }
+}
+
+/// Given a clock, a shot times each phenomenon: its step (`step_ms` in its counters),
+/// and its part of the render (`render_ms` in the render detail, with the aurora's own
+/// breakdown beside it); the parts' render times add up to no more than the whole's.
+#[test]
+fn a_shot_times_each_phenomenon() {
+    let text = format!("{SIZE}{CAMERA}{SNOW}{AURORA}");
+    let scene = parse(&text, "shot.toml").unwrap();
+    let mut runner = Runner::new(&scene, &Assets::none()).unwrap();
+    runner.set_clock(phenomena_core::clock::SharedClock::new(Ticks(0.into())));
+    let mut records = Records::default();
+    runner.run(1..3, &mut Keep::default(), &mut records).unwrap();
+    // (Frame 0 is stepped and reported, not rendered.)
+    let rendered: Vec<_> = records.0.iter().filter(|r| r.render_ms.is_some()).collect();
+    assert_eq!(rendered.len(), 2);
+    for r in rendered {
+        let detail = r.render_detail.as_ref().expect("a shot's render detail");
+        let mut parts = 0.0;
+        for name in ["aurora", "snow"] {
+            let step =
+                r.counters[name]["step_ms"].as_f64().unwrap_or_else(|| panic!("{name}'s step_ms: {r:?}"));
+            assert!(step >= 1.0, "{name} step {step}");
+            let ms =
+                detail[name]["render_ms"].as_f64().unwrap_or_else(|| panic!("{name}'s render_ms: {detail}"));
+            assert!(ms >= 1.0, "{name} render {ms}");
+            parts += ms;
+        }
+        // The aurora's renderer was given the clock too: its own breakdown is there.
+        assert!(detail["aurora"]["emit_ms"].as_f64().is_some_and(|ms| ms >= 1.0), "{detail}");
+        let whole = r.render_ms.expect("rendered");
+        assert!(parts <= whole, "parts {parts} ms, whole {whole} ms");
+    }
+}
