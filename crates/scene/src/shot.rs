@@ -521,7 +521,8 @@ impl Phenomenon for ShotScene {
     }
 
     /// Every phenomenon's simulation and renderer on `clock`, and the shot's timing of
-    /// each one's step and composition.
+    /// each one's step and composition (without a clock, as for any phenomenon, every
+    /// time reads 0: each part's `step_ms` and `render_ms` are there, at 0).
     fn set_clock(built: &mut Built<Self>, clock: &SharedClock) {
         for part in &mut built.sim.parts {
             part.get_mut().unwrap_or_else(PoisonError::into_inner).set_clock(clock);

@@ -241,8 +241,8 @@ impl Tile {
         }
     }
 
-    /// Add a point's four bilinear `terms` ([`super::bilinear`]) from pixel (`x0`, `y0`)
-    /// on of line `line`.
+    /// Add a point's four bilinear `terms` ([`super::bilinear`]) to line `line`'s image
+    /// from pixel (`x0`, `y0`) on.
     #[inline]
     fn add(&mut self, x0: i32, y0: i32, line: u8, terms: [f32; 4], width: usize, height: usize) {
         let (lx, ly) = (i64::from(x0) - self.x0 as i64, i64::from(y0) - self.y0 as i64);
@@ -300,8 +300,8 @@ mod tests {
 
     #[test]
     fn lanes_add_the_scalar_bilinear_terms() {
-        // Points over and around a 37x23 image (on its edges, outside it, at NaN, with
-        // an infinite weight), some lanes masked off: deposited eight at a time
+        // Points over and around a 37x23 image (on its edges, outside it, at NaN or an
+        // infinity, with an infinite or NaN weight), some lanes masked off: deposited eight at a time
         // (`deposit8`), they leave the same bits as the scalar `bilinear` terms added
         // one point at a time, and the same count.
         use phenomena_core::rng::{Purpose, Stream};
@@ -315,15 +315,23 @@ mod tests {
         let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), 0);
         let scale = 3.0;
         for group in 0..2_000 {
+            let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.5];
             let splats: [Splat; 8] = std::array::from_fn(|l| Splat {
                 x: match (group + l) % 97 {
-                    0 => f32::NAN,
-                    1 => -0.5,
-                    2 => w as f32 + 0.5,
+                    k @ 0..=3 => odd[k],
+                    4 => w as f32 + 0.5,
                     _ => rng.next_f32() * (w as f32 + 6.0) - 3.0,
                 },
-                y: rng.next_f32() * (h as f32 + 6.0) - 3.0,
-                weight: if (group + l) % 89 == 0 { f32::INFINITY } else { rng.next_f32() },
+                y: match (group + l) % 83 {
+                    k @ 0..=3 => odd[k],
+                    4 => h as f32 + 0.5,
+                    _ => rng.next_f32() * (h as f32 + 6.0) - 3.0,
+                },
+                weight: match (group + l) % 89 {
+                    0 => f32::INFINITY,
+                    1 => f32::NAN,
+                    _ => rng.next_f32(),
+                },
                 line: (rng.next_u64() % 5) as u8,
             });
             let ok = (rng.next_u64() & 0xff) as u32;
