@@ -34,7 +34,7 @@ use phenomena_core::clock::SharedClock;
 use phenomena_core::color::{
     LIGHT_SPEED_M_PER_S, Observer, PLANCK_J_S, blackbody_xyz, spectral_line_xyz, xyz_to_linear_srgb,
 };
-use phenomena_core::image::{Frame, Plane};
+use phenomena_core::image::{Frame, Plane, par_chunks5};
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
@@ -1466,7 +1466,7 @@ fn floor_i32(v: f32) -> i32 {
 /// count.
 fn deposit_banded(chunks: &[BandedPoints], planes: &mut [Plane; 5]) {
     let (w, h) = (planes[0].width(), planes[0].height());
-    let spills: Vec<Vec<f32>> = par_plane_chunks(planes, w * BAND_ROWS)
+    let spills: Vec<Vec<f32>> = par_chunks5(planes, w * BAND_ROWS)
         .enumerate()
         .map(|(band, mut dst)| {
             let r_lo = band * BAND_ROWS;
@@ -1495,22 +1495,6 @@ fn deposit_banded(chunks: &[BandedPoints], planes: &mut [Plane; 5]) {
             }
         }
     }
-}
-
-/// The five line images cut into chunks of `n` values, the chunks of the same rows
-/// together, in parallel.
-fn par_plane_chunks(
-    planes: &mut [Plane; 5],
-    n: usize,
-) -> impl IndexedParallelIterator<Item = [&mut [f32]; 5]> {
-    let [p0, p1, p2, p3, p4] = planes;
-    p0.data_mut()
-        .par_chunks_mut(n)
-        .zip(p1.data_mut().par_chunks_mut(n))
-        .zip(p2.data_mut().par_chunks_mut(n))
-        .zip(p3.data_mut().par_chunks_mut(n))
-        .zip(p4.data_mut().par_chunks_mut(n))
-        .map(|((((a, b), c), d), e)| [a, b, c, d, e])
 }
 
 /// Where a splat's bilinear footprint starts (the pixel ⌊x − ½⌋, ⌊y − ½⌋) and its four

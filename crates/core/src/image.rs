@@ -16,6 +16,24 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// Five planes of one size cut into chunks of `n` samples (a band of rows: `n` a
+/// multiple of the width), the chunks at the same place together as one item, in
+/// parallel and in order (the five line images of the aurora, the flame's colour and
+/// offsets).
+pub fn par_chunks5(
+    planes: &mut [Plane; 5],
+    n: usize,
+) -> impl IndexedParallelIterator<Item = [&mut [f32]; 5]> {
+    let [p0, p1, p2, p3, p4] = planes;
+    p0.data
+        .par_chunks_mut(n)
+        .zip(p1.data.par_chunks_mut(n))
+        .zip(p2.data.par_chunks_mut(n))
+        .zip(p3.data.par_chunks_mut(n))
+        .zip(p4.data.par_chunks_mut(n))
+        .map(|((((a, b), c), d), e)| [a, b, c, d, e])
+}
+
 /// One channel of `width × height` linear f32 samples, row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plane {

@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 use phenomena_core::bands::Filed;
 use phenomena_core::camera::{Camera, CameraView, Projection};
 use phenomena_core::color::{Observer, blackbody_srgb_normalized, blackbody_xyz, xyz_to_linear_srgb};
-use phenomena_core::image::{Frame, Plane};
+use phenomena_core::image::{Frame, Plane, par_chunks5};
 use phenomena_core::lanes::{LANES, add, load};
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
@@ -582,17 +582,9 @@ impl FlameRenderer {
     fn splat_bands(&mut self) {
         let w = self.splat_w;
         let chunk = BAND_ROWS * w;
-        let [r, g, b, ox, oy] = &mut self.planes;
         let (splats, bins) = (&self.splats, &self.bins);
-        r.data_mut()
-            .par_chunks_mut(chunk)
-            .zip(g.data_mut().par_chunks_mut(chunk))
-            .zip(b.data_mut().par_chunks_mut(chunk))
-            .zip(ox.data_mut().par_chunks_mut(chunk))
-            .zip(oy.data_mut().par_chunks_mut(chunk))
-            .zip(self.spans.par_chunks_mut(BAND_ROWS))
-            .enumerate()
-            .for_each(|(band, (((((r, g), b), ox), oy), spans))| {
+        par_chunks5(&mut self.planes, chunk).zip(self.spans.par_chunks_mut(BAND_ROWS)).enumerate().for_each(
+            |(band, ([r, g, b, ox, oy], spans))| {
                 let row0 = band * BAND_ROWS;
                 let rows = r.len() / w;
                 let mut out =
@@ -603,7 +595,8 @@ impl FlameRenderer {
                         out.splat(s);
                     }
                 }
-            });
+            },
+        );
     }
 
     /// Distort the background by the offsets and add the flame, row by row; rows and

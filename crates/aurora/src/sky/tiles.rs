@@ -22,10 +22,9 @@
 //! the banded path is taken instead.
 
 use glam::Vec2;
+use phenomena_core::image::par_chunks5;
 
-use super::{
-    FrameEmission, Model, NEAR_M, Pinhole, Plane, Projected8, SkyRenderer, par_plane_chunks, project_in_lanes,
-};
+use super::{FrameEmission, Model, NEAR_M, Pinhole, Plane, Projected8, SkyRenderer, project_in_lanes};
 use rayon::prelude::*;
 use wide::f32x8;
 
@@ -277,7 +276,7 @@ impl Tile {
 /// The five line images: zero, plus every tile in run order, rows in parallel.
 fn add_tiles(tiles: &[Tile], planes: &mut [Plane; 5]) {
     let w = planes[0].width();
-    par_plane_chunks(planes, w).enumerate().for_each(|(y, rows)| {
+    par_chunks5(planes, w).enumerate().for_each(|(y, rows)| {
         for (k, row) in rows.into_iter().enumerate() {
             row.fill(0.0);
             for tile in tiles {
