@@ -330,6 +330,16 @@ impl Phenomenon for SnowScene {
         Ok(Built { sim, renderer, warnings })
     }
 
+    fn set_clock(built: &mut Built<Self>, clock: &phenomena_core::clock::SharedClock) {
+        built.renderer.set_clock(clock.clone());
+    }
+
+    fn render_detail(built: &Built<Self>) -> Option<serde_json::Value> {
+        (built.renderer.settings().view == SnowView::Scene)
+            .then(|| serde_json::to_value(built.renderer.timings()).ok())
+            .flatten()
+    }
+
     fn export(built: &Built<Self>, name: &str, format: &str) -> Result<Exported, String> {
         use phenomena_snow::export::{snow_mesh, to_glb, to_obj, to_ply};
         if name == "snow-scene" {

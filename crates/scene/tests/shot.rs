@@ -275,8 +275,8 @@ impl phenomena_scene::Observer for Records {
 }
 
 /// Given a clock, a shot times each phenomenon: its step (`step_ms` in its counters),
-/// and its part of the render (`render_ms` in the render detail, with the aurora's own
-/// breakdown beside it); the parts' render times add up to no more than the whole's.
+/// and its part of the render (`render_ms` in the render detail, with the aurora's and
+/// the snow's own breakdowns beside it); the parts' render times add up to no more than the whole's.
 #[test]
 fn a_shot_times_each_phenomenon() {
     let text = format!("{SIZE}{CAMERA}{SNOW}{AURORA}");
@@ -300,8 +300,13 @@ fn a_shot_times_each_phenomenon() {
             assert!(ms >= 1.0, "{name} render {ms}");
             parts += ms;
         }
-        // The aurora's renderer was given the clock too: its own breakdown is there.
+        // The aurora's and the snow's renderers were given the clock too: their own
+        // breakdowns are there.
         assert!(detail["aurora"]["emit_ms"].as_f64().is_some_and(|ms| ms >= 1.0), "{detail}");
+        for part in ["mesh_ms", "raster_ms", "shadow_ms", "shade_ms", "glitter_ms", "flakes_ms"] {
+            assert!(detail["snow"][part].as_f64().is_some_and(|ms| ms >= 1.0), "snow {part}: {detail}");
+        }
+        assert!(detail["snow"]["triangles"].as_u64().is_some_and(|n| n > 0), "{detail}");
         let whole = r.render_ms.expect("rendered");
         assert!(parts <= whole, "parts {parts} ms, whole {whole} ms");
     }

@@ -10,6 +10,7 @@
 //! The library builds bytes; writing files is the caller's (the CLI's) job.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::sim::{Footprint, SnowMap, SnowSim};
 
@@ -44,18 +45,30 @@ impl TriMesh {
     }
 }
 
-/// The snow of every map of `sim` as one mesh.
+/// The snow of every map of `sim` as one mesh: the maps' meshes, made in parallel, end
+/// to end in map order (the same mesh for any thread count).
 pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     let fp = sim.footprint();
+    let parts: Vec<TriMesh> = sim.maps().par_iter().map(|map| map_mesh(map, &fp)).collect();
     let mut mesh = TriMesh::default();
-    for map in sim.maps() {
-        let lattice = Lattice::new(map, &fp);
-        let top_index = lattice.top_vertices(&mut mesh);
-        for j in 0..fp.n {
-            for i in 0..fp.n {
-                if lattice.snowy(i as i64, j as i64) {
-                    lattice.texel_solid(&mut mesh, &top_index, (i, j));
-                }
+    for part in parts {
+        let offset = mesh.positions.len() as u32;
+        mesh.positions.extend(part.positions);
+        mesh.normals.extend(part.normals);
+        mesh.indices.extend(part.indices.iter().map(|&k| k + offset));
+    }
+    mesh
+}
+
+/// The snow of one map as a mesh.
+fn map_mesh(map: &SnowMap, fp: &Footprint) -> TriMesh {
+    let mut mesh = TriMesh::default();
+    let lattice = Lattice::new(map, fp);
+    let top_index = lattice.top_vertices(&mut mesh);
+    for j in 0..fp.n {
+        for i in 0..fp.n {
+            if lattice.snowy(i as i64, j as i64) {
+                lattice.texel_solid(&mut mesh, &top_index, (i, j));
             }
         }
     }
@@ -166,7 +179,7 @@ impl<'a> Lattice<'a> {
 
     /// The neighbours of corner (ci, cj) along the patch's edge: the lattice edges from
     /// it that separate a snowy texel from one without snow.
-    fn edge_neighbours(&self, ci: usize, cj: usize) -> Vec<(usize, usize)> {
+    fn edge_neighbours(&self, ci: usize, cj: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
         let (i, j) = (ci as i64, cj as i64);
         // Each lattice edge from the corner and the two texels on either side of it.
         let edges = [((1, 0), (i, j - 1), (i, j)), ((-1, 0), (i - 1, j - 1), (i - 1, j))]
@@ -174,12 +187,11 @@ impl<'a> Lattice<'a> {
             .chain([((0, 1), (i - 1, j), (i, j)), ((0, -1), (i - 1, j - 1), (i, j - 1))]);
         let n = self.fp.n as i64;
         edges
-            .filter(|&((di, dj), a, b)| {
+            .filter(move |&((di, dj), a, b)| {
                 let (ni, nj) = (i + di, j + dj);
                 (0..=n).contains(&ni) && (0..=n).contains(&nj) && self.snowy(a.0, a.1) != self.snowy(b.0, b.1)
             })
-            .map(|((di, dj), _, _)| ((i + di) as usize, (j + dj) as usize))
-            .collect()
+            .map(move |((di, dj), _, _)| ((i + di) as usize, (j + dj) as usize))
     }
 
     /// Laplacian passes over the corners that lie on one edge (two edge neighbours),
@@ -190,9 +202,11 @@ impl<'a> Lattice<'a> {
         let chain: Vec<(usize, [(usize, usize); 2])> = (0..n1 * n1)
             .filter(|&c| self.corners[c].is_some())
             .filter_map(|c| {
-                let e = self.edge_neighbours(c % n1, c / n1);
-                (e.len() == 2 && e.iter().all(|&(a, b)| self.corner(a, b).is_some()))
-                    .then(|| (c, [e[0], e[1]]))
+                // Exactly two neighbours (of at most four), both with snow.
+                let mut e = self.edge_neighbours(c % n1, c / n1);
+                let (a, b) = (e.next()?, e.next()?);
+                (e.next().is_none() && [a, b].iter().all(|&(x, z)| self.corner(x, z).is_some()))
+                    .then_some((c, [a, b]))
             })
             .collect();
         let half = 0.5 * self.fp.texel_m;
@@ -273,8 +287,7 @@ impl<'a> Lattice<'a> {
         mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
         let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
         let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
-        let b: Vec<u32> =
-            corners.iter().map(|&(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y)).collect();
+        let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
         mesh.quad([b[0], b[3], b[2], b[1]]);
         // Sides where the neighbour has no snow: (corner a, corner b, outward).
         let sides = [
@@ -294,17 +307,22 @@ impl<'a> Lattice<'a> {
             let normal = if normal.dot(outward) < 0.0 { -normal } else { normal };
             // Bottom a, top a, top b, bottom b: counter-clockwise seen from outside; a
             // feathered corner's top is its bottom.
-            let mut v = vec![mesh.vertex(bottom_of(ca), normal)];
+            let (mut v, mut len) = ([0u32; 4], 0);
+            let mut push = |k: u32| {
+                v[len] = k;
+                len += 1;
+            };
+            push(mesh.vertex(bottom_of(ca), normal));
             if !ca.feathered {
-                v.push(mesh.vertex(ca.top, normal));
+                push(mesh.vertex(ca.top, normal));
             }
             if !cb.feathered {
-                v.push(mesh.vertex(cb.top, normal));
+                push(mesh.vertex(cb.top, normal));
             }
-            v.push(mesh.vertex(bottom_of(cb), normal));
-            match v.len() {
-                4 => mesh.quad([v[0], v[1], v[2], v[3]]),
-                3 => mesh.indices.extend_from_slice(&v),
+            push(mesh.vertex(bottom_of(cb), normal));
+            match len {
+                4 => mesh.quad(v),
+                3 => mesh.indices.extend_from_slice(&v[..3]),
                 _ => {
                     // Both ends feathered: no side; take back the two unused vertices.
                     mesh.positions.truncate(mesh.positions.len() - 2);
@@ -670,6 +688,33 @@ mod tests {
             sim.step().unwrap();
         }
         sim
+    }
+
+    #[test]
+    fn the_maps_meshes_lie_end_to_end_whatever_the_threads() {
+        // The maps are meshed in parallel: on one thread and on three, the same mesh,
+        // each map's vertices after the maps' before it and its indices shifted by them.
+        let sim = snowy_sim();
+        assert!(sim.maps().len() >= 2, "{} maps", sim.maps().len());
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| snow_mesh(&sim))
+        };
+        let whole = on(1);
+        assert!(whole == on(3), "another mesh on three threads");
+        let (mut vertices, mut indices, mut meshed) = (0, 0, 0);
+        for map in sim.maps() {
+            let own = map_mesh(map, &sim.footprint());
+            let n = own.positions.len();
+            assert_eq!(whole.positions[vertices..vertices + n], own.positions[..]);
+            assert_eq!(whole.normals[vertices..vertices + n], own.normals[..]);
+            let shifted: Vec<u32> = own.indices.iter().map(|&k| k + vertices as u32).collect();
+            assert_eq!(whole.indices[indices..indices + shifted.len()], shifted[..]);
+            (vertices, indices) = (vertices + n, indices + shifted.len());
+            meshed += usize::from(n > 0);
+        }
+        assert_eq!((vertices, indices), (whole.positions.len(), whole.indices.len()));
+        assert!(meshed >= 2, "{meshed} maps with snow");
     }
 
     #[test]

@@ -36,7 +36,7 @@ mod sim;
 pub use flood::Counts as FloodCounts;
 pub use glitter::Glitter;
 pub use phenomena_core::phenomenon::RenderError;
-pub use render::{Background, Flakes, Seen, SnowRenderSettings, SnowRenderer, SnowView};
+pub use render::{Background, Flakes, Seen, SnowRenderSettings, SnowRenderer, SnowTimings, SnowView};
 pub use sim::{
     Footprint, SnowConfig, SnowError, SnowMap, SnowSim, SnowState, Stabiliser, StepStats, snowfall_directions,
 };

@@ -5,6 +5,7 @@
 use crate::raster::{Cull, NO_ID, rasterize};
 use glam::Vec3;
 use phenomena_core::camera::{Camera, CameraView};
+use phenomena_core::clock::SharedClock;
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
 use phenomena_core::validate::{InvalidConfig, Issue, Issues};
@@ -183,6 +184,31 @@ pub struct SnowRenderer {
     seen: Vec<Seen>,
     /// The scene mesh's smooth normals, worked out once per mesh.
     normals: ObjectNormals,
+    /// The clock of [`SnowRenderer::timings`] (none: every timing reads 0).
+    clock: SharedClock,
+    timings: SnowTimings,
+}
+
+/// Where the last scene view's time went, ms (0 unless the renderer was given a clock by
+/// [`SnowRenderer::set_clock`]), and how much it drew.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SnowTimings {
+    /// The snow's surface made into triangles ([`snow_mesh`]) beside the scene's.
+    pub mesh_ms: f64,
+    /// The camera's depth buffer of every triangle.
+    pub raster_ms: f64,
+    /// The sun's shadow map.
+    pub shadow_ms: f64,
+    /// Every pixel lit (sun, sky, lights, fog).
+    pub shade_ms: f64,
+    /// The snow's glints: the faces that can glint, their grains, their pixels.
+    pub glitter_ms: f64,
+    /// The falling flakes.
+    pub flakes_ms: f64,
+    /// Triangles drawn: the scene's and the snow's.
+    pub triangles: usize,
+    /// Glints drawn onto the frame.
+    pub glints: usize,
 }
 
 /// The scene mesh's smooth normals, kept while the mesh stays the same (it does for a
@@ -243,7 +269,19 @@ impl SnowRenderer {
             lights: Vec::new(),
             seen: Vec::new(),
             normals: ObjectNormals::default(),
+            clock: SharedClock::default(),
+            timings: SnowTimings::default(),
         })
+    }
+
+    /// Time the next scene views' parts with `clock` ([`SnowRenderer::timings`]).
+    pub fn set_clock(&mut self, clock: SharedClock) {
+        self.clock = clock;
+    }
+
+    /// The last scene view's timings (all 0 for the probability view).
+    pub fn timings(&self) -> SnowTimings {
+        self.timings
     }
 
     /// The settings.
@@ -267,11 +305,13 @@ impl SnowRenderer {
                     &self.settings,
                     (self.background.as_ref(), &self.lights),
                     &mut self.normals,
+                    (&self.clock, &mut self.timings),
                     w,
                     h,
                 )
             }
             SnowView::Probability => {
+                self.timings = SnowTimings::default();
                 (self.frame, self.depth, self.seen) = (render_probability(sim, w, h), Vec::new(), Vec::new())
             }
         }
@@ -292,8 +332,15 @@ impl SnowRenderer {
     /// composition with other phenomena.
     pub fn render_over(&mut self, sim: &SnowSim, behind: &Frame) -> &Frame {
         let (w, h) = (self.frame.width(), self.frame.height());
-        (self.frame, self.depth, self.seen) =
-            render_scene(sim, &self.settings, (Some(behind), &self.lights), &mut self.normals, w, h);
+        (self.frame, self.depth, self.seen) = render_scene(
+            sim,
+            &self.settings,
+            (Some(behind), &self.lights),
+            &mut self.normals,
+            (&self.clock, &mut self.timings),
+            w,
+            h,
+        );
         &self.frame
     }
 
@@ -393,9 +440,11 @@ fn render_scene(
     settings: &SnowRenderSettings,
     (background, lights): (Option<&Frame>, &[(Vec3, Vec3)]),
     normals: &mut ObjectNormals,
+    (clock, timings): (&SharedClock, &mut SnowTimings),
     width: usize,
     height: usize,
 ) -> (Frame, Vec<f32>, Vec<Seen>) {
+    *timings = SnowTimings::default();
     let mut frame = Frame::new(width, height);
     let none = || (vec![f32::INFINITY; width * height], vec![Seen::Background; width * height]);
     let scene = &sim.mesh().triangles;
@@ -404,25 +453,30 @@ fn render_scene(
         let (d, seen) = none();
         return (frame, d, seen);
     };
+    let t = clock.stopwatch();
     let snow = snow_mesh(sim);
     let mut tris = scene.clone();
     tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
+    timings.mesh_ms = t.ms();
+    timings.triangles = tris.len();
     // The snow's texel solids are closed and face outwards: their back faces (the
     // bottoms, the far sides) are never what the eye or the sun sees first.
     let cull = Cull::BackFrom(scene.len());
-    let Ok((buf, _)) = rasterize(&view, &tris, None, cull) else {
+    let t = clock.stopwatch();
+    let rasterized = rasterize(&view, &tris, None, cull);
+    timings.raster_ms = t.ms();
+    let Ok((buf, _)) = rasterized else {
         let (d, seen) = none();
         return (frame, d, seen);
     };
     let eye = camera.position;
     let sun = settings.sun_direction.normalize_or_zero();
-    let lighting = Lighting {
-        settings,
-        sun,
-        shadows: SunShadow::new(&tris, sun, settings.shadow_map_px, cull),
-        sky_seen: SkyVisibility { sim, fp: sim.footprint() },
-        lights,
-    };
+    let t = clock.stopwatch();
+    let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px, cull);
+    timings.shadow_ms = t.ms();
+    let lighting =
+        Lighting { settings, sun, shadows, sky_seen: SkyVisibility { sim, fp: sim.footprint() }, lights };
+    let t = clock.stopwatch();
     let object_normals = normals.of(scene);
     // Rows in parallel, each pixel on its own: the same bits for any thread count.
     let shade = |x: usize, y: usize| -> Vec3 {
@@ -457,10 +511,16 @@ fn render_scene(
     for (k, c) in colours.into_iter().enumerate() {
         frame.set_pixel(k % width, k / width, c);
     }
-    draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame);
+    timings.shade_ms = t.ms();
+    let t = clock.stopwatch();
+    timings.glints =
+        draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame);
+    timings.glitter_ms = t.ms();
     // Flakes are lit as the snow is: white in the default light.
+    let t = clock.stopwatch();
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
     draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
+    timings.flakes_ms = t.ms();
     (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
 }
 
@@ -468,7 +528,7 @@ fn render_scene(
 /// them and the eye sees that snow, each lighting its pixel by its face's share of the
 /// pixel's footprint, with 12 % of that on the four pixels around that show the scene
 /// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
-/// snow's own light).
+/// snow's own light). Returns how many glints lit a pixel.
 fn draw_glitter(
     seed: u64,
     settings: &SnowRenderSettings,
@@ -477,10 +537,10 @@ fn draw_glitter(
     buf: &crate::raster::DepthBuffer,
     snow: &[[Vec3; 3]],
     frame: &mut Frame,
-) {
+) -> usize {
     let g = &settings.glitter;
     if !(g.grains_per_m2 > 0.0 && g.mirror_radiance > 0.0) || lighting.sun == Vec3::ZERO {
-        return;
+        return 0;
     }
     // The snow's upper faces that face the eye and the sun, reach into the frame and
     // are not wholly in shadow: only their grains can glint where the eye sees them.
@@ -518,6 +578,7 @@ fn draw_glitter(
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
     let face_m2 = (1e-3 * g.grain_mm).powi(2);
     let (w, h) = (frame.width() as i64, frame.height() as i64);
+    let mut drawn = 0;
     for glint in glints(&up, Viewing { eye, sun: lighting.sun }, g, seed) {
         let Some(q) = view.project(glint.position) else { continue };
         let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
@@ -534,6 +595,7 @@ fn draw_glitter(
         // The face's share of the pixel's footprint at that depth.
         let share = (face_m2 * q.px_per_m * q.px_per_m).min(1.0);
         let c = colour * (glint.intensity * lit * fog * share);
+        drawn += 1;
         let halo = 0.12;
         for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {
             let (px, py) = (x + dx, y + dy);
@@ -544,6 +606,7 @@ fn draw_glitter(
             }
         }
     }
+    drawn
 }
 
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
