@@ -335,9 +335,11 @@ impl Phenomenon for SnowScene {
     }
 
     fn render_detail(built: &Built<Self>) -> Option<serde_json::Value> {
-        (built.renderer.settings().view == SnowView::Scene)
-            .then(|| serde_json::to_value(built.renderer.timings()).ok())
-            .flatten()
+        if built.renderer.settings().view == SnowView::Scene {
+            serde_json::to_value(built.renderer.timings()).ok()
+        } else {
+            None
+        }
     }
 
     fn export(built: &Built<Self>, name: &str, format: &str) -> Result<Exported, String> {

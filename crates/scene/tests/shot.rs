@@ -276,7 +276,8 @@ impl phenomena_scene::Observer for Records {
 
 /// Given a clock, a shot times each phenomenon: its step (`step_ms` in its counters),
 /// and its part of the render (`render_ms` in the render detail, with the aurora's and
-/// the snow's own breakdowns beside it); the parts' render times add up to no more than the whole's.
+/// the snow's own breakdowns beside it); the parts' render times add up to no more than
+/// the whole's.
 #[test]
 fn a_shot_times_each_phenomenon() {
     let text = format!("{SIZE}{CAMERA}{SNOW}{AURORA}");
@@ -303,10 +304,17 @@ fn a_shot_times_each_phenomenon() {
         // The aurora's and the snow's renderers were given the clock too: their own
         // breakdowns are there.
         assert!(detail["aurora"]["emit_ms"].as_f64().is_some_and(|ms| ms >= 1.0), "{detail}");
+        // The snow's parts lie within its render: none timed outside it or twice.
+        let mut snow = 0.0;
         for part in ["mesh_ms", "raster_ms", "shadow_ms", "shade_ms", "glitter_ms", "flakes_ms"] {
-            assert!(detail["snow"][part].as_f64().is_some_and(|ms| ms >= 1.0), "snow {part}: {detail}");
+            let ms = detail["snow"][part].as_f64().unwrap_or_else(|| panic!("snow {part}: {detail}"));
+            assert!(ms >= 1.0, "snow {part} {ms}");
+            snow += ms;
         }
+        let whole = detail["snow"]["render_ms"].as_f64().expect("snow's render_ms");
+        assert!(snow <= whole, "snow's parts {snow} ms, its render {whole} ms");
         assert!(detail["snow"]["triangles"].as_u64().is_some_and(|n| n > 0), "{detail}");
+        assert!(detail["snow"]["glints"].as_u64().is_some(), "{detail}");
         let whole = r.render_ms.expect("rendered");
         assert!(parts <= whole, "parts {parts} ms, whole {whole} ms");
     }

@@ -51,6 +51,10 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     let fp = sim.footprint();
     let parts: Vec<TriMesh> = sim.maps().par_iter().map(|map| map_mesh(map, &fp)).collect();
     let mut mesh = TriMesh::default();
+    let vertices: usize = parts.iter().map(|p| p.positions.len()).sum();
+    mesh.positions.reserve_exact(vertices);
+    mesh.normals.reserve_exact(vertices);
+    mesh.indices.reserve_exact(parts.iter().map(|p| p.indices.len()).sum());
     for part in parts {
         let offset = mesh.positions.len() as u32;
         mesh.positions.extend(part.positions);
@@ -691,30 +695,33 @@ mod tests {
     }
 
     #[test]
-    fn the_maps_meshes_lie_end_to_end_whatever_the_threads() {
-        // The maps are meshed in parallel: on one thread and on three, the same mesh,
-        // each map's vertices after the maps' before it and its indices shifted by them.
+    fn the_maps_meshed_in_parallel_are_the_maps_meshed_one_after_another() {
+        // The reference: every map's top vertices and texel solids added to one mesh,
+        // map after map, as `snow_mesh` did before it meshed the maps in parallel. The
+        // same mesh on one thread and on three, with at least two maps holding snow (so
+        // a map's indices must be shifted past the maps' before it).
         let sim = snowy_sim();
-        assert!(sim.maps().len() >= 2, "{} maps", sim.maps().len());
-        let on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| snow_mesh(&sim))
-        };
-        let whole = on(1);
-        assert!(whole == on(3), "another mesh on three threads");
-        let (mut vertices, mut indices, mut meshed) = (0, 0, 0);
+        let fp = sim.footprint();
+        let mut reference = TriMesh::default();
+        let mut meshed = 0;
         for map in sim.maps() {
-            let own = map_mesh(map, &sim.footprint());
-            let n = own.positions.len();
-            assert_eq!(whole.positions[vertices..vertices + n], own.positions[..]);
-            assert_eq!(whole.normals[vertices..vertices + n], own.normals[..]);
-            let shifted: Vec<u32> = own.indices.iter().map(|&k| k + vertices as u32).collect();
-            assert_eq!(whole.indices[indices..indices + shifted.len()], shifted[..]);
-            (vertices, indices) = (vertices + n, indices + shifted.len());
-            meshed += usize::from(n > 0);
+            let before = reference.positions.len();
+            let lattice = Lattice::new(map, &fp);
+            let top_index = lattice.top_vertices(&mut reference);
+            for j in 0..fp.n {
+                for i in 0..fp.n {
+                    if lattice.snowy(i as i64, j as i64) {
+                        lattice.texel_solid(&mut reference, &top_index, (i, j));
+                    }
+                }
+            }
+            meshed += usize::from(reference.positions.len() > before);
         }
-        assert_eq!((vertices, indices), (whole.positions.len(), whole.indices.len()));
         assert!(meshed >= 2, "{meshed} maps with snow");
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            assert!(pool.install(|| snow_mesh(&sim)) == reference, "another mesh on {threads} threads");
+        }
     }
 
     #[test]

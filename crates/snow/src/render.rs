@@ -189,8 +189,8 @@ pub struct SnowRenderer {
     timings: SnowTimings,
 }
 
-/// Where the last scene view's time went, ms (0 unless the renderer was given a clock by
-/// [`SnowRenderer::set_clock`]), and how much it drew.
+/// Where the last scene view's time went, ms, in its main parts (0 unless the renderer
+/// was given a clock by [`SnowRenderer::set_clock`]), and how much it drew.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SnowTimings {
     /// The snow's surface made into triangles ([`snow_mesh`]) beside the scene's.
@@ -199,15 +199,17 @@ pub struct SnowTimings {
     pub raster_ms: f64,
     /// The sun's shadow map.
     pub shadow_ms: f64,
-    /// Every pixel lit (sun, sky, lights, fog).
+    /// Every pixel lit (sun, sky, lights, fog), with the scene's smooth normals worked
+    /// out again when its mesh changed.
     pub shade_ms: f64,
     /// The snow's glints: the faces that can glint, their grains, their pixels.
     pub glitter_ms: f64,
     /// The falling flakes.
     pub flakes_ms: f64,
-    /// Triangles drawn: the scene's and the snow's.
+    /// Triangles given to the rasteriser, the scene's and the snow's (before the snow's
+    /// back faces are culled).
     pub triangles: usize,
-    /// Glints drawn onto the frame.
+    /// Glints the sun lights on pixels that show them.
     pub glints: usize,
 }
 
@@ -528,7 +530,7 @@ fn render_scene(
 /// them and the eye sees that snow, each lighting its pixel by its face's share of the
 /// pixel's footprint, with 12 % of that on the four pixels around that show the scene
 /// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
-/// snow's own light). Returns how many glints lit a pixel.
+/// snow's own light). Returns how many glints the sun lights on pixels that show them.
 fn draw_glitter(
     seed: u64,
     settings: &SnowRenderSettings,
@@ -595,7 +597,7 @@ fn draw_glitter(
         // The face's share of the pixel's footprint at that depth.
         let share = (face_m2 * q.px_per_m * q.px_per_m).min(1.0);
         let c = colour * (glint.intensity * lit * fog * share);
-        drawn += 1;
+        drawn += usize::from(lit > 0.0);
         let halo = 0.12;
         for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {
             let (px, py) = (x + dx, y + dy);
