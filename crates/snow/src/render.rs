@@ -437,6 +437,23 @@ fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height:
     })
 }
 
+/// The triangles the scene view draws, the scene's then the snow's, and the snow's
+/// mesh (whose normals light it).
+fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
+    let snow = snow_mesh(sim);
+    let mut tris = sim.mesh().triangles.clone();
+    tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
+    (tris, snow)
+}
+
+/// `f()`, its time (by `clock`) into `ms`.
+fn timed<T>(clock: &SharedClock, ms: &mut f64, f: impl FnOnce() -> T) -> T {
+    let t = clock.stopwatch();
+    let out = f();
+    *ms = t.ms();
+    out
+}
+
 fn render_scene(
     sim: &SnowSim,
     settings: &SnowRenderSettings,
@@ -455,27 +472,19 @@ fn render_scene(
         let (d, seen) = none();
         return (frame, d, seen);
     };
-    let t = clock.stopwatch();
-    let snow = snow_mesh(sim);
-    let mut tris = scene.clone();
-    tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
-    timings.mesh_ms = t.ms();
+    let (tris, snow) = timed(clock, &mut timings.mesh_ms, || triangles(sim));
     timings.triangles = tris.len();
     // The snow's texel solids are closed and face outwards: their back faces (the
     // bottoms, the far sides) are never what the eye or the sun sees first.
     let cull = Cull::BackFrom(scene.len());
-    let t = clock.stopwatch();
-    let rasterized = rasterize(&view, &tris, None, cull);
-    timings.raster_ms = t.ms();
-    let Ok((buf, _)) = rasterized else {
+    let Ok((buf, _)) = timed(clock, &mut timings.raster_ms, || rasterize(&view, &tris, None, cull)) else {
         let (d, seen) = none();
         return (frame, d, seen);
     };
     let eye = camera.position;
     let sun = settings.sun_direction.normalize_or_zero();
-    let t = clock.stopwatch();
-    let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px, cull);
-    timings.shadow_ms = t.ms();
+    let shadows =
+        timed(clock, &mut timings.shadow_ms, || SunShadow::new(&tris, sun, settings.shadow_map_px, cull));
     let lighting =
         Lighting { settings, sun, shadows, sky_seen: SkyVisibility { sim, fp: sim.footprint() }, lights };
     let t = clock.stopwatch();
@@ -514,15 +523,14 @@ fn render_scene(
         frame.set_pixel(k % width, k / width, c);
     }
     timings.shade_ms = t.ms();
-    let t = clock.stopwatch();
-    timings.glints =
-        draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame);
-    timings.glitter_ms = t.ms();
+    timings.glints = timed(clock, &mut timings.glitter_ms, || {
+        draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame)
+    });
     // Flakes are lit as the snow is: white in the default light.
-    let t = clock.stopwatch();
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
-    draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame);
-    timings.flakes_ms = t.ms();
+    timed(clock, &mut timings.flakes_ms, || {
+        draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame)
+    });
     (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
 }
 
