@@ -2,9 +2,9 @@
 //! the sky, with optional fog as in the paper's figures; or the snow probability P_a of
 //! the topmost map seen from above.
 
-use crate::raster::{Cull, NO_ID, rasterize};
+use crate::raster::{Cull, DepthBuffer, NO_ID, rasterize};
 use glam::Vec3;
-use phenomena_core::camera::{Camera, CameraView};
+use phenomena_core::camera::{Camera, CameraView, Projected};
 use phenomena_core::clock::SharedClock;
 use phenomena_core::image::Frame;
 use phenomena_core::phenomenon::{RenderError, check_size, image_background};
@@ -544,7 +544,7 @@ fn draw_glitter(
     settings: &SnowRenderSettings,
     lighting: &Lighting<'_>,
     (view, eye): (&CameraView, Vec3),
-    buf: &crate::raster::DepthBuffer,
+    buf: &DepthBuffer,
     snow: &[[Vec3; 3]],
     frame: &mut Frame,
 ) -> usize {
@@ -552,54 +552,13 @@ fn draw_glitter(
     if !(g.grains_per_m2 > 0.0 && g.mirror_radiance > 0.0) || lighting.sun == Vec3::ZERO {
         return 0;
     }
-    // The snow's upper faces that face the eye and the sun, reach into the frame and
-    // are not wholly in shadow: only their grains can glint where the eye sees them.
-    let (fw, fh) = (frame.width() as f32, frame.height() as f32);
-    let in_view = |t: &[Vec3; 3]| {
-        let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
-        for p in t {
-            let Some(q) = view.project(*p) else { return true };
-            lo = lo.min(glam::Vec2::new(q.x_px, q.y_px));
-            hi = hi.max(glam::Vec2::new(q.x_px, q.y_px));
-        }
-        hi.x >= -2.0 && hi.y >= -2.0 && lo.x <= fw + 2.0 && lo.y <= fh + 2.0
-    };
-    // A face whose corners and centre the sun does not reach at all (every shadow-map
-    // sample shadowed) has no lit grain, short of a shadow's gap smaller than the face.
-    let in_full_shadow = |t: &[Vec3; 3]| {
-        lighting.shadows.as_ref().is_some_and(|m| {
-            let centre = (t[0] + t[1] + t[2]) / 3.0;
-            [t[0], t[1], t[2], centre].iter().all(|&p| m.lit(p, 1.0) == 0.0)
-        })
-    };
-    // In parallel; rayon's collect keeps the triangles' order.
-    let up: Vec<[Vec3; 3]> = snow
-        .par_iter()
-        .copied()
-        .filter(|t| {
-            let n = (t[1] - t[0]).cross(t[2] - t[0]);
-            n.y > 0.0
-                && n.dot(eye - t[0]) > 0.0
-                && n.dot(lighting.sun) > 0.0
-                && in_view(t)
-                && !in_full_shadow(t)
-        })
-        .collect();
+    let up = glinting_faces(snow, lighting, (view, eye), buf, true);
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
     let face_m2 = (1e-3 * g.grain_mm).powi(2);
     let (w, h) = (frame.width() as i64, frame.height() as i64);
     let mut drawn = 0;
     for glint in glints(&up, Viewing { eye, sun: lighting.sun }, g, seed) {
-        let Some(q) = view.project(glint.position) else { continue };
-        let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-        if x < 0 || y < 0 || x >= w || y >= h {
-            continue;
-        }
-        // The snow there is what the pixel shows (not hidden behind something nearer).
-        let seen = buf.depth_at(x as usize, y as usize);
-        if q.depth > seen + 0.02 + 0.01 * seen {
-            continue;
-        }
+        let Some((x, y, q)) = glint_seen(view, buf, glint.position) else { continue };
         let lit = lighting.shadows.as_ref().map_or(1.0, |m| m.lit(glint.position, 1.0));
         let fog = (-settings.fog_per_m * q.depth).exp();
         // The face's share of the pixel's footprint at that depth.
@@ -619,8 +578,120 @@ fn draw_glitter(
     drawn
 }
 
+/// How far behind what a pixel shows (at depth d) a glint may lie and still be that
+/// snow: 2 cm + 1 % of d (the snow's faces and the depth buffer's rounding).
+fn seen_tolerance(d: f32) -> f32 {
+    0.02 + 0.01 * d
+}
+
+/// The pixel a glint at `p` lands on and its projection, if the eye sees the snow there
+/// (in the frame, and not hidden behind something nearer).
+fn glint_seen(view: &CameraView, buf: &DepthBuffer, p: Vec3) -> Option<(i64, i64, Projected)> {
+    let q = view.project(p)?;
+    let (x, y) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
+    let (w, h) = (buf.width() as i64, buf.height() as i64);
+    if x < 0 || y < 0 || x >= w || y >= h {
+        return None;
+    }
+    let seen = buf.depth_at(x as usize, y as usize);
+    (q.depth <= seen + seen_tolerance(seen)).then_some((x, y, q))
+}
+
+/// The snow's upper faces (of `snow`) that face the eye and the sun, reach into the
+/// frame and are not wholly in shadow: only their grains can glint where the eye sees
+/// them. With `skip_hidden`, also not those wholly behind what the frame shows there,
+/// whose every glint [`glint_seen`] would turn down (the same glints drawn, for less).
+/// In the triangles' order.
+fn glinting_faces(
+    snow: &[[Vec3; 3]],
+    lighting: &Lighting<'_>,
+    (view, eye): (&CameraView, Vec3),
+    buf: &DepthBuffer,
+    skip_hidden: bool,
+) -> Vec<[Vec3; 3]> {
+    let (fw, fh) = (buf.width() as f32, buf.height() as f32);
+    let planar = skip_hidden && view.is_planar();
+    // In the frame (or not wholly in front of the eye) and, with `skip_hidden`, not
+    // wholly hidden.
+    let may_show = |t: &[Vec3; 3]| match screen_box(view, t) {
+        None => true,
+        Some(b) => {
+            b.hi.x >= -2.0
+                && b.hi.y >= -2.0
+                && b.lo.x <= fw + 2.0
+                && b.lo.y <= fh + 2.0
+                && !(planar && wholly_hidden(buf, &b))
+        }
+    };
+    // A face whose corners and centre the sun does not reach at all (every shadow-map
+    // sample shadowed) has no lit grain, short of a shadow's gap smaller than the face.
+    let in_full_shadow = |t: &[Vec3; 3]| {
+        lighting.shadows.as_ref().is_some_and(|m| {
+            let centre = (t[0] + t[1] + t[2]) / 3.0;
+            [t[0], t[1], t[2], centre].iter().all(|&p| m.lit(p, 1.0) == 0.0)
+        })
+    };
+    // In parallel; rayon's collect keeps the triangles' order.
+    snow.par_iter()
+        .copied()
+        .filter(|t| {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            n.y > 0.0
+                && n.dot(eye - t[0]) > 0.0
+                && n.dot(lighting.sun) > 0.0
+                && may_show(t)
+                && !in_full_shadow(t)
+        })
+        .collect()
+}
+
+/// A triangle's image: its corners' box, pixels, and its nearest corner's depth.
+struct ScreenBox {
+    lo: glam::Vec2,
+    hi: glam::Vec2,
+    near: f32,
+}
+
+/// The image of `t`, `None` when a corner does not project (behind the eye).
+fn screen_box(view: &CameraView, t: &[Vec3; 3]) -> Option<ScreenBox> {
+    let mut b = ScreenBox {
+        lo: glam::Vec2::splat(f32::INFINITY),
+        hi: glam::Vec2::splat(f32::NEG_INFINITY),
+        near: f32::INFINITY,
+    };
+    for p in t {
+        let q = view.project(*p)?;
+        b.lo = b.lo.min(glam::Vec2::new(q.x_px, q.y_px));
+        b.hi = b.hi.max(glam::Vec2::new(q.x_px, q.y_px));
+        b.near = b.near.min(q.depth);
+    }
+    Some(b)
+}
+
+/// Whether every point of a triangle of image `b` lies farther than what each pixel it
+/// may land on shows, past [`seen_tolerance`]: for a perspective or orthographic view,
+/// whose depth is linear (so no nearer than the nearest corner) and which maps the
+/// triangle into its corners' box (widened by a pixel for rounding). Faces over more
+/// than 1,024 pixels are not looked at (false).
+fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox) -> bool {
+    let (w, h) = (buf.width() as i64, buf.height() as i64);
+    let (x0, y0) = ((b.lo.x.floor() as i64 - 1).max(0), (b.lo.y.floor() as i64 - 1).max(0));
+    let (x1, y1) = ((b.hi.x.floor() as i64 + 1).min(w - 1), (b.hi.y.floor() as i64 + 1).min(h - 1));
+    if x1 < x0 || y1 < y0 || (x1 - x0 + 1) * (y1 - y0 + 1) > 1024 {
+        return false;
+    }
+    let mut far = 0.0f32;
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            far = far.max(buf.depth_at(x as usize, y as usize));
+        }
+    }
+    // A point inside may come out nearer than the corners by rounding: 10⁻⁴ of slack.
+    b.near * (1.0 - 1e-4) > far + seen_tolerance(far)
+}
+
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
-fn seen(buf: &crate::raster::DepthBuffer, objects: usize) -> Vec<Seen> {
+fn seen(buf: &DepthBuffer, objects: usize) -> Vec<Seen> {
     let kind = |id: u32| match id {
         NO_ID => Seen::Background,
         id if (id as usize) < objects => Seen::Object,
@@ -884,6 +955,7 @@ fn render_probability(sim: &SnowSim, width: usize, height: usize) -> Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::glitter::Glint;
     use crate::mesh::table_scene;
     use crate::sim::SnowConfig;
 
@@ -1015,5 +1087,52 @@ mod tests {
         let before = mask(&sim);
         sim.step().unwrap();
         assert_ne!(before, mask(&sim), "flakes moved between frames");
+    }
+
+    /// Skipping the faces wholly behind what the frame shows drops no glint the eye
+    /// sees: the village (its houses hide snow behind them), from its shipped camera
+    /// and from low down, gives the same seen glints with and without the skip, which
+    /// drops a good share of the faces.
+    #[test]
+    fn the_faces_skipped_as_hidden_hold_no_glint_the_eye_sees() {
+        let params =
+            SnowConfig { map_resolution: 100, directions: 16, rate_cm_per_h: 20.0, ..SnowConfig::default() };
+        let mut sim = SnowSim::new(crate::mesh::village_scene(), params, 1).unwrap();
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        let (tris, _) = triangles(&sim);
+        let scene = sim.mesh().triangles.len();
+        let settings = SnowRenderSettings::default();
+        let sun = settings.sun_direction.normalize();
+        for position in [Vec3::new(24.0, 14.0, 30.0), Vec3::new(18.0, 2.0, 14.0)] {
+            let camera = Camera {
+                position,
+                look_at: Vec3::ZERO,
+                up: Vec3::Y,
+                projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 },
+            };
+            let view = camera.view(320, 180).unwrap();
+            let (buf, _) = rasterize(&view, &tris, None, Cull::BackFrom(scene)).unwrap();
+            let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px, Cull::BackFrom(scene));
+            let sky_seen = SkyVisibility { sim: &sim, fp: sim.footprint() };
+            let lighting = Lighting { settings: &settings, sun, shadows, sky_seen, lights: &[] };
+            let seen = |faces: &[[Vec3; 3]]| -> Vec<Glint> {
+                let viewing = Viewing { eye: position, sun };
+                let all = glints(faces, viewing, &settings.glitter, sim.seed());
+                all.into_iter().filter(|g| glint_seen(&view, &buf, g.position).is_some()).collect()
+            };
+            let every = glinting_faces(&tris[scene..], &lighting, (&view, position), &buf, false);
+            let kept = glinting_faces(&tris[scene..], &lighting, (&view, position), &buf, true);
+            let (a, b) = (seen(&every), seen(&kept));
+            assert!(a.len() > 100, "{position}: {} glints seen: the case tests something", a.len());
+            assert_eq!(a, b, "{position}: the glints seen differ");
+            assert!(
+                kept.len() < every.len() * 9 / 10,
+                "{position}: {} of {} faces kept",
+                kept.len(),
+                every.len()
+            );
+        }
     }
 }
