@@ -46,10 +46,35 @@ impl TriMesh {
 }
 
 /// The snow of every map of `sim` as one mesh: the maps' meshes, made in parallel, end
-/// to end in map order (the same mesh for any thread count).
+/// to end in map order (the same mesh for any thread count). Each snowy texel is a
+/// closed solid: its top, its bottom on the ground and its open sides.
 pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
+    meshes_joined(sim, Faces::Closed)
+}
+
+/// [`snow_mesh`] without the bottoms of the texels inside a patch (snow on all eight
+/// texels around): what the renderer draws. Such a bottom lies on the surface that holds
+/// the snow and faces into it, so the eye sees it, if at all, only from behind that
+/// surface at the same depth; at a patch's edge the bottom may overhang the surface's
+/// edge (a roof's eave), and stays. The other faces, vertices and normals come in the
+/// same order as in [`snow_mesh`].
+pub fn snow_surface(sim: &SnowSim) -> TriMesh {
+    meshes_joined(sim, Faces::Open)
+}
+
+/// Which texels' solids keep their bottoms.
+#[derive(Clone, Copy, PartialEq)]
+enum Faces {
+    /// Every texel's.
+    Closed,
+    /// Only those at a patch's edge.
+    Open,
+}
+
+/// The maps' meshes, made in parallel, end to end in map order.
+fn meshes_joined(sim: &SnowSim, faces: Faces) -> TriMesh {
     let fp = sim.footprint();
-    let parts: Vec<TriMesh> = sim.maps().par_iter().map(|map| map_mesh(map, &fp)).collect();
+    let parts: Vec<TriMesh> = sim.maps().par_iter().map(|map| map_mesh(map, &fp, faces)).collect();
     let mut mesh = TriMesh::default();
     let vertices: usize = parts.iter().map(|p| p.positions.len()).sum();
     mesh.positions.reserve_exact(vertices);
@@ -65,14 +90,14 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
 }
 
 /// The snow of one map as a mesh.
-fn map_mesh(map: &SnowMap, fp: &Footprint) -> TriMesh {
+fn map_mesh(map: &SnowMap, fp: &Footprint, faces: Faces) -> TriMesh {
     let mut mesh = TriMesh::default();
     let lattice = Lattice::new(map, fp);
     let top_index = lattice.top_vertices(&mut mesh);
     for j in 0..fp.n {
         for i in 0..fp.n {
             if lattice.snowy(i as i64, j as i64) {
-                lattice.texel_solid(&mut mesh, &top_index, (i, j));
+                lattice.texel_solid(&mut mesh, &top_index, (i, j), faces);
             }
         }
     }
@@ -281,9 +306,9 @@ impl<'a> Lattice<'a> {
     }
 
     /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
-    /// its bottom on the ground, and a side towards each neighbour without snow (none
+    /// its bottom on the ground (with [`Faces::Open`], only at a patch's edge), and a side towards each neighbour without snow (none
     /// where both of the side's corners are feathered, a triangle where one is).
-    fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize)) {
+    fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize), faces: Faces) {
         let n = self.fp.n;
         let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
         // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
@@ -291,8 +316,14 @@ impl<'a> Lattice<'a> {
         mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
         let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
         let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
-        let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
-        mesh.quad([b[0], b[3], b[2], b[1]]);
+        // Inside a patch (snow all round) the bottom lies on the surface that holds the
+        // snow; at its edge it may reach past that surface's edge, an overhang whose
+        // underside shows.
+        let inside = || (-1..=1).all(|dj| (-1..=1).all(|di| self.snowy(i as i64 + di, j as i64 + dj)));
+        if faces == Faces::Closed || !inside() {
+            let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
+            mesh.quad([b[0], b[3], b[2], b[1]]);
+        }
         // Sides where the neighbour has no snow: (corner a, corner b, outward).
         let sides = [
             ((i, j), (i + 1, j), (0i64, -1i64), Vec3::NEG_Z),
@@ -711,7 +742,7 @@ mod tests {
             for j in 0..fp.n {
                 for i in 0..fp.n {
                     if lattice.snowy(i as i64, j as i64) {
-                        lattice.texel_solid(&mut reference, &top_index, (i, j));
+                        lattice.texel_solid(&mut reference, &top_index, (i, j), Faces::Closed);
                     }
                 }
             }
