@@ -138,12 +138,15 @@ struct Lattice<'a> {
     map: &'a SnowMap,
     fp: &'a Footprint,
     corners: Vec<Option<Corner>>,
+    /// Per texel: whether it can hold snow and holds more than [`MIN_DEPTH_M`].
+    snowy: Vec<bool>,
 }
 
 impl<'a> Lattice<'a> {
     fn new(map: &'a SnowMap, fp: &'a Footprint) -> Self {
         let n = fp.n;
-        let mut lattice = Self { map, fp, corners: Vec::new() };
+        let snowy = (0..n * n).map(|k| map.possible(k) && map.snow_m[k] > MIN_DEPTH_M).collect();
+        let mut lattice = Self { map, fp, corners: Vec::new(), snowy };
         lattice.corners =
             (0..(n + 1) * (n + 1)).map(|c| lattice.raw_corner(c % (n + 1), c / (n + 1))).collect();
         lattice.smooth_edges();
@@ -153,7 +156,8 @@ impl<'a> Lattice<'a> {
     /// Whether texel (i, j) lies in the map, can hold snow and holds more than
     /// [`MIN_DEPTH_M`].
     fn snowy(&self, i: i64, j: i64) -> bool {
-        self.ground(i, j).is_some() && self.map.snow_m[j as usize * self.fp.n + i as usize] > MIN_DEPTH_M
+        let n = self.fp.n;
+        i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n && self.snowy[j as usize * n + i as usize]
     }
 
     /// The ground of texel (i, j), if it lies in the map and can hold snow.

@@ -553,18 +553,25 @@ fn draw_glitter(
         return 0;
     }
     let up = glinting_faces(snow, lighting, (view, eye), buf, true);
+    let gl = glints(&up, Viewing { eye, sun: lighting.sun }, g, seed);
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
     let face_m2 = (1e-3 * g.grain_mm).powi(2);
     let (w, h) = (frame.width() as i64, frame.height() as i64);
     let mut drawn = 0;
-    for glint in glints(&up, Viewing { eye, sun: lighting.sun }, g, seed) {
-        let Some((x, y, q)) = glint_seen(view, buf, glint.position) else { continue };
-        let lit = lighting.shadows.as_ref().map_or(1.0, |m| m.lit(glint.position, 1.0));
-        let fog = (-settings.fog_per_m * q.depth).exp();
-        // The face's share of the pixel's footprint at that depth.
-        let share = (face_m2 * q.px_per_m * q.px_per_m).min(1.0);
-        let c = colour * (glint.intensity * lit * fog * share);
-        drawn += usize::from(lit > 0.0);
+    // Each glint's pixel and light in parallel, added to the frame in the glints' order.
+    let shown: Vec<(i64, i64, Vec3, bool)> = gl
+        .par_iter()
+        .filter_map(|glint| {
+            let (x, y, q) = glint_seen(view, buf, glint.position)?;
+            let lit = lighting.shadows.as_ref().map_or(1.0, |m| m.lit(glint.position, 1.0));
+            let fog = (-settings.fog_per_m * q.depth).exp();
+            // The face's share of the pixel's footprint at that depth.
+            let share = (face_m2 * q.px_per_m * q.px_per_m).min(1.0);
+            Some((x, y, colour * (glint.intensity * lit * fog * share), lit > 0.0))
+        })
+        .collect();
+    for (x, y, c, lit) in shown {
+        drawn += usize::from(lit);
         let halo = 0.12;
         for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {
             let (px, py) = (x + dx, y + dy);
@@ -628,7 +635,7 @@ fn glinting_faces(
     let in_full_shadow = |t: &[Vec3; 3]| {
         lighting.shadows.as_ref().is_some_and(|m| {
             let centre = (t[0] + t[1] + t[2]) / 3.0;
-            [t[0], t[1], t[2], centre].iter().all(|&p| m.lit(p, 1.0) == 0.0)
+            ![t[0], t[1], t[2], centre].iter().any(|&p| m.any_lit(p, 1.0))
         })
     };
     // In parallel; rayon's collect keeps the triangles' order.
@@ -813,25 +820,33 @@ impl SunShadow {
         Some(Self { view, buf, texel_m: 2.0 * radius / px as f32 })
     }
 
+    /// Whether any of [`SunShadow::lit`]'s samples is lit (`lit(p, cos) > 0`), stopping at
+    /// the first.
+    fn any_lit(&self, p: Vec3, cos: f32) -> bool {
+        self.samples(p, cos).is_none_or(|mut s| s.any(|lit| lit))
+    }
+
     /// The share of the sun's light reaching `p` (a surface whose normal makes cosine
     /// `cos` with the sun): 3 × 3 shadow-map samples around it (soft edges), each
     /// lit when `p` is no farther from the sun than the nearest surface there, less a
     /// bias of a texel and a half that grows on slopes (no self-shadowing acne).
     fn lit(&self, p: Vec3, cos: f32) -> f32 {
-        let Some(q) = self.view.project(p) else { return 1.0 };
+        self.samples(p, cos).map_or(1.0, |s| s.filter(|&lit| lit).count() as f32 / 9.0)
+    }
+
+    /// Whether each of [`SunShadow::lit`]'s 3 × 3 samples is lit; `None` where `p` does
+    /// not project (all lit).
+    fn samples(&self, p: Vec3, cos: f32) -> Option<impl Iterator<Item = bool> + '_> {
+        let q = self.view.project(p)?;
         let bias = 1.5 * self.texel_m / cos.max(0.2);
         let (w, h) = (self.buf.width() as i64, self.buf.height() as i64);
         let (cx, cy) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-        let mut lit = 0;
-        for dy in -1..=1 {
-            for dx in -1..=1 {
+        Some((-1..=1).flat_map(move |dy| {
+            (-1..=1).map(move |dx| {
                 let (x, y) = ((cx + dx).clamp(0, w - 1), (cy + dy).clamp(0, h - 1));
-                if q.depth <= self.buf.depth_at(x as usize, y as usize) + bias {
-                    lit += 1;
-                }
-            }
-        }
-        lit as f32 / 9.0
+                q.depth <= self.buf.depth_at(x as usize, y as usize) + bias
+            })
+        }))
     }
 }
 
