@@ -157,15 +157,19 @@ fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) {
     let s = theta.sin();
     let all = theta <= alpha || theta + alpha >= std::f32::consts::PI || alpha.sin() >= s;
     let dphi = std::f32::consts::TAU / SECTORS as f32;
+    // The sectors the cap spans (the same in every band); unused when it holds a pole.
+    let (first, last) = if all {
+        (0, 0)
+    } else {
+        let half = (alpha.sin() / s).asin();
+        let phi = axis.y.atan2(axis.x).rem_euclid(std::f32::consts::TAU);
+        (((phi - half) / dphi).floor() as i64, ((phi + half) / dphi).floor() as i64)
+    };
     for band in band_of(lo)..=band_of(hi) {
         if all {
             out.extend((0..SECTORS).map(|k| band * SECTORS + k));
             continue;
         }
-        let half = (alpha.sin() / s).asin();
-        let phi = axis.y.atan2(axis.x).rem_euclid(std::f32::consts::TAU);
-        let first = ((phi - half) / dphi).floor() as i64;
-        let last = ((phi + half) / dphi).floor() as i64;
         for k in first..=last {
             out.push(band * SECTORS + k.rem_euclid(SECTORS as i64) as usize);
         }

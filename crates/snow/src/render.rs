@@ -441,8 +441,13 @@ fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height:
 /// mesh (whose normals light it).
 fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
     let snow = snow_surface(sim);
-    let mut tris = sim.mesh().triangles.clone();
-    tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
+    let scene = &sim.mesh().triangles;
+    let mut tris = Vec::with_capacity(scene.len() + snow.triangles());
+    tris.extend_from_slice(scene);
+    // In parallel, in order.
+    tris.par_extend(
+        snow.indices.par_chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])),
+    );
     (tris, snow)
 }
 
