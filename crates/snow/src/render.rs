@@ -828,7 +828,15 @@ impl SunShadow {
     /// Whether any of [`SunShadow::lit`]'s samples is lit (`lit(p, cos) > 0`), stopping at
     /// the first.
     fn any_lit(&self, p: Vec3, cos: f32) -> bool {
-        self.samples(p, cos).is_none_or(|mut s| s.any(|lit| lit))
+        let Some(probe) = self.probe(p, cos) else { return true };
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if self.sample_lit(&probe, dx, dy) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// The share of the sun's light reaching `p` (a surface whose normal makes cosine
@@ -836,22 +844,30 @@ impl SunShadow {
     /// lit when `p` is no farther from the sun than the nearest surface there, less a
     /// bias of a texel and a half that grows on slopes (no self-shadowing acne).
     fn lit(&self, p: Vec3, cos: f32) -> f32 {
-        self.samples(p, cos).map_or(1.0, |s| s.filter(|&lit| lit).count() as f32 / 9.0)
+        let Some(probe) = self.probe(p, cos) else { return 1.0 };
+        let mut lit = 0;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                lit += u32::from(self.sample_lit(&probe, dx, dy));
+            }
+        }
+        lit as f32 / 9.0
     }
 
-    /// Whether each of [`SunShadow::lit`]'s 3 × 3 samples is lit; `None` where `p` does
-    /// not project (all lit).
-    fn samples(&self, p: Vec3, cos: f32) -> Option<impl Iterator<Item = bool> + '_> {
+    /// Where `p` falls in the map (its texel and depth) and its bias; `None` where it
+    /// does not project (lit).
+    fn probe(&self, p: Vec3, cos: f32) -> Option<(i64, i64, f32, f32)> {
         let q = self.view.project(p)?;
         let bias = 1.5 * self.texel_m / cos.max(0.2);
+        Some((q.x_px.floor() as i64, q.y_px.floor() as i64, q.depth, bias))
+    }
+
+    /// Whether the sample (dx, dy) texels from a probe's texel is lit.
+    #[inline]
+    fn sample_lit(&self, &(cx, cy, depth, bias): &(i64, i64, f32, f32), dx: i64, dy: i64) -> bool {
         let (w, h) = (self.buf.width() as i64, self.buf.height() as i64);
-        let (cx, cy) = (q.x_px.floor() as i64, q.y_px.floor() as i64);
-        Some((-1..=1).flat_map(move |dy| {
-            (-1..=1).map(move |dx| {
-                let (x, y) = ((cx + dx).clamp(0, w - 1), (cy + dy).clamp(0, h - 1));
-                q.depth <= self.buf.depth_at(x as usize, y as usize) + bias
-            })
-        }))
+        let (x, y) = ((cx + dx).clamp(0, w - 1), (cy + dy).clamp(0, h - 1));
+        depth <= self.buf.depth_at(x as usize, y as usize) + bias
     }
 }
 
