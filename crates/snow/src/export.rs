@@ -52,12 +52,15 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
     meshes_joined(sim, Faces::Closed)
 }
 
-/// [`snow_mesh`] without the bottoms of the texels inside a patch (snow on all eight
-/// texels around): what the renderer draws. Such a bottom lies on the surface that holds
-/// the snow and faces into it, so the eye sees it, if at all, only from behind that
-/// surface at the same depth; at a patch's edge the bottom may overhang the surface's
-/// edge (a roof's eave), and stays. The other faces, vertices and normals come in the
-/// same order as in [`snow_mesh`].
+/// [`snow_mesh`] without the bottoms that lie on the surface holding the snow: those of
+/// texels inside a patch (snow on all eight texels around) whose ground is a plane
+/// ([`Lattice::hides_bottom`]). What the renderer draws. Such a bottom faces into that
+/// surface, so it can show only from behind the surface (an open sheet seen from below),
+/// at the surface's own depth: there it tied with the surface and won some pixels by
+/// rounding, a speckle of the snow's underside on the sheet's; without it the sheet
+/// shows. At a patch's edge the bottom may overhang the surface's edge (a roof's eave),
+/// and under a crease or a step it leaves the surface: those stay. The other faces,
+/// vertices and normals come in the same order as in [`snow_mesh`].
 pub fn snow_surface(sim: &SnowSim) -> TriMesh {
     meshes_joined(sim, Faces::Open)
 }
@@ -67,7 +70,7 @@ pub fn snow_surface(sim: &SnowSim) -> TriMesh {
 enum Faces {
     /// Every texel's.
     Closed,
-    /// Only those at a patch's edge.
+    /// Only those that do not lie on the surface holding the snow.
     Open,
 }
 
@@ -109,6 +112,11 @@ fn map_mesh(map: &SnowMap, fp: &Footprint, faces: Faces) -> TriMesh {
 /// the snow thins out instead of ending in a wall; larger steps, and texels that cannot
 /// hold snow (past a table's rim), are edges, where it keeps its side.
 const CONTINUOUS_TEXELS: f32 = 3.0;
+
+/// How far the 3 × 3 grounds around a texel may stray from a plane (each second
+/// difference), m, for its bottom to count as lying on the ground: 0.1 mm, a hundred
+/// times the rounding of a ground height a few metres up (about 10⁻⁶ m).
+const PLANAR_M: f32 = 1e-4;
 
 /// Smoothing passes along a patch's edge.
 const EDGE_SMOOTHING: usize = 3;
@@ -309,9 +317,33 @@ impl<'a> Lattice<'a> {
         top_index
     }
 
+    /// Whether snowy texel (i, j)'s bottom lies on the surface that holds its snow: snow
+    /// on all eight texels around (at a patch's edge the bottom may reach past that
+    /// surface's edge, an overhang whose underside shows) and their ground a plane, each
+    /// second difference of the 3 × 3 grounds within [`PLANAR_M`] (under a crease or a
+    /// step the corners' mean ground leaves the surface, and an open sheet seen from
+    /// below would show the bottom).
+    fn hides_bottom(&self, i: usize, j: usize) -> bool {
+        let (i, j) = (i as i64, j as i64);
+        let mut g = [[0.0f32; 3]; 3];
+        for dj in -1..=1 {
+            for di in -1..=1 {
+                if !self.snowy(i + di, j + dj) {
+                    return false;
+                }
+                // Snowy, so in the map and with ground.
+                g[(dj + 1) as usize][(di + 1) as usize] = self.ground(i + di, j + dj).unwrap_or(f32::NAN);
+            }
+        }
+        let flat = |d: f32| d.abs() <= PLANAR_M;
+        (0..3).all(|r| flat(g[r][0] - 2.0 * g[r][1] + g[r][2]) && flat(g[0][r] - 2.0 * g[1][r] + g[2][r]))
+            && flat(g[2][2] - g[2][0] - g[0][2] + g[0][0])
+    }
+
     /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
-    /// its bottom on the ground (with [`Faces::Open`], only at a patch's edge), and a side towards each neighbour without snow (none
-    /// where both of the side's corners are feathered, a triangle where one is).
+    /// its bottom on the ground (with [`Faces::Open`], only where [`Lattice::hides_bottom`]
+    /// does not hold), and a side towards each neighbour without snow (none where both of
+    /// the side's corners are feathered, a triangle where one is).
     fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize), faces: Faces) {
         let n = self.fp.n;
         let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
@@ -320,11 +352,7 @@ impl<'a> Lattice<'a> {
         mesh.quad(corners.map(|(ci, cj)| top_index[cj * (n + 1) + ci]));
         let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
         let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
-        // Inside a patch (snow all round) the bottom lies on the surface that holds the
-        // snow; at its edge it may reach past that surface's edge, an overhang whose
-        // underside shows.
-        let inside = || (-1..=1).all(|dj| (-1..=1).all(|di| self.snowy(i as i64 + di, j as i64 + dj)));
-        if faces == Faces::Closed || !inside() {
+        if faces == Faces::Closed || !self.hides_bottom(i, j) {
             let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
             mesh.quad([b[0], b[3], b[2], b[1]]);
         }

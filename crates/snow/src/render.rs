@@ -193,7 +193,7 @@ pub struct SnowRenderer {
 /// was given a clock by [`SnowRenderer::set_clock`]), and how much it drew.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SnowTimings {
-    /// The snow's surface made into triangles ([`snow_mesh`]) beside the scene's.
+    /// The snow's surface made into triangles ([`snow_surface`]) beside the scene's.
     pub mesh_ms: f64,
     /// The camera's depth buffer of every triangle.
     pub raster_ms: f64,
@@ -479,8 +479,9 @@ fn render_scene(
     };
     let (tris, snow) = timed(clock, &mut timings.mesh_ms, || triangles(sim));
     timings.triangles = tris.len();
-    // The snow's texel solids are closed and face outwards: their back faces (the
-    // bottoms, the far sides) are never what the eye or the sun sees first.
+    // The snow's texel solids face outwards and are closed but for the bottoms left out
+    // (`snow_surface`: they lie on the planar ground that holds the snow): their back
+    // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
     let cull = Cull::BackFrom(scene.len());
     let Ok((buf, _)) = timed(clock, &mut timings.raster_ms, || rasterize(&view, &tris, None, cull)) else {
         let (d, seen) = none();
@@ -590,10 +591,11 @@ fn draw_glitter(
     drawn
 }
 
-/// How far behind what a pixel shows (at depth d) a glint may lie and still be that
-/// snow: 2 cm + 1 % of d (the snow's faces and the depth buffer's rounding).
-fn seen_tolerance(d: f32) -> f32 {
-    0.02 + 0.01 * d
+/// The farthest a glint may lie and still be the snow a pixel shows at depth d: 2 cm +
+/// 1 % of d behind it (the snow's faces and the depth buffer's rounding), summed in
+/// this order (the test's bits). It grows with d.
+fn seen_limit(d: f32) -> f32 {
+    d + 0.02 + 0.01 * d
 }
 
 /// The pixel a glint at `p` lands on and its projection, if the eye sees the snow there
@@ -606,13 +608,14 @@ fn glint_seen(view: &CameraView, buf: &DepthBuffer, p: Vec3) -> Option<(i64, i64
         return None;
     }
     let seen = buf.depth_at(x as usize, y as usize);
-    (q.depth <= seen + seen_tolerance(seen)).then_some((x, y, q))
+    (q.depth <= seen_limit(seen)).then_some((x, y, q))
 }
 
 /// The snow's upper faces (of `snow`) that face the eye and the sun, reach into the
 /// frame and are not wholly in shadow: only their grains can glint where the eye sees
-/// them. With `skip_hidden`, also not those wholly behind what the frame shows there,
-/// whose every glint [`glint_seen`] would turn down (the same glints drawn, for less).
+/// them. With `skip_hidden` and a perspective or orthographic view, also not those
+/// wholly behind what the frame shows there, whose every glint [`glint_seen`] would turn
+/// down (the same glints drawn, for less).
 /// In the triangles' order.
 fn glinting_faces(
     snow: &[[Vec3; 3]],
@@ -681,7 +684,7 @@ fn screen_box(view: &CameraView, t: &[Vec3; 3]) -> Option<ScreenBox> {
 }
 
 /// Whether every point of a triangle of image `b` lies farther than what each pixel it
-/// may land on shows, past [`seen_tolerance`]: for a perspective or orthographic view,
+/// may land on shows, past [`seen_limit`]: for a perspective or orthographic view,
 /// whose depth is linear (so no nearer than the nearest corner) and which maps the
 /// triangle into its corners' box (widened by a pixel for rounding). Faces over more
 /// than 1,024 pixels are not looked at (false).
@@ -699,7 +702,7 @@ fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox) -> bool {
         }
     }
     // A point inside may come out nearer than the corners by rounding: 10⁻⁴ of slack.
-    b.near * (1.0 - 1e-4) > far + seen_tolerance(far)
+    b.near * (1.0 - 1e-4) > seen_limit(far)
 }
 
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
@@ -1172,11 +1175,68 @@ mod tests {
         }
     }
 
-    /// The snow drawn without the bottoms inside its patches is the snow drawn with them:
-    /// from the village's camera, from behind and from low down (under the benches'
-    /// snow), the eye's depth buffer and the sun's shadow map are the same bits, and
-    /// every pixel shows a triangle of the same corners. (Drawn without any bottoms, some
-    /// 30 pixels of the first view, under roofs' eaves, and 110 of the low one differ.)
+    /// How the pictures of `closed` and `open` (the scene's `scene` triangles, then the
+    /// snow's of `closed_mesh` and `open_mesh`) from `position` looking at `look_at`
+    /// compare. On every pixel either both show a triangle of the same corners and, for
+    /// the snow's, the same corner normals, at the same depth bits; or (counted, the
+    /// first number) `closed` shows a bottom of its snow where `open` shows the scene at
+    /// a depth within 10⁻⁴ of it: the bottom lay on that surface, seen from behind, and
+    /// won the tie by rounding. The second number: pixels where `open` shows a bottom.
+    fn compare_pictures(
+        (scene, closed, open): (usize, &[[Vec3; 3]], &[[Vec3; 3]]),
+        (closed_mesh, open_mesh): (&TriMesh, &TriMesh),
+        position: Vec3,
+        look_at: Vec3,
+    ) -> (usize, usize) {
+        let camera = Camera {
+            position,
+            look_at,
+            up: Vec3::Y,
+            projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 },
+        };
+        let view = camera.view(640, 360).unwrap();
+        let cull = Cull::BackFrom(scene);
+        let (x, _) = rasterize(&view, closed, None, cull).unwrap();
+        let (y, _) = rasterize(&view, open, None, cull).unwrap();
+        let shown = |id: u32, tris: &[[Vec3; 3]], mesh: &TriMesh| -> Option<([Vec3; 3], [Vec3; 3])> {
+            let normals = |t: usize| [0, 1, 2].map(|k| mesh.normals[mesh.indices[3 * t + k] as usize]);
+            let k = id as usize;
+            (id != NO_ID).then(|| (tris[k], k.checked_sub(scene).map_or([Vec3::ZERO; 3], normals)))
+        };
+        let bottom = |id: u32, tris: &[[Vec3; 3]]| {
+            id != NO_ID && id as usize >= scene && {
+                let t = tris[id as usize];
+                (t[1] - t[0]).cross(t[2] - t[0]).y < 0.0
+            }
+        };
+        let (mut tied, mut bottoms) = (0, 0);
+        for k in 0..x.ids().len() {
+            let (a, b) = (x.ids()[k], y.ids()[k]);
+            let (da, db) = (x.depth()[k], y.depth()[k]);
+            bottoms += usize::from(bottom(b, open));
+            if da.to_bits() == db.to_bits() && shown(a, closed, closed_mesh) == shown(b, open, open_mesh) {
+                continue;
+            }
+            let tie = bottom(a, closed) && b != NO_ID && (b as usize) < scene && (da - db).abs() <= 1e-4 * db;
+            assert!(tie, "{position}: pixel {k} differs: depth {da} against {db}");
+            tied += 1;
+        }
+        (tied, bottoms)
+    }
+
+    /// The scene's triangles then those of `snow`.
+    fn with_snow(scene: &[[Vec3; 3]], snow: &TriMesh) -> Vec<[Vec3; 3]> {
+        let mut tris = scene.to_vec();
+        tris.extend(snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])));
+        tris
+    }
+
+    /// The snow drawn without the bottoms that lie on its ground is the snow drawn with
+    /// them in the village: from its camera, from behind and from low down (under the
+    /// benches' snow), the eye's depth buffer and the sun's shadow map are the same bits,
+    /// and every pixel shows a triangle of the same corners and normals. (Drawn without
+    /// any bottoms, some 30 pixels of the first view, under roofs' eaves, and 110 of the
+    /// low one differ.)
     #[test]
     fn the_snow_without_its_hidden_bottoms_draws_the_same_pictures() {
         let params =
@@ -1186,14 +1246,8 @@ mod tests {
             sim.step().unwrap();
         }
         let scene = sim.mesh().triangles.clone();
-        let with_mesh = |snow: TriMesh| -> Vec<[Vec3; 3]> {
-            let mut tris = scene.clone();
-            tris.extend(
-                snow.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| snow.positions[t[k] as usize])),
-            );
-            tris
-        };
-        let (closed, open) = (with_mesh(snow_mesh(&sim)), with_mesh(snow_surface(&sim)));
+        let (closed_mesh, open_mesh) = (snow_mesh(&sim), snow_surface(&sim));
+        let (closed, open) = (with_snow(&scene, &closed_mesh), with_snow(&scene, &open_mesh));
         assert!(open.len() < closed.len() * 3 / 4, "{} of {} triangles", open.len(), closed.len());
         let cull = Cull::BackFrom(scene.len());
         let bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
@@ -1206,23 +1260,51 @@ mod tests {
         for position in
             [Vec3::new(24.0, 14.0, 30.0), Vec3::new(-20.0, 6.0, -26.0), Vec3::new(18.0, 2.0, 14.0)]
         {
-            let camera = Camera {
-                position,
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 },
-            };
-            let view = camera.view(640, 360).unwrap();
-            let (x, _) = rasterize(&view, &closed, None, cull).unwrap();
-            let (y, _) = rasterize(&view, &open, None, cull).unwrap();
-            assert!(bits(x.depth()) == bits(y.depth()), "{position}: the depths differ");
-            let corners = |ids: &[u32], tris: &[[Vec3; 3]]| -> Vec<Option<[Vec3; 3]>> {
-                ids.iter().map(|&k| (k != NO_ID).then(|| tris[k as usize])).collect()
-            };
-            assert!(
-                corners(x.ids(), &closed) == corners(y.ids(), &open),
-                "{position}: other triangles shown"
-            );
+            let lists = (scene.len(), closed.as_slice(), open.as_slice());
+            let (tied, _) = compare_pictures(lists, (&closed_mesh, &open_mesh), position, Vec3::ZERO);
+            assert_eq!(tied, 0, "{position}: pixels differ");
         }
+    }
+
+    /// Under an open sheet (one map: two planes meeting at a ridge) seen from below, the
+    /// snow's bottoms lay on the sheet and won some pixels by rounding: without them the
+    /// sheet shows there, at the same depth within 10⁻⁴. At the crease the corners' mean
+    /// ground drops below the ridge, so those bottoms show from below and are kept.
+    #[test]
+    fn the_bottoms_under_a_crease_stay() {
+        let height = |x: f32| 2.4 - 0.2 * x.abs();
+        let corner = |x: f32, z: f32| Vec3::new(x, height(x), z);
+        let mut mesh = crate::mesh::Mesh::default();
+        let mut sheet =
+            crate::mesh::quad(corner(-2.0, -2.0), corner(-2.0, 2.0), corner(0.0, 2.0), corner(0.0, -2.0))
+                .to_vec();
+        sheet.extend(crate::mesh::quad(
+            corner(0.0, -2.0),
+            corner(0.0, 2.0),
+            corner(2.0, 2.0),
+            corner(2.0, -2.0),
+        ));
+        mesh.push_object(&sheet, 0);
+        mesh.push_object(&crate::mesh::ground_square(3.0), 1);
+        let params = SnowConfig {
+            map_resolution: 60,
+            directions: 16,
+            rate_cm_per_h: 20.0,
+            object_groups: Some(vec![0, 1]),
+            ..SnowConfig::default()
+        };
+        let mut sim = SnowSim::new(mesh, params, 1).unwrap();
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        let scene = sim.mesh().triangles.clone();
+        let (closed_mesh, open_mesh) = (snow_mesh(&sim), snow_surface(&sim));
+        let (closed, open) = (with_snow(&scene, &closed_mesh), with_snow(&scene, &open_mesh));
+        assert!(open.len() < closed.len(), "no bottom left out: the case tests little");
+        let lists = (scene.len(), closed.as_slice(), open.as_slice());
+        let below = (Vec3::new(0.3, 0.5, 3.5), Vec3::new(0.0, 2.4, 0.0));
+        let (tied, bottoms) = compare_pictures(lists, (&closed_mesh, &open_mesh), below.0, below.1);
+        assert!(tied > 1000, "{tied} pixels where a bottom lay on the sheet: the case tests little");
+        assert!(bottoms > 0, "no bottom seen from below the crease");
     }
 }
