@@ -54,7 +54,7 @@ pub fn snow_mesh(sim: &SnowSim) -> TriMesh {
 
 /// [`snow_mesh`] without the bottoms that lie on the surface holding the snow: those of
 /// texels inside a patch (snow on all eight texels around) whose ground is a plane
-/// ([`Lattice::hides_bottom`]). What the renderer draws. Such a bottom faces into that
+/// (`Lattice::hides_bottom`). What the renderer draws. Such a bottom faces into that
 /// surface, so it can show only from behind the surface (an open sheet seen from below),
 /// at the surface's own depth: there it tied with the surface and won some pixels by
 /// rounding, a speckle of the snow's underside on the sheet's; without it the sheet

@@ -635,7 +635,7 @@ fn glinting_faces(
                 && b.hi.y >= -2.0
                 && b.lo.x <= fw + 2.0
                 && b.lo.y <= fh + 2.0
-                && !(planar && wholly_hidden(buf, &b))
+                && !(planar && wholly_hidden(buf, &b, eye.abs().max_element()))
         }
     };
     // A face whose corners and centre the sun does not reach at all (every shadow-map
@@ -660,11 +660,13 @@ fn glinting_faces(
         .collect()
 }
 
-/// A triangle's image: its corners' box, pixels, and its nearest corner's depth.
+/// A triangle's image: its corners' box, pixels, its nearest corner's depth, and the
+/// largest size of its corners' coordinates, m.
 struct ScreenBox {
     lo: glam::Vec2,
     hi: glam::Vec2,
     near: f32,
+    reach: f32,
 }
 
 /// The image of `t`, `None` when a corner does not project (behind the eye).
@@ -673,9 +675,11 @@ fn screen_box(view: &CameraView, t: &[Vec3; 3]) -> Option<ScreenBox> {
         lo: glam::Vec2::splat(f32::INFINITY),
         hi: glam::Vec2::splat(f32::NEG_INFINITY),
         near: f32::INFINITY,
+        reach: 0.0,
     };
     for p in t {
         let q = view.project(*p)?;
+        b.reach = b.reach.max(p.abs().max_element());
         b.lo = b.lo.min(glam::Vec2::new(q.x_px, q.y_px));
         b.hi = b.hi.max(glam::Vec2::new(q.x_px, q.y_px));
         b.near = b.near.min(q.depth);
@@ -687,8 +691,9 @@ fn screen_box(view: &CameraView, t: &[Vec3; 3]) -> Option<ScreenBox> {
 /// may land on shows, past [`seen_limit`]: for a perspective or orthographic view,
 /// whose depth is linear (so no nearer than the nearest corner) and which maps the
 /// triangle into its corners' box (widened by a pixel for rounding). Faces over more
-/// than 1,024 pixels are not looked at (false).
-fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox) -> bool {
+/// than 1,024 pixels are not looked at (false). `eye_reach`: the largest size of the
+/// eye's coordinates, m.
+fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox, eye_reach: f32) -> bool {
     let (w, h) = (buf.width() as i64, buf.height() as i64);
     let (x0, y0) = ((b.lo.x.floor() as i64 - 1).max(0), (b.lo.y.floor() as i64 - 1).max(0));
     let (x1, y1) = ((b.hi.x.floor() as i64 + 1).min(w - 1), (b.hi.y.floor() as i64 + 1).min(h - 1));
@@ -701,8 +706,11 @@ fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox) -> bool {
             far = far.max(buf.depth_at(x as usize, y as usize));
         }
     }
-    // A point inside may come out nearer than the corners by rounding: 10⁻⁴ of slack.
-    b.near * (1.0 - 1e-4) > seen_limit(far)
+    // A glint's place and depth, a few f32 operations on coordinates of these sizes, may
+    // come out nearer than the corners by rounding: some 10⁻⁶ of them at most (a few
+    // units in the last place), so 10⁻⁵ of them, and 10⁻⁴ of the depth, of slack.
+    let slack = 1e-4 * b.near + 1e-5 * (b.reach + eye_reach);
+    b.near - slack > seen_limit(far)
 }
 
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
