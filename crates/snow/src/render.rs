@@ -1136,18 +1136,24 @@ mod tests {
         assert_ne!(before, mask(&sim), "flakes moved between frames");
     }
 
+    /// The village with (map resolution, directions), after `steps` steps of snow at
+    /// `rate` cm/h.
+    fn snowy_village((map_resolution, directions): (u32, u32), rate: f32, steps: usize) -> SnowSim {
+        let params = SnowConfig { map_resolution, directions, rate_cm_per_h: rate, ..SnowConfig::default() };
+        let mut sim = SnowSim::new(crate::mesh::village_scene(), params, 1).unwrap();
+        for _ in 0..steps {
+            sim.step().unwrap();
+        }
+        sim
+    }
+
     /// Skipping the faces wholly behind what the frame shows drops no glint the eye
     /// sees: the village (its houses hide snow behind them), from its shipped camera
     /// and from low down, gives the same seen glints with and without the skip, which
     /// drops a good share of the faces.
     #[test]
     fn the_faces_skipped_as_hidden_hold_no_glint_the_eye_sees() {
-        let params =
-            SnowConfig { map_resolution: 100, directions: 16, rate_cm_per_h: 20.0, ..SnowConfig::default() };
-        let mut sim = SnowSim::new(crate::mesh::village_scene(), params, 1).unwrap();
-        for _ in 0..10 {
-            sim.step().unwrap();
-        }
+        let sim = snowy_village((100, 16), 20.0, 10);
         let (tris, _) = triangles(&sim);
         let scene = sim.mesh().triangles.len();
         let settings = SnowRenderSettings::default();
@@ -1247,12 +1253,7 @@ mod tests {
     /// low one differ.)
     #[test]
     fn the_snow_without_its_hidden_bottoms_draws_the_same_pictures() {
-        let params =
-            SnowConfig { map_resolution: 200, directions: 64, rate_cm_per_h: 5.0, ..SnowConfig::default() };
-        let mut sim = SnowSim::new(crate::mesh::village_scene(), params, 1).unwrap();
-        for _ in 0..20 {
-            sim.step().unwrap();
-        }
+        let sim = snowy_village((200, 64), 5.0, 20);
         let scene = sim.mesh().triangles.clone();
         let (closed_mesh, open_mesh) = (snow_mesh(&sim), snow_surface(&sim));
         let (closed, open) = (with_snow(&scene, &closed_mesh), with_snow(&scene, &open_mesh));
