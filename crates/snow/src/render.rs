@@ -700,17 +700,14 @@ fn wholly_hidden(buf: &DepthBuffer, b: &ScreenBox, eye_reach: f32) -> bool {
     if x1 < x0 || y1 < y0 || (x1 - x0 + 1) * (y1 - y0 + 1) > 1024 {
         return false;
     }
-    let mut far = 0.0f32;
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            far = far.max(buf.depth_at(x as usize, y as usize));
-        }
-    }
     // A glint's place and depth, a few f32 operations on coordinates of these sizes, may
     // come out nearer than the corners by rounding: some 10⁻⁶ of them at most (a few
     // units in the last place), so 10⁻⁵ of them, and 10⁻⁴ of the depth, of slack.
-    let slack = 1e-4 * b.near + 1e-5 * (b.reach + eye_reach);
-    b.near - slack > seen_limit(far)
+    let nearest = b.near - (1e-4 * b.near + 1e-5 * (b.reach + eye_reach));
+    // Hidden when every pixel's limit falls short of it (`seen_limit` never falls as the
+    // depth grows, so this is the farthest pixel's limit falling short): stop at the
+    // first pixel whose limit does not.
+    (y0..=y1).all(|y| (x0..=x1).all(|x| seen_limit(buf.depth_at(x as usize, y as usize)) < nearest))
 }
 
 /// What each pixel of `buf` shows, the first `objects` triangles being the scene's.
