@@ -626,6 +626,7 @@ fn glinting_faces(
 ) -> Vec<[Vec3; 3]> {
     let (fw, fh) = (buf.width() as f32, buf.height() as f32);
     let planar = skip_hidden && view.is_planar();
+    let eye_reach = eye.abs().max_element();
     // In the frame (or not wholly in front of the eye) and, with `skip_hidden`, not
     // wholly hidden.
     let may_show = |t: &[Vec3; 3]| match screen_box(view, t) {
@@ -635,7 +636,7 @@ fn glinting_faces(
                 && b.hi.y >= -2.0
                 && b.lo.x <= fw + 2.0
                 && b.lo.y <= fh + 2.0
-                && !(planar && wholly_hidden(buf, &b, eye.abs().max_element()))
+                && !(planar && wholly_hidden(buf, &b, eye_reach))
         }
     };
     // A face whose corners and centre the sun does not reach at all (every shadow-map
@@ -1133,6 +1134,12 @@ mod tests {
         assert_ne!(before, mask(&sim), "flakes moved between frames");
     }
 
+    /// A 50° perspective view from `position` at `look_at`, (width, height) pixels.
+    fn view_from(position: Vec3, look_at: Vec3, (w, h): (usize, usize)) -> CameraView {
+        let projection = phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 };
+        Camera { position, look_at, up: Vec3::Y, projection }.view(w, h).unwrap()
+    }
+
     /// The village with (map resolution, directions), after `steps` steps of snow at
     /// `rate` cm/h.
     fn snowy_village((map_resolution, directions): (u32, u32), rate: f32, steps: usize) -> SnowSim {
@@ -1156,13 +1163,7 @@ mod tests {
         let settings = SnowRenderSettings::default();
         let sun = settings.sun_direction.normalize();
         for position in [Vec3::new(24.0, 14.0, 30.0), Vec3::new(18.0, 2.0, 14.0)] {
-            let camera = Camera {
-                position,
-                look_at: Vec3::ZERO,
-                up: Vec3::Y,
-                projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 },
-            };
-            let view = camera.view(320, 180).unwrap();
+            let view = view_from(position, Vec3::ZERO, (320, 180));
             let (buf, _) = rasterize(&view, &tris, None, Cull::BackFrom(scene)).unwrap();
             let shadows = SunShadow::new(&tris, sun, settings.shadow_map_px, Cull::BackFrom(scene));
             let sky_seen = SkyVisibility { sim: &sim, fp: sim.footprint() };
@@ -1199,13 +1200,7 @@ mod tests {
         position: Vec3,
         look_at: Vec3,
     ) -> (usize, usize) {
-        let camera = Camera {
-            position,
-            look_at,
-            up: Vec3::Y,
-            projection: phenomena_core::camera::Projection::Perspective { fov_y_deg: 50.0 },
-        };
-        let view = camera.view(640, 360).unwrap();
+        let view = view_from(position, look_at, (640, 360));
         let cull = Cull::BackFrom(scene);
         let (x, _) = rasterize(&view, closed, None, cull).unwrap();
         let (y, _) = rasterize(&view, open, None, cull).unwrap();
