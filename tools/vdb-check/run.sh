@@ -22,8 +22,10 @@ rm -rf "$out"
 mkdir -p "$out"
 # VDB_CHECK_PROFILE: the cargo profile to build the sample writer with (CI passes
 # `test`, whose dependencies `cargo test` has already built; no `-p`, so the features
-# are the workspace's and nothing is compiled again).
-(cd "$root" && cargo run --quiet --profile "${VDB_CHECK_PROFILE:-release}" --example vdb_sample -- "$out")
+# are the workspace's and nothing is compiled again). VDB_CHECK_FEATURES: the features
+# that `cargo test` was given (CI's builds the studio in), for the same reason.
+(cd "$root" && cargo run --quiet --profile "${VDB_CHECK_PROFILE:-release}" \
+    ${VDB_CHECK_FEATURES:+--features "$VDB_CHECK_FEATURES"} --example vdb_sample -- "$out")
 set --
 for json in "$out"/*.json; do
     set -- "$@" "${json%.json}.vdb" "$json"

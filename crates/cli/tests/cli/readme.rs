@@ -36,14 +36,12 @@ fn the_quick_start_runs_as_written() {
     std::os::unix::fs::symlink(scenes, dir.path().join("scenes")).unwrap();
     for command in &commands {
         let args: Vec<&str> = command.split_whitespace().skip(1).collect();
-        let out = run(dir.path(), &args);
-        let stderr = String::from_utf8_lossy(&out.stderr);
         if args[0] == "studio" {
-            // This test binary is built without the studio: the command exists and says
-            // how to get it.
-            assert!(stderr.contains("--features studio"), "{command}: {stderr}");
+            studio_starts(dir.path(), command, &args);
             continue;
         }
+        let out = run(dir.path(), &args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{command} failed:\n{stderr}");
     }
     // What the README says the renders write.
@@ -51,4 +49,34 @@ fn the_quick_start_runs_as_written() {
         assert!(dir.path().join(frame).is_file(), "{frame} missing");
     }
     assert!(!dir.path().join("out/fire/frame_00059.png").exists(), "earlier frames are not written");
+}
+
+/// Built without the studio, the command exists and says how to get it.
+#[cfg(not(feature = "studio"))]
+fn studio_starts(dir: &Path, command: &str, args: &[&str]) {
+    let out = run(dir, args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--features studio"), "{command}: {stderr}");
+}
+
+/// Built with the studio (as CI builds it), the command serves its page: run on a free
+/// port and without opening a browser, it prints the address it serves and is stopped.
+#[cfg(feature = "studio")]
+fn studio_starts(dir: &Path, command: &str, args: &[&str]) {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let mut args: Vec<&str> = args.iter().copied().filter(|a| *a != "--open").collect();
+    args.extend(["--port", "0"]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_phenomena"))
+        .args(&args)
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(first.starts_with("phenomena studio: serving http://127.0.0.1:"), "{command}: {first:?}");
 }
