@@ -1045,7 +1045,8 @@ mod tests {
         let dt_cells = 1.0 / 120.0 / a.dx;
         let s = a.sampler();
         assert!(a.max_speed() > 0.3, "the plume moves ({} m/s)", a.max_speed());
-        for (layout, field) in [(a.ur_layout(), &a.ur), (a.uz_layout(), &a.uz), (a.theta_layout(), &a.theta)] {
+        for (layout, field) in [(a.ur_layout(), &a.ur), (a.uz_layout(), &a.uz), (a.theta_layout(), &a.theta)]
+        {
             let (mut forward, mut kept, mut out) = (Vec::new(), Vec::new(), Vec::new());
             mac_cormack(&s, dt_cells, layout, field, &mut (&mut forward, &mut kept), &mut out);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
