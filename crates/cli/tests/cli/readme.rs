@@ -60,23 +60,61 @@ fn studio_starts(dir: &Path, command: &str, args: &[&str]) {
 }
 
 /// Built with the studio (as CI builds it), the command serves its page: run on a free
-/// port and without opening a browser, it prints the address it serves and is stopped.
+/// port and without opening a browser, it prints the address it serves within a minute
+/// and is stopped (also when the test fails: the guard kills it).
 #[cfg(feature = "studio")]
 fn studio_starts(dir: &Path, command: &str, args: &[&str]) {
     use std::io::{BufRead, BufReader};
-    use std::process::{Command, Stdio};
-    let mut args: Vec<&str> = args.iter().copied().filter(|a| *a != "--open").collect();
-    args.extend(["--port", "0"]);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_phenomena"))
-        .args(&args)
-        .current_dir(dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(first.starts_with("phenomena studio: serving http://127.0.0.1:"), "{command}: {first:?}");
+    use std::process::{Child, Command, Stdio};
+    use std::time::Duration;
+
+    /// Kills the studio when dropped.
+    struct Stop(Child);
+    impl Drop for Stop {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+
+    // The README's arguments without `--open` and any `--port N`, on a free port.
+    let mut kept: Vec<&str> = Vec::new();
+    let mut rest = args.iter().copied();
+    while let Some(a) = rest.next() {
+        match a {
+            "--open" => {}
+            "--port" => {
+                rest.next();
+            }
+            _ if a.starts_with("--port=") => {}
+            _ => kept.push(a),
+        }
+    }
+    kept.extend(["--port", "0"]);
+    let log = dir.join("studio-stderr.txt");
+    let mut studio = Stop(
+        Command::new(env!("CARGO_BIN_EXE_phenomena"))
+            .args(&kept)
+            .current_dir(dir)
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let stdout = studio.0.stdout.take().unwrap();
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut first = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut first);
+        let _ = send.send(first);
+    });
+    let first = receive.recv_timeout(Duration::from_secs(60));
+    drop(studio);
+    let stderr = std::fs::read_to_string(&log).unwrap_or_default();
+    let first =
+        first.unwrap_or_else(|_| panic!("{command}: nothing on stdout within 60 s; stderr:\n{stderr}"));
+    assert!(
+        first.starts_with("phenomena studio: serving http://127.0.0.1:"),
+        "{command}: {first:?}; stderr:\n{stderr}"
+    );
 }
