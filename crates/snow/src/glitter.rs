@@ -32,10 +32,10 @@ use phenomena_core::validate::Issues;
 const Z_BANDS: usize = 32;
 /// Azimuth sectors per band.
 const SECTORS: usize = 64;
-/// Cells of equal solid angle, 4π / 2,048 sr each (about 4.5° across). Cells about the
-/// default cone's size draw fewer grains that cannot glint: with 2,048 the village's
-/// glitter took 15.2 ms against 16.6 with 512 (8 % less; docs/performance.md,
-/// 2026-12-07), and with 8,192 no less again (about 15.3 ms: more cells a face to count).
+/// Cells of equal solid angle, 4π / 2,048 sr each (about 4.5° across on average). With
+/// 2,048 the village's glitter took 15.2 ms against 16.5 with 512 (8 % less), and with
+/// 8,192 (64 × 128) no less (15.4 ms): medians of three runs, docs/performance.md,
+/// 2026-12-07.
 pub const CELLS: usize = Z_BANDS * SECTORS;
 
 const GRAINS: Purpose = Purpose::named("snow.glitter.grains");
