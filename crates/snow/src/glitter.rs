@@ -150,8 +150,9 @@ fn cell_bounds(cell: usize) -> (f32, f32, f32, f32) {
     (z0, z0 + dz, sector as f32 * dphi, (sector + 1) as f32 * dphi)
 }
 
-/// Pushes onto `out` the cells that may hold a normal within `alpha` of unit `axis`.
-fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) {
+/// Pushes onto `out` the cells that may hold a normal within `alpha` of unit `axis`;
+/// returns the heights z such a normal can have (lowest, highest).
+fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) -> (f32, f32) {
     let theta = axis.z.clamp(-1.0, 1.0).acos();
     let (lo, hi) = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
     let dz = 2.0 / Z_BANDS as f32;
@@ -177,6 +178,7 @@ fn cells_near(axis: Vec3, alpha: f32, out: &mut Vec<usize>) {
             out.push(band * SECTORS + k.rem_euclid(SECTORS as i64) as usize);
         }
     }
+    (lo, hi)
 }
 
 /// A point uniform over the triangle.
@@ -261,9 +263,10 @@ fn triangle_glints(
     if h == Vec3::ZERO {
         return;
     }
-    let alpha = cone + half_vector_turn(tri, viewing) + 1e-4;
+    let alpha = cone + half_vector_turn(tri, centre, viewing) + 1e-4;
     cells.clear();
-    cells_near(h, alpha, cells);
+    // The heights z a normal within α of H can have (those near −H: the negated).
+    let z = cells_near(h, alpha, cells);
     // The cone around −H: the antipodal cells (the partition is symmetric).
     let n = cells.len();
     for k in 0..n {
@@ -272,9 +275,6 @@ fn triangle_glints(
     }
     cells.sort_unstable();
     cells.dedup();
-    // The heights z a normal within α of H can have (those near −H: the negated).
-    let theta = h.z.clamp(-1.0, 1.0).acos();
-    let z = ((theta + alpha).min(std::f32::consts::PI).cos(), (theta - alpha).max(0.0).cos());
     // A glinting normal is within the cone of H at its grain, and that H within the turn
     // of H at the centre: within α of ±H there (1e-3 more for rounding).
     let cap = Cap { axis: h, cos_alpha: (alpha + 1e-3).min(std::f32::consts::PI).cos(), z };
@@ -285,9 +285,8 @@ fn triangle_glints(
 /// direction V turns by at most δ = asin(reach / distance) (the triangle's angular
 /// radius), and H = (L + V)/|L + V| turns by at most δ / |L + V| (most when the eye
 /// looks towards the sun and |L + V| is small), with |L + V| ≥ |L + V_c| − δ; all the
-/// sphere (π) when that bound fails.
-fn half_vector_turn(tri: &[Vec3; 3], viewing: Viewing) -> f32 {
-    let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
+/// sphere (π) when that bound fails. `centre`: the triangle's centroid.
+fn half_vector_turn(tri: &[Vec3; 3], centre: Vec3, viewing: Viewing) -> f32 {
     let reach = tri.iter().map(|p| (*p - centre).length()).fold(0.0, f32::max);
     let to_eye = viewing.eye - centre;
     let distance = to_eye.length();
