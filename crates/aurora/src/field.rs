@@ -191,12 +191,22 @@ impl SegmentBuckets {
 
     /// Segments whose neighbourhood may contain `p` (none outside the grid).
     pub(crate) fn near(&self, p: Vec2) -> &[u32] {
+        &self.items[self.near_range(p)]
+    }
+
+    /// Where [`SegmentBuckets::near`]'s segments lie in [`SegmentBuckets::items`].
+    pub(crate) fn near_range(&self, p: Vec2) -> std::ops::Range<usize> {
         let c = (p - self.origin) / self.cell;
         if !(c.x >= 0.0 && c.y >= 0.0) || c.x as usize >= self.nx || c.y as usize >= self.nz {
-            return &[];
+            return 0..0;
         }
         let k = c.y as usize * self.nx + c.x as usize;
-        &self.items[self.start[k] as usize..self.start[k + 1] as usize]
+        self.start[k] as usize..self.start[k + 1] as usize
+    }
+
+    /// Every cell's segment numbers, cell after cell.
+    pub(crate) fn items(&self) -> &[u32] {
+        &self.items
     }
 }
 

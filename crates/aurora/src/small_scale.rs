@@ -38,6 +38,7 @@ use phenomena_core::rng::{Purpose, Stream};
 use phenomena_core::validate::Issues;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use wide::f32x8;
 
 use crate::field::SegmentBuckets;
 use crate::shape::Shape;
@@ -325,7 +326,46 @@ struct SheetIndex {
     segments: Vec<Segment>,
     chains: Vec<Chain>,
     buckets: SegmentBuckets,
+    /// The bucketed segments' starts, directions and lengths in the buckets' order
+    /// ([`SegmentBuckets::items`]), eight lanes at a time, padded by seven.
+    lanes: ItemLanes,
     reach: f32,
+}
+
+/// [`SheetIndex::lanes`]: one entry per bucket item, then [`LANES`] − 1 of padding.
+#[derive(Clone, Debug, Default)]
+struct ItemLanes {
+    ax: Vec<f32>,
+    ay: Vec<f32>,
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    len: Vec<f32>,
+}
+
+/// Candidates tested at once by [`SheetIndex::place`].
+const LANES: usize = 8;
+
+impl ItemLanes {
+    fn new(items: &[u32], segments: &[Segment]) -> Self {
+        let mut lanes = Self::default();
+        for g in items.iter().map(|&k| &segments[k as usize]) {
+            lanes.ax.push(g.a.x);
+            lanes.ay.push(g.a.y);
+            lanes.dx.push(g.dir.x);
+            lanes.dy.push(g.dir.y);
+            lanes.len.push(g.len);
+        }
+        for v in [&mut lanes.ax, &mut lanes.ay, &mut lanes.dx, &mut lanes.dy, &mut lanes.len] {
+            v.resize(v.len() + LANES - 1, 0.0);
+        }
+        lanes
+    }
+
+    /// Eight lanes of `v` from `at`.
+    #[inline]
+    fn load(v: &[f32], at: usize) -> f32x8 {
+        f32x8::from(<[f32; LANES]>::try_from(&v[at..at + LANES]).expect("padded"))
+    }
 }
 
 /// Most bucket cells along one side of a [`SheetIndex`].
@@ -346,7 +386,8 @@ impl SheetIndex {
         let (nx, nz) = (span.x as usize + 1, span.y as usize + 1);
         let ends = segments.iter().map(|g| (g.a, g.a + g.dir * g.len));
         let buckets = SegmentBuckets::new(ends, reach, origin, cell, (nx, nz));
-        Self { segments, chains, buckets, reach }
+        let lanes = ItemLanes::new(buckets.items(), &segments);
+        Self { segments, chains, buckets, lanes, reach }
     }
 
     /// The segments and chains of `shape`: chains followed from their heads (open
@@ -410,13 +451,26 @@ impl SheetIndex {
         // foot parameter and offset from its start.
         let mut best: Option<(f32, u32, f32, Vec2)> = None;
         let reach2 = self.reach * self.reach;
-        for &k in self.buckets.near(p) {
-            let g = &self.segments[k as usize];
-            let d = p - g.a;
-            let t = d.dot(g.dir).clamp(0.0, g.len);
-            let dist2 = (d - g.dir * t).length_squared();
-            if dist2 <= reach2 && best.is_none_or(|(b, ..)| dist2 < b) {
-                best = Some((dist2, k, t, d));
+        let range = self.buckets.near_range(p);
+        let items = self.buckets.items();
+        let l = &self.lanes;
+        let (px, py) = (f32x8::splat(p.x), f32x8::splat(p.y));
+        // Eight candidates at a time, each lane with the scalar operations of
+        // `place_scalar` (the same bits: test `lanes_find_the_scalar_place`), then
+        // taken in order.
+        for at in range.clone().step_by(LANES) {
+            let (dx, dy) = (px - ItemLanes::load(&l.ax, at), py - ItemLanes::load(&l.ay, at));
+            let (ux, uy) = (ItemLanes::load(&l.dx, at), ItemLanes::load(&l.dy, at));
+            // `clamp(0, len)` as max then min: the same value for finite numbers (a
+            // dot product of −0 becomes +0, which changes no sum it enters).
+            let t = (dx * ux + dy * uy).max(f32x8::ZERO).min(ItemLanes::load(&l.len, at));
+            let (ex, ey) = (dx - ux * t, dy - uy * t);
+            let dist2 = (ex * ex + ey * ey).to_array();
+            let (t, dx, dy) = (t.to_array(), dx.to_array(), dy.to_array());
+            for j in 0..(range.end - at).min(LANES) {
+                if dist2[j] <= reach2 && best.is_none_or(|(b, ..)| dist2[j] < b) {
+                    best = Some((dist2[j], items[at + j], t[j], Vec2::new(dx[j], dy[j])));
+                }
             }
         }
         let (dist2, k, t, d) = best?;
@@ -434,6 +488,23 @@ impl SheetIndex {
             chain: g.chain,
             tangent: g.dir,
         })
+    }
+
+    /// [`SheetIndex::place`]'s nearest segment found one candidate at a time: its
+    /// distance², number, foot parameter and offset (what the lanes must reproduce).
+    #[cfg(test)]
+    fn place_scalar(&self, p: Vec2) -> Option<(f32, u32, f32, Vec2)> {
+        let mut best: Option<(f32, u32, f32, Vec2)> = None;
+        for &k in self.buckets.near(p) {
+            let g = &self.segments[k as usize];
+            let d = p - g.a;
+            let t = d.dot(g.dir).clamp(0.0, g.len);
+            let dist2 = (d - g.dir * t).length_squared();
+            if dist2 <= self.reach * self.reach && best.is_none_or(|(b, ..)| dist2 < b) {
+                best = Some((dist2, k, t, d));
+            }
+        }
+        best
     }
 }
 
@@ -1146,6 +1217,45 @@ mod tests {
             assert!(placed > 50_000, "{name}: {placed} points within reach");
             assert!(differ > placed / 2, "{name}: only {differ} points differ: the tables are not in use");
         }
+    }
+
+    #[test]
+    fn lanes_find_the_scalar_place() {
+        // Every place the lanes find is the one-at-a-time search's, bit for bit, over
+        // points in and around a straight sheet and a zigzag of short segments (many
+        // candidates a cell, ties between segments sharing an end), and outside the grid.
+        let zigzag = Shape {
+            points: (0..60).map(|i| Vec2::new(i as f32 * 2.0, if i % 2 == 0 { 0.0 } else { 1.5 })).collect(),
+            next: (0..60).map(|i| (i + 1 < 60).then_some(i as u32 + 1)).collect(),
+            sheet: vec![0; 60],
+            index_in_sheet: (0..60u32).collect(),
+        };
+        let mut found = 0;
+        for shape in [straight(300.0, 31), zigzag] {
+            let index = SheetIndex::new(&shape, 15.0);
+            for k in 0..40_000u32 {
+                let u = (k.wrapping_mul(2_654_435_761) >> 8) as f32 / (1u32 << 24) as f32;
+                let p = Vec2::new(-40.0 + 380.0 * k as f32 / 40_000.0, -40.0 + 80.0 * u);
+                let want = index.place_scalar(p);
+                let got = index.place(p);
+                match (want, got) {
+                    (None, None) => {}
+                    (Some((dist2, k, t, d)), Some(place)) => {
+                        let g = &index.segments[k as usize];
+                        assert_eq!(place.chain, g.chain, "at {p}");
+                        assert_eq!(place.tangent, g.dir, "at {p}");
+                        assert_eq!(place.from_head_km.to_bits(), (g.s0 + t).to_bits(), "at {p}");
+                        assert_eq!(place.distance_km.to_bits(), dist2.sqrt().to_bits(), "at {p}");
+                        assert_eq!(place.n_km.to_bits(), g.dir.perp_dot(d).to_bits(), "at {p}");
+                        found += 1;
+                    }
+                    _ => panic!("at {p}: {want:?} against {got:?}"),
+                }
+            }
+        }
+        // Within 15 km of the sheets: 30/80 of the band along the straight sheet's
+        // 330 of 380 km, less along the zigzag's 148 (18,596 when written).
+        assert!(found > 15_000, "{found} places");
     }
 
     #[test]
