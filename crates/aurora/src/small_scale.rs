@@ -517,7 +517,8 @@ pub struct Prepared {
     sheets: SheetIndex,
     time_s: f64,
     chains: Vec<ChainNow>,
-    /// Each chain's displacement and ray factor sampled along it ([`ChainTable`]).
+    /// Each chain's displacement and ray factor sampled along it ([`ChainTable`]), or
+    /// none (worked out per particle) past [`MAX_TABLE_SAMPLES`].
     tables: Vec<ChainTable>,
     flicker: Option<PatchField>,
     pulsating: Option<PatchField>,
@@ -578,18 +579,21 @@ const RAY_CUT_WIDTHS: f32 = 6.0;
 /// pattern's |f''| is a small multiple of its amplitude / scale² (test
 /// `tables_follow_the_direct_evaluation` derives each bound and checks it): here about
 /// 1/(8 · 24²) ≈ 2·10⁻⁴ of an amplitude a multiple. At the defaults the step is 25 m
-/// (the rays' 0.6 km width / 24): a drawn position moves by under 0.4 m and the ray
-/// factor by under 0.2 %.
+/// (the rays' 0.6 km width / 24): each component of a drawn position moves by under
+/// 0.4 m and the ray factor by under 1.4·10⁻³.
 const TABLE_SAMPLES_PER_SCALE: f32 = 24.0;
-/// Most samples in all of a frame's tables (12 MiB); longer sheets take a coarser step.
-const MAX_TABLE_SAMPLES: f32 = (1u32 << 20) as f32;
+/// Most samples in all of a frame's tables (3 MiB; about 25 ms of CPU to build at scene
+/// 5's rate, as much as some 250,000 particles worked out one by one): sheets that would need more (over
+/// 6,500 km at the defaults, or rays much narrower than the default) are worked out
+/// per particle instead, as exactly as without tables.
+const MAX_TABLE_SAMPLES: usize = 1 << 18;
 
 /// One chain's displacement (along, normal; km) and ray factor at arc lengths
 /// `i · step` from its head, read back by linear interpolation: a particle costs two
-/// look-ups instead of the patterns' sines, cosines and Gaussians. The thesis scenes
-/// have 7-16 particles a sample (scene 2 at frame 100: 127,161 particles, 12,809
+/// look-ups instead of the patterns' sines, cosines and Gaussians. Thesis scenes 1, 2
+/// and 5 have 7-16 particles a sample (scene 2 at frame 100: 127,161 particles, 12,809
 /// samples over 320 km of sheet), and a sample costs what a particle did.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 struct ChainTable {
     inv_step: f32,
     values: Vec<[f32; 3]>,
@@ -649,15 +653,20 @@ impl SmallScale {
         let mut prepared =
             Prepared { params: *self, sheets, time_s, chains, flicker, pulsating, tables: Vec::new() };
         let total_km: f32 = prepared.sheets.chains.iter().map(|c| c.length).sum();
-        let step = self.table_step(total_km);
-        prepared.tables = (0..prepared.chains.len()).map(|k| prepared.table(k, step)).collect();
+        let step = self.table_step();
+        let samples = |c: &Chain| (c.length / step).ceil() as usize + 2;
+        if prepared.sheets.chains.iter().map(samples).sum::<usize>() <= MAX_TABLE_SAMPLES
+            && total_km.is_finite()
+        {
+            prepared.tables = (0..prepared.chains.len()).map(|k| prepared.table(k, step)).collect();
+        }
         prepared
     }
 
-    /// The spacing, km, of the [`ChainTable`]s' samples over sheets `total_km` long:
-    /// [`TABLE_SAMPLES_PER_SCALE`] a length scale of the finest pattern on (folds' and
-    /// curls' wavelength / 2π, the rays' width), coarser only past [`MAX_TABLE_SAMPLES`].
-    fn table_step(&self, total_km: f32) -> f32 {
+    /// The spacing, km, of the [`ChainTable`]s' samples: [`TABLE_SAMPLES_PER_SCALE`] a
+    /// length scale of the finest pattern on (folds' and curls' wavelength / 2π, the
+    /// rays' width); 1 km with none on (every sample the same).
+    fn table_step(&self) -> f32 {
         use std::f32::consts::TAU;
         let mut scale = f32::INFINITY;
         if self.folds.amplitude_km > 0.0 {
@@ -669,9 +678,8 @@ impl SmallScale {
         if self.rays.contrast > 0.0 {
             scale = scale.min(self.rays.width_km);
         }
-        let step = (scale / TABLE_SAMPLES_PER_SCALE).max(total_km / MAX_TABLE_SAMPLES);
-        // Nothing on (every sample the same) or not finite: one step over everything.
-        if step.is_finite() && step > 0.0 { step } else { total_km.max(1.0) }
+        let step = scale / TABLE_SAMPLES_PER_SCALE;
+        if step.is_finite() && step > 0.0 { step } else { 1.0 }
     }
 
     /// Chain `chain`'s sites at `time_s`: its random numbers keyed by its sheet and
@@ -890,14 +898,18 @@ impl Prepared {
     /// The point `p` (plane km) where it is drawn, and its brightness factor: the
     /// displacement and ray factor interpolated between samples taken along the chain
     /// once for this moment (test `tables_follow_the_direct_evaluation` bounds the
-    /// difference from working them out here: 1.5 m and 0.41 % at its settings).
+    /// difference from working them out per particle: 1.5 m and 4.1·10⁻³ at its
+    /// settings).
     pub fn apply(&self, p: Vec2) -> (Vec2, f32) {
         if !p.is_finite() {
             return (p, 1.0);
         }
         let gain = self.patches(p);
         let Some(place) = self.sheets.place(p) else { return (p, gain) };
-        let values = self.tables[place.chain as usize].at(place.from_head_km);
+        let values = match self.tables.get(place.chain as usize) {
+            Some(table) => table.at(place.from_head_km),
+            None => self.sheet_values(&self.chains[place.chain as usize], place.s_km),
+        };
         self.finish(p, gain, &place, values)
     }
 
@@ -1140,6 +1152,27 @@ mod tests {
         }
     }
 
+    /// Two sheets: the first split into two pieces (x 0-100 and 120-220 km at z 0; the
+    /// second piece's arc length starts where the first's ends), the second whole
+    /// (x 0-220 km at z 60).
+    fn split_and_whole() -> Shape {
+        let mut shape =
+            Shape { points: Vec::new(), next: Vec::new(), sheet: Vec::new(), index_in_sheet: Vec::new() };
+        for (sheet, x0, x1, z, first) in
+            [(0, 0.0, 100.0, 0.0, 0), (0, 120.0, 220.0, 0.0, 11), (1, 0.0, 220.0, 60.0, 0)]
+        {
+            let n = 11;
+            let base = shape.points.len() as u32;
+            for i in 0..n {
+                shape.points.push(Vec2::new(x0 + (x1 - x0) * i as f32 / (n - 1) as f32, z));
+                shape.next.push((i + 1 < n).then_some(base + i as u32 + 1));
+                shape.sheet.push(sheet);
+                shape.index_in_sheet.push(first + i as u32);
+            }
+        }
+        shape
+    }
+
     /// How far [`Prepared::apply`] may draw a point from [`Prepared::apply_direct`]
     /// (km) and how far its brightness factor may differ, for tables `step` km apart on
     /// sheets whose arc lengths reach `longest` km, no patches, points within 400 km of
@@ -1158,7 +1191,8 @@ mod tests {
     ///   `band_sum`; the cut at six widths adds a jump under its own bound.
     ///
     /// The table and the direct path take the arc length in another order of f32
-    /// additions: an allowance of the slope bound times 4 ulps of the longest arc length
+    /// additions: an allowance (chosen, not derived) of the slope bound times 4 ulps of
+    /// the longest arc length
     /// (|f'| ≤ A k for the folds, 1.5 A k for the curls, the rays as above with |G'|),
     /// plus 8 ulps of the value (the interpolation's own rounding), and for the drawn
     /// point 4 ulps of a position 400 km out (the displacement added to it).
@@ -1190,8 +1224,9 @@ mod tests {
     #[test]
     #[allow(clippy::print_stderr, reason = "the measured errors, for the record of a run")]
     fn tables_follow_the_direct_evaluation() {
-        // Within `table_bounds` at 120,000 places around a straight sheet and an arc,
-        // with every curl site alive and the rays' contrast at 0.8.
+        // Within `table_bounds` at 180,000 places around a straight sheet, an arc and
+        // a split sheet beside a whole one (three chains, one starting its arc length
+        // past 0), with every curl site alive and the rays' contrast at 0.8.
         let small = SmallScale {
             curls: Curls { share: 1.0, ..Curls::default() },
             rays: Rays { contrast: 0.8, ..Rays::default() },
@@ -1199,9 +1234,15 @@ mod tests {
             pulsating: Pulsating { enabled: false, ..Pulsating::default() },
             ..SmallScale::default()
         };
-        for (name, shape, time_s) in [("straight", straight(300.0, 31), 0.7), ("arc", arc(40, 200.0), 2.3)] {
+        let shapes = [
+            ("straight", straight(300.0, 31), 0.7),
+            ("arc", arc(40, 200.0), 2.3),
+            ("split", split_and_whole(), 1.6),
+        ];
+        for (name, shape, time_s) in shapes {
             let prepared = small.at(&shape, time_s, 11).unwrap();
-            let step = small.table_step(prepared.sheets.chains.iter().map(|c| c.length).sum());
+            let step = small.table_step();
+            assert_eq!(prepared.tables.len(), prepared.chains.len(), "{name}: a table a chain");
             let width = small.rays.width_km;
             assert_eq!(step, width / TABLE_SAMPLES_PER_SCALE, "{name}: the rays' width sets the step");
             let longest = prepared.sheets.chains.iter().map(|c| c.s_offset + c.length).fold(0.0f32, f32::max);
@@ -1212,7 +1253,9 @@ mod tests {
                 let (t, across) = (k as f32 / 60_000.0, 20.0 * ((k * 7919) % 1000) as f32 / 1000.0 - 10.0);
                 let p = match name {
                     "straight" => Vec2::new(-5.0 + 310.0 * t, across),
-                    _ => Vec2::from_angle(1.5 * t) * (200.0 + across),
+                    "arc" => Vec2::from_angle(1.5 * t) * (200.0 + across),
+                    // Along both sheets in turn.
+                    _ => Vec2::new(-5.0 + 230.0 * t, across + if k % 2 == 0 { 0.0 } else { 60.0 }),
                 };
                 let ((d_t, g_t), (d_e, g_e)) = (prepared.apply(p), prepared.apply_direct(p));
                 placed += usize::from(prepared.place(p).is_some());
@@ -1231,6 +1274,22 @@ mod tests {
             assert!(placed > 50_000, "{name}: {placed} points within reach");
             assert!(differ > placed / 2, "{name}: only {differ} points differ: the tables are not in use");
         }
+    }
+
+    #[test]
+    fn sheets_past_the_cap_are_worked_out_per_particle() {
+        // Rays 10 m wide sample every 0.42 m: 300 km would need 720,000 samples, past
+        // the cap, so there are no tables and every point is the direct evaluation's.
+        let small = SmallScale { rays: Rays { width_km: 0.01, ..Rays::default() }, ..SmallScale::default() };
+        let prepared = small.at(&straight(300.0, 31), 0.4, 3).unwrap();
+        assert!(prepared.tables.is_empty(), "{} tables", prepared.tables.len());
+        for k in 0..5_000 {
+            let p = Vec2::new(300.0 * k as f32 / 5_000.0, 8.0 * ((k * 7919) % 1000) as f32 / 1000.0 - 4.0);
+            assert_eq!(prepared.apply(p), prepared.apply_direct(p), "at {p}");
+        }
+        // The default 600 m rays over the same sheet: 12,000 samples, tables.
+        let prepared = SmallScale::default().at(&straight(300.0, 31), 0.4, 3).unwrap();
+        assert_eq!(prepared.tables.len(), 1);
     }
 
     #[test]
