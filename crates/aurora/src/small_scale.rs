@@ -582,10 +582,10 @@ const RAY_CUT_WIDTHS: f32 = 6.0;
 /// (the rays' 0.6 km width / 24): each component of a drawn position moves by under
 /// 0.4 m and the ray factor by under 1.4·10⁻³.
 const TABLE_SAMPLES_PER_SCALE: f32 = 24.0;
-/// Most samples in all of a frame's tables (3 MiB; about 25 ms of CPU to build at scene
-/// 5's rate, as much as some 250,000 particles worked out one by one): sheets that would need more (over
-/// 6,500 km at the defaults, or rays much narrower than the default) are worked out
-/// per particle instead, as exactly as without tables.
+/// Most samples in all of a frame's tables (3 MiB; about 25 ms of CPU to build at
+/// scene 5's rate, as much as some 250,000 particles worked out one by one): sheets
+/// that would need more (over 6,500 km at the defaults, or rays much narrower than the
+/// default) are worked out per particle instead, as exactly as without tables.
 const MAX_TABLE_SAMPLES: usize = 1 << 18;
 
 /// One chain's displacement (along, normal; km) and ray factor at arc lengths
@@ -600,6 +600,12 @@ struct ChainTable {
 }
 
 impl ChainTable {
+    /// Samples over a chain `length_km` long at `step_km` apart: both ends covered, at
+    /// least two (saturating for a length no table could hold).
+    fn samples(length_km: f32, step_km: f32) -> usize {
+        ((length_km / step_km).ceil() as usize).saturating_add(1).max(2)
+    }
+
     /// The values at `from_head_km` along the chain (clamped to the samples).
     #[inline]
     fn at(&self, from_head_km: f32) -> [f32; 3] {
@@ -652,12 +658,9 @@ impl SmallScale {
         });
         let mut prepared =
             Prepared { params: *self, sheets, time_s, chains, flicker, pulsating, tables: Vec::new() };
-        let total_km: f32 = prepared.sheets.chains.iter().map(|c| c.length).sum();
         let step = self.table_step();
-        let samples = |c: &Chain| (c.length / step).ceil() as usize + 2;
-        if prepared.sheets.chains.iter().map(samples).sum::<usize>() <= MAX_TABLE_SAMPLES
-            && total_km.is_finite()
-        {
+        let samples = prepared.sheets.chains.iter().map(|c| ChainTable::samples(c.length, step));
+        if samples.fold(0, usize::saturating_add) <= MAX_TABLE_SAMPLES {
             prepared.tables = (0..prepared.chains.len()).map(|k| prepared.table(k, step)).collect();
         }
         prepared
@@ -901,29 +904,35 @@ impl Prepared {
     /// difference from working them out per particle: 1.5 m and 4.1·10⁻³ at its
     /// settings).
     pub fn apply(&self, p: Vec2) -> (Vec2, f32) {
-        if !p.is_finite() {
-            return (p, 1.0);
-        }
-        let gain = self.patches(p);
-        let Some(place) = self.sheets.place(p) else { return (p, gain) };
-        let values = match self.tables.get(place.chain as usize) {
+        self.apply_with(p, |place| match self.tables.get(place.chain as usize) {
             Some(table) => table.at(place.from_head_km),
-            None => self.sheet_values(&self.chains[place.chain as usize], place.s_km),
-        };
-        self.finish(p, gain, &place, values)
+            None => self.direct_values(place),
+        })
     }
 
     /// [`Prepared::apply`] with the patterns worked out at the particle's own arc
     /// length instead of interpolated (what the tables sample).
     #[cfg(test)]
     fn apply_direct(&self, p: Vec2) -> (Vec2, f32) {
+        self.apply_with(p, |place| self.direct_values(place))
+    }
+
+    /// `p` drawn with the sheet's displacement and ray factor at its place given by
+    /// `values` ([`Prepared::sheet_values`]).
+    #[inline]
+    fn apply_with(&self, p: Vec2, values: impl FnOnce(&SheetPlace) -> [f32; 3]) -> (Vec2, f32) {
         if !p.is_finite() {
             return (p, 1.0);
         }
         let gain = self.patches(p);
         let Some(place) = self.sheets.place(p) else { return (p, gain) };
-        let values = self.sheet_values(&self.chains[place.chain as usize], place.s_km);
+        let values = values(&place);
         self.finish(p, gain, &place, values)
+    }
+
+    /// [`Prepared::sheet_values`] at `place`, worked out there.
+    fn direct_values(&self, place: &SheetPlace) -> [f32; 3] {
+        self.sheet_values(&self.chains[place.chain as usize], place.s_km)
     }
 
     /// The displacement (along, normal) and ray factor at arc length `s_km` of `chain`.
@@ -936,7 +945,7 @@ impl Prepared {
     /// Chain `k`'s table at samples `step` km apart.
     fn table(&self, k: usize, step: f32) -> ChainTable {
         let (chain, now) = (&self.sheets.chains[k], &self.chains[k]);
-        let n = ((chain.length / step).ceil() as usize).saturating_add(1).max(2);
+        let n = ChainTable::samples(chain.length, step);
         // Each sample on its own (the same values for any thread count).
         let values = (0..n)
             .into_par_iter()
