@@ -289,7 +289,9 @@ fn sph_density(s: &mut MotionScratch, kd: Kernel, n: usize) {
         let (xi, zi) = (f32x8::splat(xs[i]), f32x8::splat(zs[i]));
         let mut sum = f32x8::ZERO;
         for run in runs {
-            let out = &mut acc[run.start - base..run.end - base];
+            // From the run's start to the window's end: the last group's lanes past
+            // the run add a zero (+0.0 leaves every density's bits) as one vector add.
+            let out = &mut acc[run.start - base..];
             for k in (0..run.len()).step_by(LANES) {
                 let j = run.start + k;
                 let (dx, dz) = (load(&xs[j..]) - xi, load(&zs[j..]) - zi);
@@ -327,9 +329,12 @@ fn pressure_force(s: &mut MotionScratch, kg: Kernel, n: usize) {
                 fx += dx * ci;
                 fz += dz * ci;
                 let cj = c * inv_i;
-                let out = j - base..run.end - base;
-                add(&mut acc_x[out.clone()], -(dx * cj));
-                add(&mut acc_z[out], -(dz * cj));
+                // To the window's end, as in `sph_density`: lanes past the run add ±0.0
+                // (c is +0.0 there and every coordinate finite: `CellRows::build`
+                // refuses others), which leaves every sum's bits (a sum that starts at
+                // +0.0 is never −0.0).
+                add(&mut acc_x[j - base..], -(dx * cj));
+                add(&mut acc_z[j - base..], -(dz * cj));
             }
         }
         acc_x[i - base] += reduce(fx);
