@@ -26,7 +26,7 @@ use phenomena_core::image::par_chunks5;
 
 use super::{FrameEmission, Model, NEAR_M, Pinhole, Plane, Projected8, SkyRenderer, project_in_lanes};
 use rayon::prelude::*;
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 /// Particles a run at most while there are fewer than [`MAX_PARTS`] runs (fewer
 /// particles make fewer runs; 30,000 make eight, enough for the cores to share).
@@ -209,7 +209,10 @@ impl Tile {
     /// Bilinear deposit of the points `g`, their weights times `scale` (image pixels, the
     /// image `width × height`), each pixel outside the image dropped: the same terms as
     /// [`super::bilinear`] gives [`super::deposit`], lane by lane (IEEE arithmetic, the
-    /// same operations in the same order), worked out eight at a time.
+    /// same operations in the same order), worked out eight at a time; where a point's
+    /// four pixels lie in the tile (nearly always) so is its place in the tile, and the
+    /// lane only adds its terms (test `lanes_add_the_scalar_bilinear_terms`, with tiles
+    /// at and away from the image's corner).
     #[inline]
     fn deposit8(&mut self, g: &Projected8, scale: f32, width: usize, height: usize) {
         let splat = f32x8::splat;
@@ -231,12 +234,33 @@ impl Tile {
         let (wx0, wy0) = (splat(1.0) - tx, splat(1.0) - ty);
         let terms = [weight * wx0 * wy0, weight * tx * wy0, weight * wx0 * ty, weight * tx * ty]
             .map(|t| t.to_array());
+        // The points whose four pixels all lie in the tile (nearly all), and their first
+        // pixel's place in it, worked out in lanes (the coordinates are small integers:
+        // exact in f32; `fast` only when every place fits an i32).
+        let (lx, ly) = (x0 - splat(self.x0 as f32), y0 - splat(self.y0 as f32));
+        let fast = lx.simd_ge(splat(0.0))
+            & ly.simd_ge(splat(0.0))
+            & lx.simd_lt(splat(self.w as f32 - 1.0))
+            & ly.simd_lt(splat(self.h as f32 - 1.0));
+        let fast = if self.w * self.h < i32::MAX as usize { fast.to_bitmask() } else { 0 };
+        let at = (ly.trunc_int() * i32x8::splat(self.w as i32) + lx.trunc_int()).to_array();
         let (x0, y0) = (x0.to_array(), y0.to_array());
+        let w = self.w;
+        // Lane by lane in order (two lanes may share a pixel: its sum keeps their order).
         while ok != 0 {
             let l = ok.trailing_zeros() as usize;
             ok &= ok - 1;
-            let terms = [terms[0][l], terms[1][l], terms[2][l], terms[3][l]];
-            self.add(x0[l] as i32, y0[l] as i32, g.lines[l], terms, width, height);
+            if fast & (1 << l) != 0 {
+                let at = at[l] as usize;
+                let p = &mut self.planes[usize::from(g.lines[l])][at..at + w + 2];
+                p[0] += terms[0][l];
+                p[1] += terms[1][l];
+                p[w] += terms[2][l];
+                p[w + 1] += terms[3][l];
+            } else {
+                let terms = [terms[0][l], terms[1][l], terms[2][l], terms[3][l]];
+                self.add(x0[l] as i32, y0[l] as i32, g.lines[l], terms, width, height);
+            }
         }
     }
 
@@ -300,66 +324,80 @@ mod tests {
     #[test]
     fn lanes_add_the_scalar_bilinear_terms() {
         // Points over and around a 37x23 image (on its edges, outside it, at NaN or an
-        // infinity, with an infinite or NaN weight), some lanes masked off: deposited eight at a time
-        // (`deposit8`), they leave the same bits as the scalar `bilinear` terms added
-        // one point at a time, and the same count.
-        use phenomena_core::rng::{Purpose, Stream};
+        // infinity, with an infinite or NaN weight), some lanes masked off: deposited
+        // eight at a time (`deposit8`), they leave the same bits as the scalar `bilinear`
+        // terms added one point at a time, and the same count; into a tile of the whole
+        // image and into one at its lower right corner (from pixel (9, 5), its points on
+        // or right of and below that).
         let (w, h) = (37usize, 23usize);
-        let whole = || {
-            let mut t = Tile { w, h, ..Tile::default() };
-            t.clear();
-            t
-        };
-        let (mut lanes, mut scalar) = (whole(), whole());
-        let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), 0);
-        let scale = 3.0;
-        for group in 0..2_000 {
-            let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.5];
-            let splats: [Splat; 8] = std::array::from_fn(|l| Splat {
-                x: match (group + l) % 97 {
-                    k @ 0..=3 => odd[k],
-                    4 => w as f32 + 0.5,
-                    _ => rng.next_f32() * (w as f32 + 6.0) - 3.0,
-                },
-                y: match (group + l) % 83 {
-                    k @ 0..=3 => odd[k],
-                    4 => h as f32 + 0.5,
-                    _ => rng.next_f32() * (h as f32 + 6.0) - 3.0,
-                },
-                weight: match (group + l) % 89 {
-                    0 => f32::INFINITY,
-                    1 => f32::NAN,
-                    _ => rng.next_f32(),
-                },
-                line: (rng.next_u64() % 5) as u8,
-            });
-            let ok = (rng.next_u64() & 0xff) as u32;
-            let g = Projected8 {
-                x: f32x8::from(splats.map(|s| s.x)),
-                y: f32x8::from(splats.map(|s| s.y)),
-                weight: f32x8::from(splats.map(|s| s.weight)),
-                lines: splats.map(|s| s.line),
-                ok,
+        for (x0, y0) in [(0, 0), (9, 5)] {
+            let tile = || {
+                let mut t = Tile { x0, y0, w: w - x0, h: h - y0, ..Tile::default() };
+                t.clear();
+                t
             };
-            lanes.deposit8(&g, scale, w, h);
-            for (l, s) in splats.iter().enumerate() {
-                let s = Splat { weight: s.weight * scale, ..*s };
-                let (fx, fy) = (s.x - 0.5, s.y - 0.5);
-                let inside =
-                    fx >= -1.0 && fx < w as f32 && fy >= -1.0 && fy < h as f32 && s.weight.is_finite();
-                if ok & (1 << l) != 0 && inside {
-                    scalar.points += 1;
-                    let (x0, y0, terms) = bilinear(&s);
-                    scalar.add(x0, y0, s.line, terms, w, h);
+            let (mut lanes, mut scalar) = (tile(), tile());
+            for group in 0..2_000 {
+                let (splats, ok) = some_points(group, (w, h), (x0, y0));
+                let g = Projected8 {
+                    x: f32x8::from(splats.map(|s| s.x)),
+                    y: f32x8::from(splats.map(|s| s.y)),
+                    weight: f32x8::from(splats.map(|s| s.weight)),
+                    lines: splats.map(|s| s.line),
+                    ok,
+                };
+                lanes.deposit8(&g, 3.0, w, h);
+                for (l, s) in splats.iter().enumerate() {
+                    let s = Splat { weight: s.weight * 3.0, ..*s };
+                    let (fx, fy) = (s.x - 0.5, s.y - 0.5);
+                    let inside =
+                        fx >= -1.0 && fx < w as f32 && fy >= -1.0 && fy < h as f32 && s.weight.is_finite();
+                    if ok & (1 << l) != 0 && inside {
+                        scalar.points += 1;
+                        let (x0, y0, terms) = bilinear(&s);
+                        scalar.add(x0, y0, s.line, terms, w, h);
+                    }
                 }
             }
+            assert!(scalar.points > 5_000, "{} points", scalar.points);
+            assert_eq!(lanes.points, scalar.points);
+            for k in 0..5 {
+                let bits = |t: &Tile| t.planes[k].iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&lanes), bits(&scalar), "tile from ({x0}, {y0}), line {k}");
+            }
         }
-        assert!(scalar.points > 5_000, "{} points", scalar.points);
-        assert_eq!(lanes.points, scalar.points);
-        for k in 0..5 {
-            let bits = |t: &Tile| t.planes[k].iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&lanes), bits(&scalar), "line {k}");
-        }
+    }
+
+    /// Eight points of group `group` for a `w × h` image and a tile from pixel (`x0`,
+    /// `y0`) to its lower right corner, and a mask of lanes. Along each axis a point is
+    /// NaN, ±∞, on the near edge (half a pixel out of the image for the whole image;
+    /// on the tile's first pixel centre otherwise), half a pixel past the far edge, or
+    /// uniform from 3 px out of the image (the tile's first pixel centre) to 3 px past it.
+    fn some_points(group: usize, (w, h): (usize, usize), (x0, y0): (usize, usize)) -> ([Splat; 8], u32) {
+        use phenomena_core::rng::{Purpose, Stream};
+        let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), (group * 64 + x0) as u64);
+        let near =
+            |start: usize| if start == 0 { (-0.5, -3.0) } else { (start as f32 + 0.5, start as f32 + 0.5) };
+        let ((edge_x, from_x), (edge_y, from_y)) = (near(x0), near(y0));
+        let along = |k: usize, edge: f32, from: f32, size: usize, r: f32| match k {
+            0 => f32::NAN,
+            1 => f32::INFINITY,
+            2 => f32::NEG_INFINITY,
+            3 => edge,
+            4 => size as f32 + 0.5,
+            _ => from + r * (size as f32 + 3.0 - from),
+        };
+        let splats = std::array::from_fn(|l| Splat {
+            x: along((group + l) % 97, edge_x, from_x, w, rng.next_f32()),
+            y: along((group + l) % 83, edge_y, from_y, h, rng.next_f32()),
+            weight: match (group + l) % 89 {
+                0 => f32::INFINITY,
+                1 => f32::NAN,
+                _ => rng.next_f32(),
+            },
+            line: (rng.next_u64() % 5) as u8,
+        });
+        (splats, (rng.next_u64() & 0xff) as u32)
     }
 
     #[test]
