@@ -290,7 +290,8 @@ fn sph_density(s: &mut MotionScratch, kd: Kernel, n: usize) {
         let mut sum = f32x8::ZERO;
         for run in runs {
             // From the run's start to the window's end: the last group's lanes past
-            // the run add a zero (+0.0 leaves every density's bits) as one vector add.
+            // the run add +0.0 in one vector add (no density is −0.0: each starts at
+            // W(0) ≥ 0 and adds terms ≥ 0, so +0.0 leaves its bits).
             let out = &mut acc[run.start - base..];
             for k in (0..run.len()).step_by(LANES) {
                 let j = run.start + k;
@@ -330,9 +331,9 @@ fn pressure_force(s: &mut MotionScratch, kg: Kernel, n: usize) {
                 fz += dz * ci;
                 let cj = c * inv_i;
                 // To the window's end, as in `sph_density`: lanes past the run add ±0.0
-                // (c is +0.0 there and every coordinate finite: `CellRows::build`
-                // refuses others), which leaves every sum's bits (a sum that starts at
-                // +0.0 is never −0.0).
+                // (c is +0.0 there, every coordinate finite: `CellRows::build` refuses
+                // others, and 1/(2δ_i) finite: δ_i ≥ W(0) > 0), which leaves every sum's
+                // bits (a sum that starts at +0.0 is never −0.0).
                 add(&mut acc_x[j - base..], -(dx * cj));
                 add(&mut acc_z[j - base..], -(dz * cj));
             }

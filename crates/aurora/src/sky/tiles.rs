@@ -209,10 +209,11 @@ impl Tile {
     /// Bilinear deposit of the points `g`, their weights times `scale` (image pixels, the
     /// image `width × height`), each pixel outside the image dropped: the same terms as
     /// [`super::bilinear`] gives [`super::deposit`], lane by lane (IEEE arithmetic, the
-    /// same operations in the same order), worked out eight at a time; where a point's
-    /// four pixels lie in the tile (nearly always) so is its place in the tile, and the
-    /// lane only adds its terms (test `lanes_add_the_scalar_bilinear_terms`, with tiles
-    /// at and away from the image's corner).
+    /// same operations in the same order), worked out eight at a time. Each point's
+    /// offset in the tile, and whether all four of its pixels fall inside it, are worked
+    /// out in lanes too: such points (nearly all) add their terms directly, the rest go
+    /// through [`Tile::add`] (test `lanes_add_the_scalar_bilinear_terms`, with tiles at
+    /// and away from the image's corner).
     #[inline]
     fn deposit8(&mut self, g: &Projected8, scale: f32, width: usize, height: usize) {
         let splat = f32x8::splat;
@@ -234,9 +235,10 @@ impl Tile {
         let (wx0, wy0) = (splat(1.0) - tx, splat(1.0) - ty);
         let terms = [weight * wx0 * wy0, weight * tx * wy0, weight * wx0 * ty, weight * tx * ty]
             .map(|t| t.to_array());
-        // The points whose four pixels all lie in the tile (nearly all), and their first
-        // pixel's place in it, worked out in lanes (the coordinates are small integers:
-        // exact in f32; `fast` only when every place fits an i32).
+        // The points whose four pixels all lie in the tile, and their first pixel's
+        // offset in it. A side is at most `MAX_SIDE_PX` = 2¹⁴ (`check_size`), so these
+        // integers are exact in f32 and w·h < 2²⁸ fits an i32: the guard on w·h only
+        // keeps that so should the limit grow.
         let (lx, ly) = (x0 - splat(self.x0 as f32), y0 - splat(self.y0 as f32));
         let fast = lx.simd_ge(splat(0.0))
             & ly.simd_ge(splat(0.0))
@@ -250,16 +252,11 @@ impl Tile {
         while ok != 0 {
             let l = ok.trailing_zeros() as usize;
             ok &= ok - 1;
+            let lane = [terms[0][l], terms[1][l], terms[2][l], terms[3][l]];
             if fast & (1 << l) != 0 {
-                let at = at[l] as usize;
-                let p = &mut self.planes[usize::from(g.lines[l])][at..at + w + 2];
-                p[0] += terms[0][l];
-                p[1] += terms[1][l];
-                p[w] += terms[2][l];
-                p[w + 1] += terms[3][l];
+                add4(&mut self.planes[usize::from(g.lines[l])], at[l] as usize, w, lane);
             } else {
-                let terms = [terms[0][l], terms[1][l], terms[2][l], terms[3][l]];
-                self.add(x0[l] as i32, y0[l] as i32, g.lines[l], terms, width, height);
+                self.add(x0[l] as i32, y0[l] as i32, g.lines[l], lane, width, height);
             }
         }
     }
@@ -272,13 +269,8 @@ impl Tile {
         let w = self.w;
         let plane = &mut self.planes[usize::from(line)];
         if lx >= 0 && ly >= 0 && lx + 1 < w as i64 && ly + 1 < self.h as i64 {
-            // All four pixels in the tile (nearly every point).
-            let at = ly as usize * w + lx as usize;
-            let p = &mut plane[at..at + w + 2];
-            p[0] += terms[0];
-            p[1] += terms[1];
-            p[w] += terms[2];
-            p[w + 1] += terms[3];
+            // All four pixels in the tile.
+            add4(plane, ly as usize * w + lx as usize, w, terms);
             return;
         }
         for (c, term) in terms.into_iter().enumerate() {
@@ -295,6 +287,17 @@ impl Tile {
             }
         }
     }
+}
+
+/// Add a point's four bilinear `terms` to `plane` (rows `w` wide) from its pixel `at`:
+/// at, at + 1, at + w, at + w + 1.
+#[inline]
+fn add4(plane: &mut [f32], at: usize, w: usize, terms: [f32; 4]) {
+    let p = &mut plane[at..at + w + 2];
+    p[0] += terms[0];
+    p[1] += terms[1];
+    p[w] += terms[2];
+    p[w + 1] += terms[3];
 }
 
 /// The five line images: zero, plus every tile in run order, rows in parallel.
@@ -320,6 +323,7 @@ mod tests {
     use super::super::{BandedPoints, FrameEmission, SkyCamera, SkySettings, Splat, bilinear, floor_i32};
     use super::*;
     use crate::AuroraSim;
+    use phenomena_core::rng::{Purpose, Stream};
 
     #[test]
     fn lanes_add_the_scalar_bilinear_terms() {
@@ -330,15 +334,16 @@ mod tests {
         // image and into one at its lower right corner (from pixel (9, 5), its points on
         // or right of and below that).
         let (w, h) = (37usize, 23usize);
-        for (x0, y0) in [(0, 0), (9, 5)] {
+        for (t, (tx0, ty0)) in [(0, 0), (9, 5)].into_iter().enumerate() {
             let tile = || {
-                let mut t = Tile { x0, y0, w: w - x0, h: h - y0, ..Tile::default() };
+                let mut t = Tile { x0: tx0, y0: ty0, w: w - tx0, h: h - ty0, ..Tile::default() };
                 t.clear();
                 t
             };
             let (mut lanes, mut scalar) = (tile(), tile());
             for group in 0..2_000 {
-                let (splats, ok) = some_points(group, (w, h), (x0, y0));
+                let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), (group * 2 + t) as u64);
+                let (splats, ok) = some_points(&mut rng, group, (w, h), (tx0, ty0));
                 let g = Projected8 {
                     x: f32x8::from(splats.map(|s| s.x)),
                     y: f32x8::from(splats.map(|s| s.y)),
@@ -363,22 +368,22 @@ mod tests {
             assert_eq!(lanes.points, scalar.points);
             for k in 0..5 {
                 let bits = |t: &Tile| t.planes[k].iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&lanes), bits(&scalar), "tile from ({x0}, {y0}), line {k}");
+                assert_eq!(bits(&lanes), bits(&scalar), "tile from ({tx0}, {ty0}), line {k}");
             }
         }
     }
 
-    /// Eight points of group `group` for a `w × h` image and a tile from pixel (`x0`,
-    /// `y0`) to its lower right corner, and a mask of lanes. Along each axis a point is
-    /// NaN, ±∞, on the near edge (half a pixel out of the image for the whole image;
-    /// on the tile's first pixel centre otherwise), half a pixel past the far edge, or
-    /// uniform from 3 px out of the image (the tile's first pixel centre) to 3 px past it.
-    fn some_points(group: usize, (w, h): (usize, usize), (x0, y0): (usize, usize)) -> ([Splat; 8], u32) {
-        use phenomena_core::rng::{Purpose, Stream};
-        let mut rng = Stream::new(7, Purpose::named("test.tiles.lanes"), (group * 64 + x0) as u64);
-        let near =
-            |start: usize| if start == 0 { (-0.5, -3.0) } else { (start as f32 + 0.5, start as f32 + 0.5) };
-        let ((edge_x, from_x), (edge_y, from_y)) = (near(x0), near(y0));
+    /// Eight points of group `group` over a `w × h` image for a tile from pixel
+    /// (`x0`, `y0`) to the image's far corner, and a mask of lanes. Along each axis a
+    /// point is NaN, ±∞, on the near edge ([`near_edge`]), half a pixel past the far
+    /// edge, or uniform from where [`near_edge`] says to 3 px past the far edge.
+    fn some_points(
+        rng: &mut Stream,
+        group: usize,
+        (w, h): (usize, usize),
+        (x0, y0): (usize, usize),
+    ) -> ([Splat; 8], u32) {
+        let ((edge_x, from_x), (edge_y, from_y)) = (near_edge(x0), near_edge(y0));
         let along = |k: usize, edge: f32, from: f32, size: usize, r: f32| match k {
             0 => f32::NAN,
             1 => f32::INFINITY,
@@ -398,6 +403,15 @@ mod tests {
             line: (rng.next_u64() % 5) as u8,
         });
         (splats, (rng.next_u64() & 0xff) as u32)
+    }
+
+    /// Along an axis where a tile starts at pixel `start`: its near edge point and where
+    /// its uniform points start. A tile at the image's edge (0) may be given points out
+    /// of the image: half a pixel out and from 3 px out. One starting inside the image
+    /// is given none before its first pixel centre (the image's pixels before it are
+    /// not the tile's).
+    fn near_edge(start: usize) -> (f32, f32) {
+        if start == 0 { (-0.5, -3.0) } else { (start as f32 + 0.5, start as f32 + 0.5) }
     }
 
     #[test]
