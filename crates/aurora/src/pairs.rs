@@ -58,6 +58,8 @@ pub const MAX_RUNS: usize = 1 + MAX_RINGS;
 pub const MAX_CELLS_PER_AXIS: usize = 1 << 30;
 /// Points per parallel work item in the sort (fixed: no effect on results).
 const MIN_LEN: usize = 4096;
+/// The most tasks a counting sort places its items by ([`counting_sort`]).
+const MAX_SORT_TASKS: usize = 8;
 
 /// 2-D points sorted by row of cells, then by cell within a row, then by their previous
 /// order (so the sort is deterministic); rebuilt per step, buffers kept.
@@ -68,9 +70,10 @@ pub struct CellRows {
     row_start: Vec<u32>,
     max_cell_count: usize,
     cell: Vec<(u32, u32)>,
-    cursor: Vec<u32>,
     count: Vec<u32>,
     scratch: Vec<u32>,
+    /// The bucket of each item of a counting sort.
+    keys: Vec<u32>,
 }
 
 impl CellRows {
@@ -104,23 +107,13 @@ impl CellRows {
         }));
         // Least-significant-digit radix sort: a stable counting sort by column, then one by
         // row. O(points + rows + columns), whatever the previous order.
-        counting_sort(
-            &mut self.count,
-            &mut self.cursor,
-            columns as usize,
-            &mut self.scratch,
-            (0..points.len() as u32).map(|i| (i, self.cell[i as usize].1)),
-        );
+        self.keys.clear();
+        self.keys.par_extend(self.cell.par_iter().with_min_len(MIN_LEN).map(|c| c.1));
+        counting_sort(&mut self.count, columns as usize, &self.keys, None, &mut self.scratch);
         let cell = &self.cell;
-        let scratch = std::mem::take(&mut self.scratch);
-        counting_sort(
-            &mut self.row_start,
-            &mut self.cursor,
-            rows,
-            &mut self.order,
-            scratch.iter().map(|&i| (i, cell[i as usize].0)),
-        );
-        self.scratch = scratch;
+        self.keys.clear();
+        self.keys.par_extend(self.scratch.par_iter().with_min_len(MIN_LEN).map(|&i| cell[i as usize].0));
+        counting_sort(&mut self.row_start, rows, &self.keys, Some(&self.scratch), &mut self.order);
         self.column.clear();
         self.column.par_extend(self.order.par_iter().with_min_len(MIN_LEN).map(|&i| cell[i as usize].1));
         let mut max_count = 0;
@@ -172,34 +165,55 @@ impl CellRows {
     }
 }
 
-/// Stable counting sort of `(item, bucket)` pairs into `out`; `start` receives the start
-/// of each of the `buckets` buckets and the total (so `buckets + 1` entries).
+/// Stable counting sort: `out` lists the items (`items[p]`, or p itself when `items` is
+/// `None`) by bucket `keys[p]` (`< buckets`), ties in order of p; `start` receives the
+/// start of each bucket and the total (so `buckets + 1` entries). The counts are taken in
+/// one pass; the items are then placed by one task per thread (at most
+/// [`MAX_SORT_TASKS`]) in parallel, each owning the buckets of about an equal share of
+/// the items (so the part of `out` they fill) and reading every key in order. Whatever
+/// the cut, each bucket gets its items in order of p: the same output for any thread
+/// count (test `many_points_sort_alike_on_any_thread_count`).
 fn counting_sort(
     start: &mut Vec<u32>,
-    cursor: &mut Vec<u32>,
     buckets: usize,
+    keys: &[u32],
+    items: Option<&[u32]>,
     out: &mut Vec<u32>,
-    items: impl Iterator<Item = (u32, u32)> + Clone,
 ) {
+    let n = keys.len();
     start.clear();
     start.resize(buckets + 1, 0);
-    let mut n = 0;
-    for (_, b) in items.clone() {
-        start[b as usize + 1] += 1;
-        n += 1;
+    for &k in keys {
+        start[k as usize + 1] += 1;
     }
     for b in 0..buckets {
         start[b + 1] += start[b];
     }
-    cursor.clear();
-    cursor.extend_from_slice(&start[..buckets]);
     out.clear();
     out.resize(n, 0);
-    for (item, b) in items {
-        let slot = &mut cursor[b as usize];
-        out[*slot as usize] = item;
-        *slot += 1;
-    }
+    // Task t owns buckets cuts[t]..cuts[t + 1]: those starting at or after the t-th
+    // share of the items, up to the next task's.
+    let tasks = rayon::current_num_threads().clamp(1, MAX_SORT_TASKS);
+    let mut cuts: Vec<usize> =
+        (0..tasks).map(|t| start[..buckets].partition_point(|&s| (s as usize) < n * t / tasks)).collect();
+    cuts[0] = 0;
+    cuts.push(buckets);
+    let ranges: Vec<Range<usize>> =
+        cuts.windows(2).map(|c| start[c[0]] as usize..start[c[1]] as usize).collect();
+    let start = &*start;
+    disjoint_windows(out, &ranges).into_par_iter().zip(cuts.par_windows(2)).for_each(|(part, c)| {
+        let (first, end) = (c[0], c[1]);
+        let base = start[first];
+        let mut cursor: Vec<u32> = start[first..end].iter().map(|&s| s - base).collect();
+        for (p, &k) in keys.iter().enumerate() {
+            let k = k as usize;
+            if (first..end).contains(&k) {
+                let slot = &mut cursor[k - first];
+                part[*slot as usize] = items.map_or(p as u32, |items| items[p]);
+                *slot += 1;
+            }
+        }
+    });
 }
 
 /// Cut `s` into the disjoint ascending `ranges`.
@@ -452,6 +466,33 @@ mod tests {
                 most = most.max(same);
             }
             prop_assert_eq!(rows.max_cell_count(), most);
+        }
+    }
+
+    #[test]
+    fn many_points_sort_alike_on_any_thread_count() {
+        // 60,000 points over about 80 x 20 cells (so every sort task places many, with
+        // many ties in a cell): the order is (row, column, index) on 1, 2 and 3 threads.
+        let points: Vec<Vec2> = (0..60_000u32)
+            .map(|k| {
+                let t = k as f32 * 0.618_034;
+                Vec2::new((t * 7.3).sin() * 20.0, (t * 3.1).cos() * 5.0)
+            })
+            .collect();
+        let cell = 0.5;
+        let lo = points.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
+        let key = |i: u32| {
+            let c = (points[i as usize] - lo) * (1.0 / cell);
+            (c.y as i64, c.x as i64, i)
+        };
+        let mut want: Vec<u32> = (0..points.len() as u32).collect();
+        want.sort_by_key(|&i| key(i));
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut rows = CellRows::default();
+            pool.install(|| rows.build(&points, cell)).unwrap();
+            assert!(rows.order() == &want[..], "{threads} threads: another order");
+            assert_eq!(rows.rows() as i64, key(want[want.len() - 1]).0 + 1, "rows of cells");
         }
     }
 
