@@ -106,7 +106,8 @@ impl CellRows {
             ((c.y as u32).min(rows as u32 - 1), (c.x as u32).min(columns - 1))
         }));
         // Least-significant-digit radix sort: a stable counting sort by column, then one by
-        // row. O(points + rows + columns), whatever the previous order.
+        // row. O(points × tasks + rows + columns), whatever the previous order (each of
+        // `counting_sort`'s tasks reads every key).
         self.keys.clear();
         self.keys.par_extend(self.cell.par_iter().with_min_len(MIN_LEN).map(|c| c.1));
         counting_sort(&mut self.count, columns as usize, &self.keys, None, &mut self.scratch);
@@ -442,6 +443,22 @@ mod tests {
         }
     }
 
+    /// The order [`CellRows::build`] should give `points` in cells of `cell`, and each
+    /// point's (row, column, index) that makes it.
+    fn reference_order(points: &[Vec2], cell: f32) -> (Vec<u32>, Vec<(i64, i64, u32)>) {
+        let lo = points.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
+        // The same arithmetic as the sort (a product with 1/cell, then truncation).
+        let keys: Vec<(i64, i64, u32)> = (0..points.len() as u32)
+            .map(|i| {
+                let c = (points[i as usize] - lo) * (1.0 / cell);
+                (c.y as i64, c.x as i64, i)
+            })
+            .collect();
+        let mut order: Vec<u32> = (0..points.len() as u32).collect();
+        order.sort_by_key(|&i| keys[i as usize]);
+        (order, keys)
+    }
+
     proptest! {
         #[test]
         fn points_are_sorted_by_row_then_cell_then_index(
@@ -451,14 +468,8 @@ mod tests {
             let points: Vec<Vec2> = pts.iter().map(|&(x, z)| Vec2::new(x, z)).collect();
             let mut rows = CellRows::default();
             rows.build(&points, cell).unwrap();
-            let lo = points.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
-            let key = |i: u32| {
-                // The same arithmetic as the sort (a product with 1/cell, then truncation).
-                let c = (points[i as usize] - lo) * (1.0 / cell);
-                (c.y as i64, c.x as i64, i)
-            };
-            let mut want: Vec<u32> = (0..points.len() as u32).collect();
-            want.sort_by_key(|&i| key(i));
+            let (want, keys) = reference_order(&points, cell);
+            let key = |i: u32| keys[i as usize];
             prop_assert_eq!(rows.order(), &want[..]);
             let mut most = 0;
             for i in &want {
@@ -480,19 +491,13 @@ mod tests {
             })
             .collect();
         let cell = 0.5;
-        let lo = points.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
-        let key = |i: u32| {
-            let c = (points[i as usize] - lo) * (1.0 / cell);
-            (c.y as i64, c.x as i64, i)
-        };
-        let mut want: Vec<u32> = (0..points.len() as u32).collect();
-        want.sort_by_key(|&i| key(i));
+        let (want, keys) = reference_order(&points, cell);
         for threads in [1, 2, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let mut rows = CellRows::default();
             pool.install(|| rows.build(&points, cell)).unwrap();
             assert!(rows.order() == &want[..], "{threads} threads: another order");
-            assert_eq!(rows.rows() as i64, key(want[want.len() - 1]).0 + 1, "rows of cells");
+            assert_eq!(rows.rows() as i64, keys[want[want.len() - 1] as usize].0 + 1, "rows of cells");
         }
     }
 
