@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::export::{GlbPart, GlbView, TriMesh, snow_mesh, snow_surface, to_glb_scene};
-use crate::glitter::{Glitter, Viewing, glints};
+use crate::glitter::{GlintCache, Glitter, Viewing};
 use crate::sim::SnowSim;
 
 /// What the frames show.
@@ -184,6 +184,8 @@ pub struct SnowRenderer {
     seen: Vec<Seen>,
     /// The scene mesh's smooth normals, worked out once per mesh.
     normals: ObjectNormals,
+    /// The snow's grains that may glint, kept from frame to frame.
+    glint_cache: GlintCache,
     /// The clock of [`SnowRenderer::timings`] (none: every timing reads 0).
     clock: SharedClock,
     timings: SnowTimings,
@@ -271,6 +273,7 @@ impl SnowRenderer {
             lights: Vec::new(),
             seen: Vec::new(),
             normals: ObjectNormals::default(),
+            glint_cache: GlintCache::default(),
             clock: SharedClock::default(),
             timings: SnowTimings::default(),
         })
@@ -306,7 +309,7 @@ impl SnowRenderer {
                     sim,
                     &self.settings,
                     (self.background.as_ref(), &self.lights),
-                    &mut self.normals,
+                    (&mut self.normals, &mut self.glint_cache),
                     (&self.clock, &mut self.timings),
                     w,
                     h,
@@ -338,7 +341,7 @@ impl SnowRenderer {
             sim,
             &self.settings,
             (Some(behind), &self.lights),
-            &mut self.normals,
+            (&mut self.normals, &mut self.glint_cache),
             (&self.clock, &mut self.timings),
             w,
             h,
@@ -463,7 +466,7 @@ fn render_scene(
     sim: &SnowSim,
     settings: &SnowRenderSettings,
     (background, lights): (Option<&Frame>, &[(Vec3, Vec3)]),
-    normals: &mut ObjectNormals,
+    (normals, glint_cache): (&mut ObjectNormals, &mut GlintCache),
     (clock, timings): (&SharedClock, &mut SnowTimings),
     width: usize,
     height: usize,
@@ -525,12 +528,11 @@ fn render_scene(
         .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
         .map(|(x, y)| shade(x, y))
         .collect();
-    for (k, c) in colours.into_iter().enumerate() {
-        frame.set_pixel(k % width, k / width, c);
-    }
+    colours.into_iter().enumerate().for_each(|(k, c)| frame.set_pixel(k % width, k / width, c));
     timings.shade_ms = t.ms();
     timings.glints = timed(clock, &mut timings.glitter_ms, || {
-        draw_glitter(sim.seed(), settings, &lighting, (&view, eye), &buf, &tris[scene.len()..], &mut frame)
+        let snow = &tris[scene.len()..];
+        draw_glitter((sim.seed(), glint_cache), settings, &lighting, (&view, eye), &buf, snow, &mut frame)
     });
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
@@ -546,7 +548,7 @@ fn render_scene(
 /// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
 /// snow's own light). Returns how many glints the sun lights on pixels that show them.
 fn draw_glitter(
-    seed: u64,
+    (seed, cache): (u64, &mut GlintCache),
     settings: &SnowRenderSettings,
     lighting: &Lighting<'_>,
     (view, eye): (&CameraView, Vec3),
@@ -559,7 +561,7 @@ fn draw_glitter(
         return 0;
     }
     let up = glinting_faces(snow, lighting, (view, eye), buf, true);
-    let gl = glints(&up, Viewing { eye, sun: lighting.sun }, g, seed);
+    let gl = cache.glints(&up, Viewing { eye, sun: lighting.sun }, g, seed);
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
     let face_m2 = (1e-3 * g.grain_mm).powi(2);
     let (w, h) = (frame.width() as i64, frame.height() as i64);
@@ -1000,7 +1002,7 @@ fn render_probability(sim: &SnowSim, width: usize, height: usize) -> Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::glitter::Glint;
+    use crate::glitter::{Glint, glints};
     use crate::mesh::table_scene;
     use crate::sim::SnowConfig;
 
