@@ -265,11 +265,13 @@ fn triangle_glints(
     }
     let alpha = cone + half_vector_turn(tri, centre, viewing) + 1e-4;
     cells.clear();
-    // The heights z a normal within α of H can have (those near −H: the negated).
-    let z = cells_near(h, alpha, cells);
-    antipodes(cells);
     // A glinting normal is within the cone of H at its grain, and that H within the turn
-    // of H at the centre: within α of ±H there (1e-3 more for rounding).
+    // of H at the centre: within α of ±H there. The cells and the heights z a normal
+    // within α of H can have (those near −H: the negated), and the cap, take 1e-3 more
+    // for rounding (`cells_near`'s arccosine of H's height is off by up to about 4e-4
+    // next to the poles).
+    let z = cells_near(h, alpha + 1e-3, cells);
+    antipodes(cells);
     let cap = Cap { axis: h, cos_alpha: (alpha + 1e-3).min(std::f32::consts::PI).cos(), z };
     grains_in(tri, (viewing, g, seed), cos_cone, cells, cap, out);
 }
@@ -416,8 +418,8 @@ fn glint_of(
 }
 
 /// How much wider than a face's cone of glinting normals a kept face's grains reach,
-/// radians (0.1°): the face's H may turn this far (as the snow beneath it deepens) before
-/// its grains are drawn anew. The cone is about 2.2° at the defaults, so a kept face holds
+/// radians (0.1°): the face's H may turn this far (as the snow beneath it deepens), less
+/// any growth of its cone's own half-angle, before its grains are drawn anew. The cone is about 2.2° at the defaults, so a kept face holds
 /// about a tenth more grains than it needs; in the village and the yard (frames 24..34)
 /// fewer than one face in 10,000 a frame turned past 0.25°.
 const KEPT_ROOM_RAD: f32 = 0.1 * std::f32::consts::PI / 180.0;
@@ -435,7 +437,8 @@ const WAYS: usize = 8;
 /// key has its H that close to the kept one and its area no larger, its glints are
 /// those of the kept grains that pass the glint test now (the counts worked out for
 /// its area now, from the same numbers; a count by inversion does not grow as the mean
-/// falls): so [`GlintCache::glints`] returns exactly what [`glints`] returns, frame
+/// falls, which rounding could break only for a uniform within about 10⁻¹⁶ of a step of
+/// the distribution function): so [`GlintCache::glints`] returns exactly what [`glints`] returns, frame
 /// after frame (tests `kept_grains_glint_as_drawn_ones`, with snow deepening under a
 /// moving sun, and `kept_grains_follow_faces_that_grow`). A change of seed, settings,
 /// eye or sun empties it.
@@ -462,6 +465,8 @@ pub struct GlintCache {
     /// Faces found kept and faces drawn anew in the last call.
     hits: usize,
     misses: usize,
+    /// Compactions so far.
+    compactions: usize,
 }
 
 impl std::fmt::Debug for GlintCache {
@@ -514,8 +519,8 @@ struct KeptGrain {
     uv: (f32, f32),
 }
 
-/// Faces kept anew by one chunk of a call: (slot, face) with cells and grains indexed in
-/// the chunk's own lists: (bucket, key, face).
+/// Faces kept anew by one chunk of a call, (bucket, key, face), the faces' cells and
+/// grains indexed in the chunk's own lists.
 #[derive(Default)]
 struct Kept {
     faces: Vec<(usize, u64, Slot)>,
@@ -535,7 +540,8 @@ impl GlintCache {
     /// The glints of the grains on `tris`, exactly as [`glints`] gives them, keeping
     /// each face's grains for the next call. The first call after a change of seed,
     /// settings, eye or sun (or the first of all) is [`glints`] itself and keeps nothing;
-    /// the next keeps every face.
+    /// the next keeps every face it can (not those past the inversion of the counts or
+    /// with too wide a cone, which are always drawn afresh).
     pub fn glints(&mut self, tris: &[[Vec3; 3]], viewing: Viewing, g: &Glitter, seed: u64) -> Vec<Glint> {
         if !(g.grains_per_m2 > 0.0) {
             return Vec::new();
@@ -572,6 +578,10 @@ impl GlintCache {
             .collect();
         let mut out = Vec::new();
         (self.hits, self.misses) = (0, 0);
+        // Every slot that served marked before any is replaced.
+        for slot in parts.iter().flat_map(|(_, kept)| &kept.used) {
+            self.slots[*slot].used = self.calls;
+        }
         for (glints, kept) in parts {
             out.extend(glints);
             self.hits += kept.used.len();
@@ -620,7 +630,7 @@ impl GlintCache {
             self.keys[i] == k
                 && s.filled
                 && area <= s.area
-                && h.dot(s.axis).clamp(-1.0, 1.0).acos() + alpha <= s.alpha
+                && h.cross(s.axis).length().atan2(h.dot(s.axis)) + alpha <= s.alpha
         };
         if let Some(slot) = (bucket..bucket + WAYS).find(|&i| serves(i)) {
             let s = &self.slots[slot];
@@ -637,7 +647,7 @@ impl GlintCache {
         }
         let wide = alpha + KEPT_ROOM_RAD;
         cells.clear();
-        let z = cells_near(h, wide, cells);
+        let z = cells_near(h, wide + 1e-3, cells);
         antipodes(cells);
         let cap = Cap { axis: h, cos_alpha: (wide + 1e-3).min(std::f32::consts::PI).cos(), z };
         let e = (-mean_room).exp();
@@ -667,12 +677,9 @@ impl GlintCache {
     }
 
     /// One chunk's faces kept anew into the table (each into its bucket's slot of the
-    /// same key, or else the one used least lately), its used slots marked, and the lists
+    /// same key, or else an empty one, or else the one used longest ago), and the lists
     /// compacted when mostly dead.
     fn keep(&mut self, kept: Kept) {
-        for &slot in &kept.used {
-            self.slots[slot].used = self.calls;
-        }
         let (cells0, grains0) = (self.cells.len() as u32, self.grains.len() as u32);
         self.grains.extend(kept.grains);
         self.cells.extend(kept.cells.into_iter().map(|c| KeptCell {
@@ -696,9 +703,14 @@ impl GlintCache {
         }
     }
 
-    /// The lists rebuilt with only what the table's faces hold.
+    /// The lists rebuilt with only what the table's faces used in this call hold (the
+    /// others let go).
     fn compact(&mut self) {
         let (mut cells, mut grains) = (Vec::new(), Vec::new());
+        self.compactions += 1;
+        for s in &mut self.slots {
+            s.filled &= s.used == self.calls;
+        }
         for s in self.slots.iter_mut().filter(|s| s.filled) {
             let first = cells.len() as u32;
             for c in &self.cells[s.cells as usize..(s.cells + s.n_cells) as usize] {
@@ -813,8 +825,9 @@ mod tests {
         let g = Glitter { grains_per_m2: 4.0e6, ..Glitter::default() };
         let eye = Vec3::new(0.0, 1.6, 4.0);
         let mut cache = GlintCache::default();
-        let (mut hits, mut misses, mut found) = (0, 0, 0);
-        for (sun_deg, frames) in [(20.0f32, 0..40), (25.0, 40..50)] {
+        // Faces served by kept grains and drawn anew, in each sun's frames.
+        let (mut hits, mut misses, mut found) = ([0; 2], [0; 2], 0);
+        for (phase, (sun_deg, frames)) in [(20.0f32, 0..40), (25.0, 40..50)].into_iter().enumerate() {
             let sun = Vec3::new(0.0, sun_deg.to_radians().sin(), -sun_deg.to_radians().cos());
             let viewing = Viewing { eye, sun };
             for f in frames {
@@ -825,14 +838,18 @@ mod tests {
                 let fresh = glints(&tris, viewing, &g, 5);
                 assert_eq!(cache.glints(&tris, viewing, &g, 5), fresh, "frame {f}");
                 let (h, m) = cache.last_call();
-                (hits, misses, found) = (hits + h, misses + m, found + fresh.len());
+                (hits[phase], misses[phase], found) =
+                    (hits[phase] + h, misses[phase] + m, found + fresh.len());
             }
         }
         assert!(found > 5_000, "{found} glints: too few to tell");
         // (At 4 m the faces' H turns past the room every few frames: more are drawn anew
         // than in a scene seen from tens of metres.)
-        assert!(hits > misses, "{hits} faces served by kept grains, {misses} drawn anew");
-        assert!(misses > 1_000, "{misses} faces drawn anew: the keys, areas and turns hardly changed");
+        for phase in 0..2 {
+            let (h, m) = (hits[phase], misses[phase]);
+            assert!(h > m && m > 1_000, "sun {phase}: {h} faces served by kept grains, {m} drawn anew");
+        }
+        assert!(cache.compactions > 0, "the lists were never compacted");
     }
 
     #[test]
@@ -853,7 +870,7 @@ mod tests {
             })
             .collect();
         let mut cache = GlintCache::default();
-        let (mut hits, mut found) = (0, 0);
+        let (mut hits, mut misses, mut found) = (0, 0, 0);
         for step in 0..10 {
             let s = 1.015f32.powi(step);
             let tris: Vec<[Vec3; 3]> = base
@@ -865,9 +882,13 @@ mod tests {
                 .collect();
             let fresh = glints(&tris, viewing, &g, 9);
             assert_eq!(cache.glints(&tris, viewing, &g, 9), fresh, "step {step}");
-            (hits, found) = (hits + cache.last_call().0, found + fresh.len());
+            let (h, m) = cache.last_call();
+            (hits, misses, found) = (hits + h, misses + m, found + fresh.len());
         }
-        assert!(found > 2_000 && hits > 1_000, "{found} glints, {hits} faces served by kept grains");
+        assert!(
+            found > 2_000 && hits > 1_000 && misses > 1_000,
+            "{found} glints, {hits} faces served by kept grains, {misses} drawn anew"
+        );
     }
 
     #[test]
