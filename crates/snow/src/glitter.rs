@@ -419,9 +419,10 @@ fn glint_of(
 
 /// How much wider than a face's cone of glinting normals a kept face's grains reach,
 /// radians (0.1°): the face's H may turn this far (as the snow beneath it deepens), less
-/// any growth of its cone's own half-angle, before its grains are drawn anew. The cone is about 2.2° at the defaults, so a kept face holds
-/// about a tenth more grains than it needs; in the village and the yard (frames 24..34)
-/// fewer than one face in 10,000 a frame turned past 0.25°.
+/// any growth of its cone's own half-angle, before its grains are drawn anew. The cone
+/// is about 2.2° at the defaults, so a kept face holds about a tenth more grains than
+/// it needs; in the village and the yard (frames 24..34) fewer than one face in 10,000
+/// a frame turned past 0.25°.
 const KEPT_ROOM_RAD: f32 = 0.1 * std::f32::consts::PI / 180.0;
 /// How much a kept face may grow, a share of its area, before its grains are drawn anew
 /// (with 1 %, 3.5 % of the village's faces a frame grew past it).
@@ -433,15 +434,15 @@ const WAYS: usize = 8;
 /// for [`glints`] on snow that changes little between frames. Each face's grains are
 /// fixed by its key (its place) and the cells of normals; a face that is drawn keeps
 /// the grains of its cells near ±H whose normals lie within 0.1° more than its cone, up
-/// to the counts of a face 5 % larger. While a face of the same
-/// key has its H that close to the kept one and its area no larger, its glints are
-/// those of the kept grains that pass the glint test now (the counts worked out for
-/// its area now, from the same numbers; a count by inversion does not grow as the mean
-/// falls, which rounding could break only for a uniform within about 10⁻¹⁶ of a step of
-/// the distribution function): so [`GlintCache::glints`] returns exactly what [`glints`] returns, frame
-/// after frame (tests `kept_grains_glint_as_drawn_ones`, with snow deepening under a
-/// moving sun, and `kept_grains_follow_faces_that_grow`). A change of seed, settings,
-/// eye or sun empties it.
+/// to the counts of a face 5 % larger. While a face of the same key has its H that
+/// close to the kept one and its area no larger, its glints are those of the kept
+/// grains that pass the glint test now (the counts worked out for its area now, from
+/// the same numbers; a count by inversion does not grow as the mean falls, which
+/// rounding could break only for a uniform within about 10⁻¹⁶ of a step of the
+/// distribution function): so [`GlintCache::glints`] returns exactly what [`glints`]
+/// returns, frame after frame (tests `kept_grains_glint_as_drawn_ones`, with snow
+/// deepening under a moving sun, and `kept_grains_follow_faces_that_grow`). A change of
+/// seed, settings, eye or sun empties it.
 ///
 /// The village's glitter at 640x360 (frames 24..48) took 13.4-13.7 ms against
 /// 18.2-19.4 without it, the yard's 10.5-11.8 against 14.1-16.1 (docs/performance.md,
