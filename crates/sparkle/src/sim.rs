@@ -528,6 +528,8 @@ pub struct SparkleSim {
     lifetimes: Vec<u32>,
     gaps: Vec<u32>,
     last: StepStats,
+    /// The last birth table's split cells' window shapes, for the next one.
+    split_memo: SplitMemo,
 }
 
 impl SparkleSim {
@@ -582,6 +584,7 @@ impl SparkleSim {
             lifetimes: Vec::new(),
             gaps: Vec::new(),
             last: StepStats::default(),
+            split_memo: SplitMemo::default(),
         };
         if sim.config.method == crate::config::Method::Stochastic
             && let Some(expected) = sim.candidate_bound(0)
@@ -614,6 +617,7 @@ impl SparkleSim {
             alpha,
             self.config.phong.two_sided,
             self.virtual_count,
+            None,
             None,
         );
         Some(self.virtual_count as f64 * table.mean_q)
@@ -690,6 +694,7 @@ impl SparkleSim {
                     + self.spare_glints.bytes()
                     + self.spare_ghosts.bytes()
                     + ((self.c2.capacity() + self.g2.capacity()) * 4) as u64
+                    + self.split_memo.bytes()
             }
         };
         StepStats {
@@ -801,7 +806,7 @@ impl SparkleSim {
 
     /// The candidate cells of a birth step into `frame` (tested at `to`), and the cap's
     /// half-angle α = θ + δ + margin they use.
-    fn birth_table(&self, to: &Seen, frame: u32) -> (CellTable, f64) {
+    fn birth_table(&self, to: &Seen, frame: u32, memo: Option<&mut SplitMemo>) -> (CellTable, f64) {
         let motion = if frame == 0 { None } else { self.motion_into(frame) };
         let delta = motion.map_or(0.0, |m| f64::from(m.rotation_rad));
         let theta = self.cos_theta.unwrap_or(1.0).acos();
@@ -814,7 +819,7 @@ impl SparkleSim {
             _ => None,
         };
         let n = self.virtual_count;
-        (CellTable::build(&self.space, &self.lobe, &to.geo, alpha, two_sided, n, inner), alpha)
+        (CellTable::build(&self.space, &self.lobe, &to.geo, alpha, two_sided, n, inner, memo), alpha)
     }
 
     /// Draw the facets seen at `to` (frame `frame`) that the held set does not already
@@ -824,7 +829,7 @@ impl SparkleSim {
     fn generate(&self, to: &Seen, frame: u32, table: Option<(CellTable, f64)>) -> (Glints, u64) {
         let motion = if frame == 0 { None } else { self.motion_into(frame) };
         let theta = self.cos_theta.unwrap_or(1.0).acos();
-        let (table, alpha) = table.unwrap_or_else(|| self.birth_table(to, frame));
+        let (table, alpha) = table.unwrap_or_else(|| self.birth_table(to, frame, None));
         // The frames looked back at, newest first: (test at frame f, motion into f).
         let history: Vec<(Seen, Option<Motion>)> = if frame == 0 {
             Vec::new()
@@ -881,7 +886,9 @@ impl SparkleSim {
         let to = self.seen_at(next);
         // Lobes: the memory guard's bound comes from the table the births then use.
         let table = if !self.lobe.is_uniform() && self.cos_theta.is_some() {
-            let table = self.birth_table(&to, next);
+            let mut memo = std::mem::take(&mut self.split_memo);
+            let table = self.birth_table(&to, next, Some(&mut memo));
+            self.split_memo = memo;
             let expected = self.virtual_count as f64 * table.0.mean_q;
             if expected > crate::config::MAX_CANDIDATES {
                 return Err(SparkleError::TooManyCandidates {
@@ -1488,13 +1495,29 @@ struct Window {
     bound: f64,
 }
 
-impl Window {
+/// What a [`Window`] is before the inner cap: its band, azimuths, the lobe's mass in
+/// them and the density bound over its caps. These depend only on the eye, the light,
+/// the cell, the cap's half-angle and the lobe, so a cell's shapes are kept from one
+/// birth table to the next ([`SplitMemo`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct WindowShape {
+    w_lo: f64,
+    w_hi: f64,
+    phi_c: f64,
+    half_width: f64,
+    /// The lobe's probability in the window.
+    mass: f64,
+    /// The lobe's density at `w_hi`.
+    bound: f64,
+}
+
+impl WindowShape {
     /// The window around the half vector `h` at the cell's centre (None: everywhere),
     /// for caps of half-angle `alpha` and H turning by at most `spread` over the cell;
     /// the lobe's axis is +y. A cap of radius r around a direction at polar angle γ spans
     /// the polar angles γ ± r and, when it holds neither pole (r < γ < π - r), the
     /// azimuths ± asin(sin r / sin γ).
-    fn around(lobe: &Lobe, h: Option<Vec3>, alpha: f64, spread: f64, omc_beta: f64) -> Self {
+    fn around(lobe: &Lobe, h: Option<Vec3>, alpha: f64, spread: f64) -> Self {
         let r = alpha + spread;
         let (w_lo, w_hi, phi_c, half_width) = match h {
             Some(h) if r < std::f64::consts::PI => {
@@ -1515,12 +1538,29 @@ impl Window {
         let mass = lobe.polar_mass(w_lo, w_hi) * half_width / std::f64::consts::PI;
         // The density bound over the caps: at the least polar angle the window holds.
         let bound = lobe.density(w_hi);
+        Self { w_lo, w_hi, phi_c, half_width, mass, bound }
+    }
+
+    /// The window of this shape for caps of half-angle `alpha` less the inner cap
+    /// `omc_beta` (1 − cos β): drawn from the lobe in the window, or uniformly in the
+    /// cap and thinned, whichever draws fewer.
+    #[inline]
+    fn window(&self, alpha: f64, omc_beta: f64) -> Window {
+        let &Self { w_lo, w_hi, phi_c, half_width, mass, bound } = self;
         let thinned = 2.0 * std::f64::consts::PI * (one_minus_cos(alpha) - omc_beta) * bound;
         if thinned < mass {
-            Self { w_lo, w_hi, phi_c, half_width, mass: thinned, omc_beta, bound }
+            Window { w_lo, w_hi, phi_c, half_width, mass: thinned, omc_beta, bound }
         } else {
-            Self { w_lo, w_hi, phi_c, half_width, mass, omc_beta, bound: 0.0 }
+            Window { w_lo, w_hi, phi_c, half_width, mass, omc_beta, bound: 0.0 }
         }
+    }
+}
+
+impl Window {
+    /// [`WindowShape::around`]'s window less the inner cap `omc_beta`.
+    #[cfg(test)]
+    fn around(lobe: &Lobe, h: Option<Vec3>, alpha: f64, spread: f64, omc_beta: f64) -> Self {
+        WindowShape::around(lobe, h, alpha, spread).window(alpha, omc_beta)
     }
 
     /// A candidate normal for the cap of `1 - cos α` = `omc_alpha` around `h` (less the
@@ -1640,13 +1680,14 @@ impl CellTable {
         two_sided: bool,
         facets: u64,
         inner: Option<InnerSplit<'_>>,
+        memo: Option<&mut SplitMemo>,
     ) -> Self {
         let uniform = lobe.is_uniform();
         let omc = one_minus_cos(alpha);
         let cap_area = 2.0 * std::f64::consts::PI * omc;
         let inputs = BoundInputs { inner, lobe, geo, alpha, cap_area, two_sided };
         if let (false, Space::Box { min, size }) = (uniform, *space) {
-            return Self::split(&inputs, min, size, facets, omc);
+            return Self::split(&inputs, min, size, facets, omc, memo);
         }
         let cells = space.cell_count(uniform);
         let mut bound = vec![[0.0; 2]; cells];
@@ -1684,21 +1725,47 @@ impl CellTable {
     /// windows draw more than [`SPLIT_DRAWS`] of the `facets` (depth first, children in
     /// x, y, z order: the cells depend on the geometry, the facet count and the inner
     /// caps, never on the thread count).
-    fn split(inputs: &BoundInputs<'_>, min: Vec3, size: Vec3, facets: u64, omc: f64) -> Self {
+    fn split(
+        inputs: &BoundInputs<'_>,
+        min: Vec3,
+        size: Vec3,
+        facets: u64,
+        omc: f64,
+        memo: Option<&mut SplitMemo>,
+    ) -> Self {
         const TOP: usize = 16;
         let cell = size / TOP as f32;
         let share = 1.0 / (TOP * TOP * TOP) as f64;
+        // The shapes worked out for the same eye, light, cap and lobe, if any.
+        let key = MemoKey {
+            geo: *inputs.geo,
+            alpha: inputs.alpha,
+            lobe: *inputs.lobe,
+            two_sided: inputs.two_sided,
+            min,
+            size,
+        };
+        let old = match &memo {
+            Some(m) if m.key.as_ref() == Some(&key) => &m.cells[..],
+            _ => &[],
+        };
         // The 16³ cells in parallel, each split on its own; filed in the grid's order.
-        let parts: Vec<Vec<SplitCell>> = (0..TOP * TOP * TOP)
+        let parts: Vec<(Vec<SplitCell>, Vec<KeptShapes>)> = (0..TOP * TOP * TOP)
             .into_par_iter()
             .map(|c| {
                 let (i, j, k) = (c % TOP, (c / TOP) % TOP, c / (TOP * TOP));
                 let corner = min + cell * Vec3::new(i as f32, j as f32, k as f32);
-                let mut out = Vec::new();
-                visit(inputs, corner, cell, share, facets as f64, 0, &mut out);
-                out
+                let old = old.get(c).map_or(&[][..], |v| &v[..]);
+                let mut out = Vec::with_capacity(old.len());
+                let mut shapes = Shapes { old, new: Vec::with_capacity(old.len()) };
+                visit(inputs, corner, cell, share, facets as f64, (0, 0), &mut out, &mut shapes);
+                (out, shapes.new)
             })
             .collect();
+        let (parts, shapes): (Vec<_>, Vec<_>) = parts.into_iter().unzip();
+        if let Some(memo) = memo {
+            *memo = SplitMemo { key: Some(key), cells: shapes };
+        }
         let mut table = Self {
             cells: 0,
             cumulative: Vec::new(),
@@ -1710,6 +1777,10 @@ impl CellTable {
             boxes: Vec::new(),
             windows: Vec::new(),
         };
+        let cells: usize = parts.iter().map(Vec::len).sum();
+        table.cumulative.reserve_exact(cells);
+        table.windows.reserve_exact(cells);
+        table.boxes.reserve_exact(cells);
         let mut total = 0.0;
         for part in parts {
             for cell in part {
@@ -1794,6 +1865,52 @@ impl CellTable {
     }
 }
 
+/// The window shapes of the last birth table's split cells (an extension for speed, not
+/// in the paper), for the next table: with the same eye, light, cap, lobe and box
+/// ([`MemoKey`]) a cell's shapes are the same numbers, and only what the inner cap
+/// changes (which cells split, each window's mass) is worked out again. Per 16³ cell,
+/// the (path, shapes) of every cell visited, in visiting order: a cell's path is
+/// Σ (child + 1)·9^(depth left) over the halvings leading to it, so a cell comes before
+/// its children and each child's cells before the next child's, and the order is
+/// ascending (looked up by binary search). The same table bit for bit as without it
+/// (test `kept_window_shapes_give_the_same_table`).
+#[derive(Clone, Debug, Default)]
+struct SplitMemo {
+    key: Option<MemoKey>,
+    cells: Vec<Vec<KeptShapes>>,
+}
+
+/// A visited cell's path and its two sides' window shapes ([`SplitMemo`]).
+type KeptShapes = (u32, [WindowShape; 2]);
+
+/// What the window shapes of [`SplitMemo`] were worked out for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MemoKey {
+    geo: Geometry,
+    alpha: f64,
+    lobe: Lobe,
+    two_sided: bool,
+    min: Vec3,
+    size: Vec3,
+}
+
+impl SplitMemo {
+    /// Bytes held.
+    fn bytes(&self) -> u64 {
+        let inner: usize = self.cells.iter().map(|c| c.capacity() * std::mem::size_of::<KeptShapes>()).sum();
+        (inner + self.cells.capacity() * std::mem::size_of::<Vec<KeptShapes>>()) as u64
+    }
+}
+
+/// One 16³ cell's window shapes as [`visit`] takes and files them.
+struct Shapes<'a> {
+    old: &'a [KeptShapes],
+    new: Vec<KeptShapes>,
+}
+
+// Paths of cells SPLIT_DEPTH halvings deep fit a u32.
+const _: () = assert!(9u64.pow(SPLIT_DEPTH) <= u32::MAX as u64);
+
 /// One split cell: its box (corner, size), its weight (candidates per facet times its
 /// share of the box) and its two sides' windows.
 struct SplitCell {
@@ -1805,19 +1922,38 @@ struct SplitCell {
 /// File the cell `corner..corner + size` (holding `share` of the box) into `out`, or its
 /// eight halves (children in x, y, z order) while its windows would draw more than
 /// [`SPLIT_DRAWS`] of the `facets`.
+///
+/// `(depth, path)` places the cell in its 16³ cell's octree ([`SplitMemo`]); its
+/// windows' shapes are taken from `shapes.old` when there, and every shape used is
+/// filed in `shapes.new` in visiting order.
+#[allow(clippy::too_many_arguments)]
 fn visit(
     inputs: &BoundInputs<'_>,
     corner: Vec3,
     size: Vec3,
     share: f64,
     facets: f64,
-    depth: u32,
+    (depth, path): (u32, u32),
     out: &mut Vec<SplitCell>,
+    shapes: &mut Shapes<'_>,
 ) {
     let centre = corner + 0.5 * size;
     let radius = 0.5 * size.length();
-    let spread = inputs.geo.half_vector_spread(centre, radius);
-    let h = inputs.geo.half_vector(centre);
+    let shape = match shapes.old.binary_search_by_key(&path, |e| e.0) {
+        Ok(at) => shapes.old[at].1,
+        Err(_) => {
+            let spread = inputs.geo.half_vector_spread(centre, radius);
+            let h = inputs.geo.half_vector(centre);
+            let plus = WindowShape::around(inputs.lobe, h, inputs.alpha, spread);
+            let minus = if inputs.two_sided {
+                WindowShape::around(inputs.lobe, h.map(|h| -h), inputs.alpha, spread)
+            } else {
+                WindowShape::default()
+            };
+            [plus, minus]
+        }
+    };
+    shapes.new.push((path, shape));
     let omc_beta = match &inputs.inner {
         Some(inner)
             if corner.cmpge(inner.interior.0).all() && (corner + size).cmple(inner.interior.1).all() =>
@@ -1829,12 +1965,8 @@ fn visit(
         }
         _ => 0.0,
     };
-    let plus = Window::around(inputs.lobe, h, inputs.alpha, spread, omc_beta);
-    let minus = if inputs.two_sided {
-        Window::around(inputs.lobe, h.map(|h| -h), inputs.alpha, spread, omc_beta)
-    } else {
-        Window::default()
-    };
+    let plus = shape[0].window(inputs.alpha, omc_beta);
+    let minus = if inputs.two_sided { shape[1].window(inputs.alpha, omc_beta) } else { Window::default() };
     let q = plus.mass + minus.mass;
     if facets * share * q > SPLIT_DRAWS && depth < SPLIT_DEPTH && out.len() + 8 <= SPLIT_BUDGET {
         let half = 0.5 * size;
@@ -1842,7 +1974,8 @@ fn visit(
             for j in 0..2 {
                 for i in 0..2 {
                     let at = corner + half * Vec3::new(i as f32, j as f32, k as f32);
-                    visit(inputs, at, half, share / 8.0, facets, depth + 1, out);
+                    let child = path + (1 + i + 2 * j + 4 * k) * 9u32.pow(SPLIT_DEPTH - depth - 1);
+                    visit(inputs, at, half, share / 8.0, facets, (depth + 1, child), out, shapes);
                 }
             }
         }
@@ -2002,6 +2135,46 @@ mod tests {
         let (one, births) = run(1);
         assert!(one.len() > 100 && births > 10, "{} glints, {births} births", one.len());
         assert_eq!((one, births), run(3), "plates");
+    }
+
+    #[test]
+    fn kept_window_shapes_give_the_same_table() {
+        // Plates under a still sun (the shapes kept from frame to frame) and a moving one
+        // (the key changes every frame): at every frame the birth table built with the
+        // kept shapes is the one built afresh, bit for bit.
+        for rate in [0.0, 2.0] {
+            let mut c = small(Method::Stochastic);
+            c.phong.two_sided = true;
+            c.light = crate::config::Light::Sun {
+                azimuth_deg: 0.0,
+                elevation_deg: 10.0,
+                azimuth_rate_deg_per_s: rate,
+                elevation_rate_deg_per_s: 0.0,
+            };
+            if let Population::DiamondDust(d) = &mut c.population {
+                d.density_per_m3 = 2.0;
+                d.normals = crate::config::Normals::Plates { tilt_deg: 4.0 };
+            }
+            let mut sim = SparkleSim::new(c, 9).unwrap();
+            let mut memo = SplitMemo::default();
+            let mut kept = 0;
+            for _ in 0..4 {
+                let next = sim.frame() + 1;
+                let to = sim.seen_at(next);
+                let fresh = sim.birth_table(&to, next, None).0;
+                let before = memo.key;
+                let reused = sim.birth_table(&to, next, Some(&mut memo)).0;
+                kept += usize::from(before.is_some() && before == memo.key);
+                assert!(fresh.cells > 4096, "{} cells: none split", fresh.cells);
+                assert_eq!(fresh.cells, reused.cells);
+                assert_eq!(fresh.boxes, reused.boxes);
+                let bits = |t: &CellTable| t.cumulative.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fresh), bits(&reused), "weights at frame {next}, sun moving {rate}°/s");
+                assert_eq!(format!("{:?}", fresh.windows), format!("{:?}", reused.windows));
+                sim.step().unwrap();
+            }
+            assert_eq!(kept, if rate == 0.0 { 3 } else { 0 }, "tables built from kept shapes");
+        }
     }
 
     #[test]
