@@ -1474,6 +1474,9 @@ const SPLIT_DEPTH: u32 = 5;
 /// about 4096 · 424 cells of 144 bytes (250 MB) whatever the scene asks for, before the
 /// memory guard has seen the candidates it would draw. The sun pillar needs at most 246.
 const SPLIT_BUDGET: usize = 384;
+/// Most window shapes a [`SplitMemo`] keeps (104 bytes each, 52 MB; the sun pillar's
+/// table visits about 57,000 cells); a table that visits more keeps none.
+const MEMO_MAX_SHAPES: usize = 500_000;
 
 /// Where the normals of one side's candidates in a split cell are drawn: the lobe
 /// restricted to the polar band `w_lo..=w_hi` (cosines to the axis) and the azimuths
@@ -1589,27 +1592,37 @@ impl Window {
         (omc <= omc_alpha && omc >= self.omc_beta).then_some(n.as_vec3())
     }
 
-    /// The first stage of [`Window::draw`]'s thinning: the lobe's largest density over
-    /// the cap of half-angle α around `h` (at its point nearest the lobe's axis +y, polar
-    /// angle max(γ − α, 0) for H's γ), kept with probability b / `bound`; `None` when
-    /// not kept. The cap is widened by [`CAP_WIDEN_RAD`] so that f32 rounding of H and of
-    /// the normals drawn around it never takes a normal past it. With the lobe's density
-    /// C e^{κ(c − 1)} and `bound` its value at `w_hi`, b / `bound` = e^x for x = κ(w −
-    /// w_hi) ≤ 0; since e^x < 1 / (1 + y + y²/2 + y³/6) for y = −x > 0 (e^y's series), a
-    /// uniform u at or above that (with 10⁻¹² to spare for rounding) is rejected without
-    /// an exponential, which is most of them.
+    /// The first stage of [`Window::draw`]'s thinning: b, the lobe's largest density
+    /// over the cap around `h` ([`Window::cap_exponent`]), kept with probability
+    /// b / `bound`; `None` when not kept. b / `bound` = e^x for x ≤ 0; since e^x is
+    /// below 1 / (1 + y + y²/2 + y³/6) for y = −x > 0 (e^y's series), a uniform u at or
+    /// above that (with 10⁻¹² to spare for rounding) is rejected without an exponential,
+    /// which is most of them.
     #[inline]
-    fn cap_bound(&self, lobe: &Lobe, h: Vec3, (cos_a, sin_a): (f64, f64), rng: &mut Stream) -> Option<f64> {
-        let hy = f64::from(h.y).clamp(-1.0, 1.0);
-        // cos(γ − α) when γ > α (cos γ = hy, sin γ ≥ 0), else 1 (the cap holds the axis).
-        let w = if hy < cos_a { hy * cos_a + (1.0 - hy * hy).sqrt() * sin_a } else { 1.0 };
-        let x = (lobe.kappa * (w - self.w_hi)).min(0.0);
+    fn cap_bound(&self, lobe: &Lobe, h: Vec3, wide: (f64, f64), rng: &mut Stream) -> Option<f64> {
+        let x = self.cap_exponent(lobe, h, wide);
         let (u, y) = (rng.next_f64(), -x);
         if u * (1.0 + y * (1.0 + y * (0.5 + y / 6.0))) >= 1.0 + 1e-12 {
             return None;
         }
         let e = x.exp();
         (u < e).then_some(self.bound * e)
+    }
+
+    /// x = κ (w − `w_hi`) ≤ 0, so that `bound` e^x is at least the lobe's density C
+    /// e^{κ(c − 1)} at every normal of the cap of half-angle α around `h`: w is the
+    /// cosine of the cap's polar angle nearest the lobe's axis +y, max(γ − α, 0) for H's
+    /// polar angle γ (cos γ = h.y, sin γ ≥ 0). The cap is taken [`CAP_WIDEN_RAD`] wider
+    /// (`wide` = cos and sin of α + that) and w [`CAP_COS_SLACK`] higher, for the f32
+    /// rounding of H and of the normals drawn around it (their y within a few ulps of
+    /// 1 of the exact ones): a slack in the angle alone is worth nothing in the cosine
+    /// next to the axis.
+    #[inline]
+    fn cap_exponent(&self, lobe: &Lobe, h: Vec3, (cos_a, sin_a): (f64, f64)) -> f64 {
+        let hy = f64::from(h.y).clamp(-1.0, 1.0);
+        // cos(γ − α) when γ > α, else 1 (the cap holds the axis).
+        let w = if hy < cos_a { hy * cos_a + (1.0 - hy * hy).sqrt() * sin_a } else { 1.0 };
+        (lobe.kappa * ((w + CAP_COS_SLACK).min(1.0) - self.w_hi)).min(0.0)
     }
 
     /// A normal of the lobe restricted to the window (axis +y).
@@ -1773,14 +1786,7 @@ impl CellTable {
         let cell = size / TOP as f32;
         let share = 1.0 / (TOP * TOP * TOP) as f64;
         // The shapes worked out for the same eye, light, cap and lobe, if any.
-        let key = MemoKey {
-            geo: *inputs.geo,
-            alpha: inputs.alpha,
-            lobe: *inputs.lobe,
-            two_sided: inputs.two_sided,
-            min,
-            size,
-        };
+        let key = memo_key(inputs, min, size);
         let old = match &memo {
             Some(m) if m.key.as_ref() == Some(&key) => &m.cells[..],
             _ => &[],
@@ -1800,7 +1806,14 @@ impl CellTable {
             .collect();
         let (parts, shapes): (Vec<_>, Vec<_>) = parts.into_iter().unzip();
         if let Some(memo) = memo {
-            *memo = SplitMemo { key: Some(key), cells: shapes };
+            // Kept only up to a bound, whatever the scene (the table itself is bounded by
+            // `SPLIT_BUDGET`).
+            let kept: usize = shapes.iter().map(Vec::len).sum();
+            *memo = if kept <= MEMO_MAX_SHAPES {
+                SplitMemo { key: Some(key), cells: shapes }
+            } else {
+                SplitMemo::default()
+            };
         }
         let mut table = Self {
             cells: 0,
@@ -1904,7 +1917,7 @@ impl CellTable {
 
 /// The window shapes of the last birth table's split cells (an extension for speed, not
 /// in the paper), for the next table: with the same eye, light, cap, lobe and box
-/// ([`MemoKey`]) a cell's shapes are the same numbers, and only what the inner cap
+/// ([`memo_key`]) a cell's shapes are the same numbers, and only what the inner cap
 /// changes (which cells split, each window's mass) is worked out again. Per 16³ cell,
 /// the (path, shapes) of every cell visited, in visiting order: a cell's path is
 /// Σ (child + 1)·9^(depth left) over the halvings leading to it, so a cell comes before
@@ -1913,13 +1926,17 @@ impl CellTable {
 /// (test `kept_window_shapes_give_the_same_table`).
 #[derive(Clone, Debug, Default)]
 struct SplitMemo {
-    key: Option<MemoKey>,
+    key: Option<String>,
     cells: Vec<Vec<KeptShapes>>,
 }
 
-/// How much wider than α the caps of [`Window::cap_bound`] are taken, rad: far above the
-/// f32 rounding of H (unit to about 10⁻⁷) and of the normals drawn around it.
+/// How much wider than α the caps of [`Window::cap_exponent`] are taken, rad: far above
+/// the f32 rounding of H (unit to about 10⁻⁷) and of the normals drawn around it.
 const CAP_WIDEN_RAD: f64 = 1e-5;
+
+/// How much higher than the cap's nearest cosine [`Window::cap_exponent`] takes it: 8
+/// ulps of 1 in f32, above the rounding of H's and the drawn normals' y (a few ulps).
+const CAP_COS_SLACK: f64 = 8.0 * f32::EPSILON as f64;
 
 /// (cos, sin) of α + [`CAP_WIDEN_RAD`], for [`CellTable::wide`].
 fn cap_wide(alpha: f64) -> (f64, f64) {
@@ -1930,15 +1947,11 @@ fn cap_wide(alpha: f64) -> (f64, f64) {
 /// A visited cell's path and its two sides' window shapes ([`SplitMemo`]).
 type KeptShapes = (u32, [WindowShape; 2]);
 
-/// What the window shapes of [`SplitMemo`] were worked out for.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct MemoKey {
-    geo: Geometry,
-    alpha: f64,
-    lobe: Lobe,
-    two_sided: bool,
-    min: Vec3,
-    size: Vec3,
+/// What the window shapes of [`SplitMemo`] are worked out from: the eye and the light,
+/// the cap's half-angle, the lobe, the sides and the box, in their debug forms, which
+/// tell every f32 and f64 apart (−0.0 from 0.0, where `==` would not).
+fn memo_key(inputs: &BoundInputs<'_>, min: Vec3, size: Vec3) -> String {
+    format!("{:?}", (inputs.geo, inputs.alpha, inputs.lobe, inputs.two_sided, min, size))
 }
 
 impl SplitMemo {
@@ -2220,7 +2233,7 @@ mod tests {
                 let next = sim.frame() + 1;
                 let to = sim.seen_at(next);
                 let fresh = sim.birth_table(&to, next, None).0;
-                let before = memo.key;
+                let before = memo.key.clone();
                 let reused = sim.birth_table(&to, next, Some(&mut memo)).0;
                 kept += usize::from(before.is_some() && before == memo.key);
                 assert!(fresh.cells > 4096, "{} cells: none split", fresh.cells);
@@ -2403,9 +2416,13 @@ mod window_tests {
         let n = 1_000_000;
         let mut rng = Stream::new(11, P, 0);
         let mut first = 0.0f64;
-        for (spread_deg, gamma_deg, alpha_deg, cell_deg) in
-            [(4.0, 8.0, 4.2, 1.0), (4.0, 14.0, 4.2, 2.0), (2.0, 6.0, 3.0, 0.5), (4.0, 3.0, 4.2, 1.0)]
-        {
+        for (spread_deg, gamma_deg, alpha_deg, cell_deg) in [
+            (4.0, 8.0, 4.2, 1.0),
+            (4.0, 14.0, 4.2, 2.0),
+            (2.0, 6.0, 3.0, 0.5),
+            (4.0, 3.0, 4.2, 1.0),
+            (40.0, 120.0, 4.2, 1.0),
+        ] {
             let lobe = Lobe::from_spread_deg(spread_deg);
             let (g, alpha) = (f64::to_radians(gamma_deg), f64::to_radians(alpha_deg));
             let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
@@ -2437,6 +2454,49 @@ mod window_tests {
         }
         // The first stage does reject (the cases test it).
         assert!(first > 0.5, "the first stage rejected at most {first} of the draws");
+    }
+
+    #[test]
+    fn the_first_stages_bound_holds_over_the_whole_cap() {
+        // A lobe far narrower than the cap (0.05°: κ about 1.3·10⁶, where a cosine
+        // 10⁻⁷ off changes the density by 14 %), H with its cap's edge at the axis or just
+        // past it: every normal drawn in the cap has a density of at most the first
+        // stage's bound.
+        let lobe = Lobe::from_spread_deg(0.05);
+        let alpha = 4.2f64.to_radians();
+        let (wide, omc) = (cap_wide(alpha), one_minus_cos(alpha));
+        let mut rng = Stream::new(5, P, 0);
+        for past in [-1e-4, 0.0, 1e-6, 1e-4, 1e-2] {
+            let g = alpha + CAP_WIDEN_RAD + past;
+            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
+            let shape = WindowShape::around(&lobe, Some(h), alpha, 1e-3);
+            // Thinned whatever its mass (the stage's bound is only used there).
+            let w = Window { bound: shape.bound, ..shape.window(omc, 0.0) };
+            let b = w.bound * w.cap_exponent(&lobe, h, wide).exp();
+            let mut worst = 0.0f64;
+            for _ in 0..200_000 {
+                let n = around(h, 1.0 - rng.next_f64() * omc, &mut rng);
+                worst = worst.max(lobe.density(f64::from(n.y)) / b);
+            }
+            assert!(worst <= 1.0 + 1e-12, "γ − α' = {past}: density {worst} times the bound");
+        }
+        // The cap's point nearest the axis itself, made in f32 as `around` makes its
+        // normals (a unit combination, then one Newton step to length 1), for H on a fine
+        // grid of polar angles across α: random draws almost never land there.
+        let mut worst = 0.0f64;
+        for k in 0..4_000 {
+            let g = alpha + 1e-3 * (f64::from(k) / 2_000.0 - 1.0);
+            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
+            let shape = WindowShape::around(&lobe, Some(h), alpha, 1e-3);
+            let w = Window { bound: shape.bound, ..shape.window(omc, 0.0) };
+            let b = w.bound * w.cap_exponent(&lobe, h, wide).exp();
+            // Towards the axis in the plane of H and +y.
+            let t = (Vec3::Y - h * h.y).normalize();
+            let p = h * alpha.cos() as f32 + t * alpha.sin() as f32;
+            let n = p * (1.5 - 0.5 * p.length_squared());
+            worst = worst.max(lobe.density(f64::from(n.y)) / b);
+        }
+        assert!(worst <= 1.0 + 1e-12, "the cap's nearest point: density {worst} times the bound");
     }
 
     #[test]
