@@ -2393,6 +2393,34 @@ mod window_tests {
     /// polar angle `gamma` from the axis, by quadrature over the polar angle ψ: the
     /// density times the cap's azimuthal arc 2Δ(ψ) at ψ, cos Δ = (cos α - cos ψ cos γ) /
     /// (sin ψ sin γ).
+    /// A unit half vector at polar angle `g` from the lobe's axis +y.
+    fn h_at(g: f64) -> Vec3 {
+        Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32)
+    }
+
+    /// `shape`'s window for caps of half-angle `alpha`, thinned whatever its own mass
+    /// (the first stage is only used there).
+    fn thinned(shape: &WindowShape, alpha: f64) -> Window {
+        let bound = shape.bound;
+        let mass = 2.0 * std::f64::consts::PI * one_minus_cos(alpha) * bound;
+        Window { mass, bound, ..shape.window(one_minus_cos(alpha), 0.0) }
+    }
+
+    /// `hits` of `n` draws of `w` accepted carry the lobe mass of the cap of half-angle
+    /// `alpha` around polar angle `g`: mass·p within 5 binomial standard errors (plus
+    /// 1e-6 relative for the quadrature, whose midpoint rule errs by far less).
+    fn assert_carries_cap_mass(
+        w: &Window,
+        (hits, n): (usize, usize),
+        (lobe, g, alpha): (&Lobe, f64, f64),
+        case: &str,
+    ) {
+        let p = hits as f64 / n as f64;
+        let (got, want) = (w.mass * p, cap_mass(lobe, g, alpha));
+        let se = w.mass * (p * (1.0 - p) / n as f64).sqrt();
+        assert!((got - want).abs() < 5.0 * se + 1e-6 * want, "{case}: {got} vs {want} (se {se})");
+    }
+
     fn cap_mass(lobe: &Lobe, gamma: f64, alpha: f64) -> f64 {
         let steps = 200_000;
         let (lo, hi) = ((gamma - alpha).max(0.0), (gamma + alpha).min(std::f64::consts::PI));
@@ -2425,15 +2453,8 @@ mod window_tests {
         ] {
             let lobe = Lobe::from_spread_deg(spread_deg);
             let (g, alpha) = (f64::to_radians(gamma_deg), f64::to_radians(alpha_deg));
-            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
-            let shape = WindowShape::around(&lobe, Some(h), alpha, f64::to_radians(cell_deg));
-            // Thinned whatever the window's own mass.
-            let bound = shape.bound;
-            let w = Window {
-                mass: 2.0 * std::f64::consts::PI * one_minus_cos(alpha) * bound,
-                bound,
-                ..shape.window(one_minus_cos(alpha), 0.0)
-            };
+            let h = h_at(g);
+            let w = thinned(&WindowShape::around(&lobe, Some(h), alpha, f64::to_radians(cell_deg)), alpha);
             let wide = cap_wide(alpha);
             let mut kept = 0;
             let hits = (0..n)
@@ -2444,13 +2465,8 @@ mod window_tests {
                 })
                 .count();
             first = first.max(1.0 - kept as f64 / n as f64);
-            let p = hits as f64 / n as f64;
-            let (got, want) = (w.mass * p, cap_mass(&lobe, g, alpha));
-            let se = w.mass * (p * (1.0 - p) / n as f64).sqrt();
-            assert!(
-                (got - want).abs() < 5.0 * se + 1e-6 * want,
-                "{spread_deg}° lobe, γ {gamma_deg}°, α {alpha_deg}°: {got} vs {want} (se {se})"
-            );
+            let case = format!("{spread_deg}° lobe, γ {gamma_deg}°, α {alpha_deg}°");
+            assert_carries_cap_mass(&w, (hits, n), (&lobe, g, alpha), &case);
         }
         // The first stage does reject (the cases test it).
         assert!(first > 0.5, "the first stage rejected at most {first} of the draws");
@@ -2468,10 +2484,8 @@ mod window_tests {
         let mut rng = Stream::new(5, P, 0);
         for past in [-1e-4, 0.0, 1e-6, 1e-4, 1e-2] {
             let g = alpha + CAP_WIDEN_RAD + past;
-            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
-            let shape = WindowShape::around(&lobe, Some(h), alpha, 1e-3);
-            // Thinned whatever its mass (the stage's bound is only used there).
-            let w = Window { bound: shape.bound, ..shape.window(omc, 0.0) };
+            let h = h_at(g);
+            let w = thinned(&WindowShape::around(&lobe, Some(h), alpha, 1e-3), alpha);
             let b = w.bound * w.cap_exponent(&lobe, h, wide).exp();
             let mut worst = 0.0f64;
             for _ in 0..200_000 {
@@ -2486,9 +2500,8 @@ mod window_tests {
         let mut worst = 0.0f64;
         for k in 0..4_000 {
             let g = alpha + 1e-3 * (f64::from(k) / 2_000.0 - 1.0);
-            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
-            let shape = WindowShape::around(&lobe, Some(h), alpha, 1e-3);
-            let w = Window { bound: shape.bound, ..shape.window(omc, 0.0) };
+            let h = h_at(g);
+            let w = thinned(&WindowShape::around(&lobe, Some(h), alpha, 1e-3), alpha);
             let b = w.bound * w.cap_exponent(&lobe, h, wide).exp();
             // Towards the axis in the plane of H and +y.
             let t = (Vec3::Y - h * h.y).normalize();
@@ -2521,20 +2534,15 @@ mod window_tests {
         ] {
             let lobe = Lobe::from_spread_deg(spread_deg);
             let (g, alpha) = (f64::to_radians(gamma_deg), f64::to_radians(alpha_deg));
-            let h = Vec3::new((g.sin() * 0.6) as f32, g.cos() as f32, (g.sin() * 0.8) as f32);
+            let h = h_at(g);
             let w = Window::around(&lobe, Some(h), alpha, f64::to_radians(cell_deg), 0.0);
             let wide = cap_wide(alpha);
             let hits =
                 (0..n).filter(|_| w.draw(&lobe, h, one_minus_cos(alpha), wide, &mut rng).is_some()).count();
-            let p = hits as f64 / n as f64;
-            let (got, want) = (w.mass * p, cap_mass(&lobe, g, alpha));
-            let se = w.mass * (p * (1.0 - p) / n as f64).sqrt();
             let kind = if w.bound > 0.0 { "thinned" } else { "window" };
             kinds[usize::from(w.bound > 0.0)] += 1;
-            assert!(
-                (got - want).abs() < 5.0 * se + 1e-6 * want,
-                "{spread_deg}° lobe, γ {gamma_deg}°, α {alpha_deg}° ({kind}): {got} vs {want} (se {se})"
-            );
+            let case = format!("{spread_deg}° lobe, γ {gamma_deg}°, α {alpha_deg}° ({kind})");
+            assert_carries_cap_mass(&w, (hits, n), (&lobe, g, alpha), &case);
         }
         assert!(kinds[0] >= 5 && kinds[1] >= 1, "cases by kind (window, thinned): {kinds:?}");
     }
