@@ -76,6 +76,10 @@ fn glitter(c: &mut Criterion) {
             n.y > 0.0 && n.dot(eye - t[0]) > 0.0 && n.dot(sun) > 0.0
         })
         .collect();
+    // The renderer's mesh of that snow, made every frame (`export::snow_surface`).
+    c.bench_function("snow_surface_village_200", |b| {
+        b.iter(|| black_box(phenomena_snow::export::snow_surface(&sim).triangles()))
+    });
     let g = phenomena_snow::Glitter::default();
     let mut group = c.benchmark_group("snow_glitter");
     group.sample_size(20);

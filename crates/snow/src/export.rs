@@ -92,19 +92,63 @@ fn meshes_joined(sim: &SnowSim, faces: Faces) -> TriMesh {
     mesh
 }
 
-/// The snow of one map as a mesh.
+/// Texel rows a parallel part of one map's mesh covers (fixed: the mesh is the same
+/// for any thread count).
+const BAND_ROWS: usize = 8;
+
+/// A texel solid's own vertices (bottoms and sides) while its band of rows is meshed
+/// apart from the others: their index in the band's part, with this bit set, until the
+/// parts are joined (the shared top vertices keep their indices, far below it).
+const FRESH: u32 = 1 << 31;
+
+/// The snow of one map as a mesh: its top vertices in corner order, then its texels'
+/// solids row by row, the rows meshed in bands of [`BAND_ROWS`] in parallel and joined
+/// in order (the same mesh as one texel after another: test
+/// `the_maps_meshed_in_parallel_are_the_maps_meshed_one_after_another`).
 fn map_mesh(map: &SnowMap, fp: &Footprint, faces: Faces) -> TriMesh {
     let mut mesh = TriMesh::default();
     let lattice = Lattice::new(map, fp);
     let top_index = lattice.top_vertices(&mut mesh);
-    for j in 0..fp.n {
-        for i in 0..fp.n {
-            if lattice.snowy(i as i64, j as i64) {
-                lattice.texel_solid(&mut mesh, &top_index, (i, j), faces);
+    // Every vertex index, shared or a band's own, stays below the flag bit: a texel adds
+    // at most 20 vertices of its own (a bottom's four, four sides' four).
+    assert!(mesh.positions.len() + 20 * fp.n * fp.n < FRESH as usize, "a snow map too large to mesh");
+    // The snowy texels' rows and columns: those of the box of corners but its last.
+    let (cols, rows) = &lattice.box_corners;
+    let (cols, rows) = (cols.start..cols.end.saturating_sub(1), rows.start..rows.end.saturating_sub(1));
+    let parts: Vec<TriMesh> = (0..rows.len().div_ceil(BAND_ROWS))
+        .into_par_iter()
+        .map(|band| {
+            let mut part = TriMesh::default();
+            for j in rows.start + band * BAND_ROWS..(rows.start + (band + 1) * BAND_ROWS).min(rows.end) {
+                for i in cols.clone() {
+                    if lattice.snowy(i as i64, j as i64) {
+                        lattice.texel_solid(&mut part, &top_index, (i, j), faces, FRESH);
+                    }
+                }
             }
-        }
+            part
+        })
+        .collect();
+    for part in parts {
+        let offset = mesh.positions.len() as u32;
+        mesh.positions.extend(part.positions);
+        mesh.normals.extend(part.normals);
+        mesh.indices
+            .extend(part.indices.iter().map(|&k| if k & FRESH != 0 { (k & !FRESH) + offset } else { k }));
     }
     mesh
+}
+
+/// The box of the snowy texels of an `n × n` map as the ranges of lattice columns and
+/// rows of its corners (one more than its texels each way); empty ranges without snow.
+fn snowy_box(snowy: &[bool], n: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+    let (mut i0, mut i1, mut j0, mut j1) = (n, 0, n, 0);
+    for (j, row) in snowy.chunks_exact(n.max(1)).enumerate() {
+        if let (Some(a), Some(b)) = (row.iter().position(|&s| s), row.iter().rposition(|&s| s)) {
+            (i0, i1, j0, j1) = (i0.min(a), i1.max(b + 1), j0.min(j), j + 1);
+        }
+    }
+    if i0 >= i1 { (0..0, 0..0) } else { (i0..i1 + 1, j0..j1 + 1) }
 }
 
 /// Ground steps up to this many texel widths between a snowy texel and a bare one are one
@@ -148,17 +192,43 @@ struct Lattice<'a> {
     corners: Vec<Option<Corner>>,
     /// Per texel: whether it can hold snow and holds more than [`MIN_DEPTH_M`].
     snowy: Vec<bool>,
+    /// The corners that may have snow (those of the box of snowy texels), as ranges of
+    /// lattice columns and rows: every corner outside is `None`.
+    box_corners: (std::ops::Range<usize>, std::ops::Range<usize>),
 }
 
 impl<'a> Lattice<'a> {
     fn new(map: &'a SnowMap, fp: &'a Footprint) -> Self {
         let n = fp.n;
-        let snowy = (0..n * n).map(|k| map.possible(k) && map.snow_m[k] > MIN_DEPTH_M).collect();
-        let mut lattice = Self { map, fp, corners: Vec::new(), snowy };
-        lattice.corners =
-            (0..(n + 1) * (n + 1)).map(|c| lattice.raw_corner(c % (n + 1), c / (n + 1))).collect();
+        // Each texel and corner on its own, in parallel (the same values on any thread).
+        let snowy: Vec<bool> = (0..n * n)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|k| map.possible(k) && map.snow_m[k] > MIN_DEPTH_M)
+            .collect();
+        let box_corners = snowy_box(&snowy, n);
+        let mut lattice = Self { map, fp, corners: Vec::new(), snowy, box_corners };
+        let (cols, rows) = lattice.box_corners.clone();
+        let mut corners = vec![None; (n + 1) * (n + 1)];
+        corners.par_chunks_mut(n + 1).enumerate().skip(rows.start).take(rows.len()).for_each(|(cj, row)| {
+            for ci in cols.clone() {
+                row[ci] = lattice.raw_corner(ci, cj);
+            }
+        });
+        lattice.corners = corners;
         lattice.smooth_edges();
         lattice
+    }
+
+    /// The corners of the box of snowy texels, in corner order (row by row).
+    fn box_corners(&self) -> impl IndexedParallelIterator<Item = usize> + '_ {
+        let n1 = self.fp.n + 1;
+        let (cols, rows) = &self.box_corners;
+        let w = cols.len();
+        (0..w * rows.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(move |k| (rows.start + k / w) * n1 + cols.start + k % w)
     }
 
     /// Whether texel (i, j) lies in the map, can hold snow and holds more than
@@ -240,7 +310,8 @@ impl<'a> Lattice<'a> {
     /// bilinear height there, the others at their heights.
     fn smooth_edges(&mut self) {
         let n1 = self.fp.n + 1;
-        let chain: Vec<(usize, [(usize, usize); 2])> = (0..n1 * n1)
+        let chain: Vec<(usize, [(usize, usize); 2])> = self
+            .box_corners()
             .filter(|&c| self.corners[c].is_some())
             .filter_map(|c| {
                 // Exactly two neighbours (of at most four), both with snow.
@@ -254,7 +325,8 @@ impl<'a> Lattice<'a> {
         for _ in 0..EDGE_SMOOTHING {
             // (x, top, z) and ground of each corner after the pass.
             let moved: Vec<(Vec3, f32)> = chain
-                .iter()
+                .par_iter()
+                .with_min_len(256)
                 .map(|&(c, [a, b])| {
                     let at = |(ci, cj): (usize, usize)| {
                         self.corner(ci, cj).map_or((Vec3::ZERO, 0.0), |k| (k.top, k.ground))
@@ -300,19 +372,27 @@ impl<'a> Lattice<'a> {
     /// where there is none).
     fn top_vertices(&self, mesh: &mut TriMesh) -> Vec<u32> {
         let (n, t) = (self.fp.n, self.fp.texel_m);
-        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
         let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.top.y);
-        for cj in 0..=n {
-            for ci in 0..=n {
-                let Some(corner) = self.corner(ci, cj) else { continue };
+        // Each corner's vertex worked out in parallel, then numbered in corner order.
+        let vertices: Vec<(usize, Vec3, Vec3)> = self
+            .box_corners()
+            .filter_map(|c| {
+                let (ci, cj) = (c % (n + 1), c / (n + 1));
+                let corner = self.corner(ci, cj)?;
                 let h = corner.top.y;
                 let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
                 let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
                 let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
                 let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
                 let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
-                top_index[cj * (n + 1) + ci] = mesh.vertex(corner.top, normal);
-            }
+                Some((c, corner.top, normal))
+            })
+            .collect();
+        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
+        mesh.positions.reserve(vertices.len());
+        mesh.normals.reserve(vertices.len());
+        for (c, top, normal) in vertices {
+            top_index[c] = mesh.vertex(top, normal);
         }
         top_index
     }
@@ -343,8 +423,16 @@ impl<'a> Lattice<'a> {
     /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
     /// its bottom on the ground (with [`Faces::Open`], only where [`Lattice::hides_bottom`]
     /// does not hold), and a side towards each neighbour without snow (none where both of
-    /// the side's corners are feathered, a triangle where one is).
-    fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize), faces: Faces) {
+    /// the side's corners are feathered, a triangle where one is). The indices of the
+    /// vertices it adds to `mesh` carry the bits `fresh` ([`FRESH`] or 0).
+    fn texel_solid(
+        &self,
+        mesh: &mut TriMesh,
+        top_index: &[u32],
+        (i, j): (usize, usize),
+        faces: Faces,
+        fresh: u32,
+    ) {
         let n = self.fp.n;
         let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
         // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
@@ -353,7 +441,7 @@ impl<'a> Lattice<'a> {
         let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
         let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
         if faces == Faces::Closed || !self.hides_bottom(i, j) {
-            let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
+            let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y) | fresh);
             mesh.quad([b[0], b[3], b[2], b[1]]);
         }
         // Sides where the neighbour has no snow: (corner a, corner b, outward).
@@ -379,14 +467,14 @@ impl<'a> Lattice<'a> {
                 v[len] = k;
                 len += 1;
             };
-            push(mesh.vertex(bottom_of(ca), normal));
+            push(mesh.vertex(bottom_of(ca), normal) | fresh);
             if !ca.feathered {
-                push(mesh.vertex(ca.top, normal));
+                push(mesh.vertex(ca.top, normal) | fresh);
             }
             if !cb.feathered {
-                push(mesh.vertex(cb.top, normal));
+                push(mesh.vertex(cb.top, normal) | fresh);
             }
-            push(mesh.vertex(bottom_of(cb), normal));
+            push(mesh.vertex(bottom_of(cb), normal) | fresh);
             match len {
                 4 => mesh.quad(v),
                 3 => mesh.indices.extend_from_slice(&v[..3]),
@@ -762,25 +850,38 @@ mod tests {
         // The reference: every map's top vertices and texel solids added to one mesh,
         // map after map, as `snow_mesh` did before it meshed the maps in parallel. The
         // same mesh on one thread and on three, with at least two maps holding snow (so
-        // a map's indices must be shifted past the maps' before it).
+        // a map's indices must be shifted past the maps' before it, and one whose snow
+        // lies inside a smaller box than the map). Its texels' rows are meshed in bands.
         let sim = snowy_sim();
         let fp = sim.footprint();
         let mut reference = TriMesh::default();
-        let mut meshed = 0;
+        let (mut meshed, mut boxed) = (0, 0);
         for map in sim.maps() {
             let before = reference.positions.len();
             let lattice = Lattice::new(map, &fp);
+            // Only the corners of the snowy texels' box are worked out: every corner
+            // with snow lies in it.
+            for c in 0..(fp.n + 1) * (fp.n + 1) {
+                let (ci, cj) = (c % (fp.n + 1), c / (fp.n + 1));
+                assert_eq!(
+                    lattice.corner(ci, cj).is_some(),
+                    lattice.raw_corner(ci, cj).is_some(),
+                    "corner {c}"
+                );
+            }
+            boxed += usize::from(lattice.box_corners.0.len() < fp.n || lattice.box_corners.1.len() < fp.n);
             let top_index = lattice.top_vertices(&mut reference);
             for j in 0..fp.n {
                 for i in 0..fp.n {
                     if lattice.snowy(i as i64, j as i64) {
-                        lattice.texel_solid(&mut reference, &top_index, (i, j), Faces::Closed);
+                        lattice.texel_solid(&mut reference, &top_index, (i, j), Faces::Closed, 0);
                     }
                 }
             }
             meshed += usize::from(reference.positions.len() > before);
         }
         assert!(meshed >= 2, "{meshed} maps with snow");
+        assert!(boxed >= 1, "no map's snow inside a smaller box");
         for threads in [1, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             assert!(pool.install(|| snow_mesh(&sim)) == reference, "another mesh on {threads} threads");
