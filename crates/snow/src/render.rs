@@ -918,12 +918,36 @@ const BOUNCE: f32 = 0.3;
 
 /// The box around `tris` (the origin for none).
 fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for p in tris.iter().flatten() {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
+    if tris.is_empty() {
+        return (Vec3::ZERO, Vec3::ZERO);
     }
-    if tris.is_empty() { (Vec3::ZERO, Vec3::ZERO) } else { (lo, hi) }
+    // Chunks in parallel, each kept as nine running extremes (one per coordinate of a
+    // triangle's corners: independent comparisons, in vector lanes), then merged in
+    // order. The smallest and largest values do not depend on the order they are met
+    // in (the box of a one-pass fold, which took 2.2-2.4 ms for the village's 133,000
+    // triangles on one core); a NaN coordinate is passed over.
+    let parts: Vec<([f32; 9], [f32; 9])> = tris
+        .par_chunks(16_384)
+        .map(|chunk| {
+            let (mut lo, mut hi) = ([f32::INFINITY; 9], [f32::NEG_INFINITY; 9]);
+            for t in chunk {
+                let v = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+                for k in 0..9 {
+                    lo[k] = if v[k] < lo[k] { v[k] } else { lo[k] };
+                    hi[k] = if v[k] > hi[k] { v[k] } else { hi[k] };
+                }
+            }
+            (lo, hi)
+        })
+        .collect();
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for (l, h) in parts {
+        for k in 0..9 {
+            lo[k % 3] = if l[k] < lo[k % 3] { l[k] } else { lo[k % 3] };
+            hi[k % 3] = if h[k] > hi[k % 3] { h[k] } else { hi[k % 3] };
+        }
+    }
+    (Vec3::from(lo), Vec3::from(hi))
 }
 
 /// Purpose of the flakes' starting places.
@@ -1005,6 +1029,30 @@ mod tests {
     use crate::glitter::{Glint, glints};
     use crate::mesh::table_scene;
     use crate::sim::SnowConfig;
+
+    #[test]
+    fn the_box_is_the_one_pass_folds() {
+        // 40,000 triangles (three chunks, the last partial) spread over ±1000 m, with an
+        // extreme in a late chunk's last corner.
+        let mut rng = phenomena_core::rng::Stream::new(3, phenomena_core::rng::Purpose::named("test.bounds"), 0);
+        let mut point = || Vec3::new(rng.uniform(-1e3, 1e3), rng.uniform(-1e3, 1e3), rng.uniform(-1e3, 1e3));
+        let mut tris: Vec<[Vec3; 3]> = (0..40_000).map(|_| [point(), point(), point()]).collect();
+        tris[33_000][2] = Vec3::new(-2e3, 5e3, 1.5e3);
+        let fold = |tris: &[[Vec3; 3]]| {
+            tris.iter().flatten().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+        };
+        for n in [1, 2, 16_384, 16_385, 40_000] {
+            assert_eq!(bounds(&tris[..n]), fold(&tris[..n]), "{n} triangles");
+        }
+        assert_eq!(bounds(&tris).0.x, -2e3);
+        assert_eq!(bounds(&[]), (Vec3::ZERO, Vec3::ZERO));
+        // A NaN coordinate is passed over wherever it lies (glam's fold would start
+        // again after it).
+        let clean = bounds(&tris);
+        tris[100][1].y = f32::NAN;
+        tris[20_000][0].x = f32::NAN;
+        assert_eq!(bounds(&tris), clean);
+    }
 
     fn render(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
         SnowRenderer::new(settings.clone(), width, height, None).unwrap().render(sim).clone()
