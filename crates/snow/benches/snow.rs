@@ -137,6 +137,10 @@ fn yard(c: &mut Criterion) {
             b.iter_batched_ref(|| sim.clone(), |s| black_box(s.step().unwrap()), BatchSize::LargeInput)
         });
     }
+    // The renderer's mesh of the yard's snow after the 12 hours (`export::snow_surface`).
+    group.bench_function("surface_at_11h45", |b| {
+        b.iter(|| black_box(phenomena_snow::export::snow_surface(&sim).triangles()))
+    });
     group.finish();
     yard_steps(&fresh);
 }

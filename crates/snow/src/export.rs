@@ -92,49 +92,19 @@ fn meshes_joined(sim: &SnowSim, faces: Faces) -> TriMesh {
     mesh
 }
 
-/// Texel rows a parallel part of one map's mesh covers (fixed: the mesh is the same
-/// for any thread count).
-const BAND_ROWS: usize = 8;
-
-/// A texel solid's own vertices (bottoms and sides) while its band of rows is meshed
-/// apart from the others: their index in the band's part, with this bit set, until the
-/// parts are joined (the shared top vertices keep their indices, far below it).
-const FRESH: u32 = 1 << 31;
-
-/// The snow of one map as a mesh: its top vertices in corner order, then its texels'
-/// solids row by row, the rows meshed in bands of [`BAND_ROWS`] in parallel and joined
-/// in order (the same mesh as one texel after another: test
-/// `the_maps_meshed_in_parallel_are_the_maps_meshed_one_after_another`).
+/// The snow of one map as a mesh.
 fn map_mesh(map: &SnowMap, fp: &Footprint, faces: Faces) -> TriMesh {
     let mut mesh = TriMesh::default();
     let lattice = Lattice::new(map, fp);
     let top_index = lattice.top_vertices(&mut mesh);
-    // Every vertex index, shared or a band's own, stays below the flag bit: a texel adds
-    // at most 20 vertices of its own (a bottom's four, four sides' four).
-    assert!(mesh.positions.len() + 20 * fp.n * fp.n < FRESH as usize, "a snow map too large to mesh");
     // The snowy texels' rows and columns: those of the box of corners but its last.
     let (cols, rows) = &lattice.box_corners;
-    let (cols, rows) = (cols.start..cols.end.saturating_sub(1), rows.start..rows.end.saturating_sub(1));
-    let parts: Vec<TriMesh> = (0..rows.len().div_ceil(BAND_ROWS))
-        .into_par_iter()
-        .map(|band| {
-            let mut part = TriMesh::default();
-            for j in rows.start + band * BAND_ROWS..(rows.start + (band + 1) * BAND_ROWS).min(rows.end) {
-                for i in cols.clone() {
-                    if lattice.snowy(i as i64, j as i64) {
-                        lattice.texel_solid(&mut part, &top_index, (i, j), faces, FRESH);
-                    }
-                }
+    for j in rows.start..rows.end.saturating_sub(1) {
+        for i in cols.start..cols.end.saturating_sub(1) {
+            if lattice.snowy(i as i64, j as i64) {
+                lattice.texel_solid(&mut mesh, &top_index, (i, j), faces);
             }
-            part
-        })
-        .collect();
-    for part in parts {
-        let offset = mesh.positions.len() as u32;
-        mesh.positions.extend(part.positions);
-        mesh.normals.extend(part.normals);
-        mesh.indices
-            .extend(part.indices.iter().map(|&k| if k & FRESH != 0 { (k & !FRESH) + offset } else { k }));
+        }
     }
     mesh
 }
@@ -200,35 +170,22 @@ struct Lattice<'a> {
 impl<'a> Lattice<'a> {
     fn new(map: &'a SnowMap, fp: &'a Footprint) -> Self {
         let n = fp.n;
-        // Each texel and corner on its own, in parallel (the same values on any thread).
-        let snowy: Vec<bool> = (0..n * n)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|k| map.possible(k) && map.snow_m[k] > MIN_DEPTH_M)
-            .collect();
+        let snowy: Vec<bool> = (0..n * n).map(|k| map.possible(k) && map.snow_m[k] > MIN_DEPTH_M).collect();
         let box_corners = snowy_box(&snowy, n);
-        let mut lattice = Self { map, fp, corners: Vec::new(), snowy, box_corners };
-        let (cols, rows) = lattice.box_corners.clone();
-        let mut corners = vec![None; (n + 1) * (n + 1)];
-        corners.par_chunks_mut(n + 1).enumerate().skip(rows.start).take(rows.len()).for_each(|(cj, row)| {
-            for ci in cols.clone() {
-                row[ci] = lattice.raw_corner(ci, cj);
-            }
-        });
-        lattice.corners = corners;
+        let mut lattice = Self { map, fp, corners: vec![None; (n + 1) * (n + 1)], snowy, box_corners };
+        // Only the box's corners can have snow.
+        for c in lattice.box_corners() {
+            lattice.corners[c] = lattice.raw_corner(c % (n + 1), c / (n + 1));
+        }
         lattice.smooth_edges();
         lattice
     }
 
     /// The corners of the box of snowy texels, in corner order (row by row).
-    fn box_corners(&self) -> impl IndexedParallelIterator<Item = usize> + '_ {
+    fn box_corners(&self) -> impl Iterator<Item = usize> + use<> {
         let n1 = self.fp.n + 1;
-        let (cols, rows) = &self.box_corners;
-        let w = cols.len();
-        (0..w * rows.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(move |k| (rows.start + k / w) * n1 + cols.start + k % w)
+        let (cols, rows) = self.box_corners.clone();
+        rows.flat_map(move |cj| cols.clone().map(move |ci| cj * n1 + ci))
     }
 
     /// Whether texel (i, j) lies in the map, can hold snow and holds more than
@@ -325,8 +282,7 @@ impl<'a> Lattice<'a> {
         for _ in 0..EDGE_SMOOTHING {
             // (x, top, z) and ground of each corner after the pass.
             let moved: Vec<(Vec3, f32)> = chain
-                .par_iter()
-                .with_min_len(256)
+                .iter()
                 .map(|&(c, [a, b])| {
                     let at = |(ci, cj): (usize, usize)| {
                         self.corner(ci, cj).map_or((Vec3::ZERO, 0.0), |k| (k.top, k.ground))
@@ -372,27 +328,20 @@ impl<'a> Lattice<'a> {
     /// where there is none).
     fn top_vertices(&self, mesh: &mut TriMesh) -> Vec<u32> {
         let (n, t) = (self.fp.n, self.fp.texel_m);
+        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
         let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.top.y);
-        // Each corner's vertex worked out in parallel, then numbered in corner order.
-        let vertices: Vec<(usize, Vec3, Vec3)> = self
-            .box_corners()
-            .filter_map(|c| {
-                let (ci, cj) = (c % (n + 1), c / (n + 1));
-                let corner = self.corner(ci, cj)?;
+        let (cols, rows) = self.box_corners.clone();
+        for cj in rows {
+            for ci in cols.clone() {
+                let Some(corner) = self.corner(ci, cj) else { continue };
                 let h = corner.top.y;
                 let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
                 let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
                 let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
                 let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
                 let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
-                Some((c, corner.top, normal))
-            })
-            .collect();
-        let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
-        mesh.positions.reserve(vertices.len());
-        mesh.normals.reserve(vertices.len());
-        for (c, top, normal) in vertices {
-            top_index[c] = mesh.vertex(top, normal);
+                top_index[cj * (n + 1) + ci] = mesh.vertex(corner.top, normal);
+            }
         }
         top_index
     }
@@ -423,16 +372,8 @@ impl<'a> Lattice<'a> {
     /// The faces of snowy texel (i, j): its top quad on the shared vertices `top_index`,
     /// its bottom on the ground (with [`Faces::Open`], only where [`Lattice::hides_bottom`]
     /// does not hold), and a side towards each neighbour without snow (none where both of
-    /// the side's corners are feathered, a triangle where one is). The indices of the
-    /// vertices it adds to `mesh` carry the bits `fresh` ([`FRESH`] or 0).
-    fn texel_solid(
-        &self,
-        mesh: &mut TriMesh,
-        top_index: &[u32],
-        (i, j): (usize, usize),
-        faces: Faces,
-        fresh: u32,
-    ) {
+    /// the side's corners are feathered, a triangle where one is).
+    fn texel_solid(&self, mesh: &mut TriMesh, top_index: &[u32], (i, j): (usize, usize), faces: Faces) {
         let n = self.fp.n;
         let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
         // Top: counter-clockwise seen from above (+y) in x-z is (x,z) → (x,z+1) →
@@ -441,7 +382,7 @@ impl<'a> Lattice<'a> {
         let at = |ci: usize, cj: usize| self.corner(ci, cj).expect("a snowy texel's corners have snow");
         let bottom_of = |c: Corner| Vec3::new(c.top.x, c.ground, c.top.z);
         if faces == Faces::Closed || !self.hides_bottom(i, j) {
-            let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y) | fresh);
+            let b = corners.map(|(ci, cj)| mesh.vertex(bottom_of(at(ci, cj)), Vec3::NEG_Y));
             mesh.quad([b[0], b[3], b[2], b[1]]);
         }
         // Sides where the neighbour has no snow: (corner a, corner b, outward).
@@ -467,14 +408,14 @@ impl<'a> Lattice<'a> {
                 v[len] = k;
                 len += 1;
             };
-            push(mesh.vertex(bottom_of(ca), normal) | fresh);
+            push(mesh.vertex(bottom_of(ca), normal));
             if !ca.feathered {
-                push(mesh.vertex(ca.top, normal) | fresh);
+                push(mesh.vertex(ca.top, normal));
             }
             if !cb.feathered {
-                push(mesh.vertex(cb.top, normal) | fresh);
+                push(mesh.vertex(cb.top, normal));
             }
-            push(mesh.vertex(bottom_of(cb), normal) | fresh);
+            push(mesh.vertex(bottom_of(cb), normal));
             match len {
                 4 => mesh.quad(v),
                 3 => mesh.indices.extend_from_slice(&v[..3]),
@@ -851,7 +792,7 @@ mod tests {
         // map after map, as `snow_mesh` did before it meshed the maps in parallel. The
         // same mesh on one thread and on three, with at least two maps holding snow (so
         // a map's indices must be shifted past the maps' before it, and one whose snow
-        // lies inside a smaller box than the map). Its texels' rows are meshed in bands.
+        // lies inside a smaller box than the map).
         let sim = snowy_sim();
         let fp = sim.footprint();
         let mut reference = TriMesh::default();
@@ -874,7 +815,7 @@ mod tests {
             for j in 0..fp.n {
                 for i in 0..fp.n {
                     if lattice.snowy(i as i64, j as i64) {
-                        lattice.texel_solid(&mut reference, &top_index, (i, j), Faces::Closed, 0);
+                        lattice.texel_solid(&mut reference, &top_index, (i, j), Faces::Closed);
                     }
                 }
             }

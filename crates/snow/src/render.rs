@@ -1034,12 +1034,15 @@ mod tests {
     fn the_box_is_the_one_pass_folds() {
         // 40,000 triangles (three chunks, the last partial) spread over ±1000 m, with an
         // extreme in a late chunk's last corner.
-        let mut rng = phenomena_core::rng::Stream::new(3, phenomena_core::rng::Purpose::named("test.bounds"), 0);
+        let mut rng =
+            phenomena_core::rng::Stream::new(3, phenomena_core::rng::Purpose::named("test.bounds"), 0);
         let mut point = || Vec3::new(rng.uniform(-1e3, 1e3), rng.uniform(-1e3, 1e3), rng.uniform(-1e3, 1e3));
         let mut tris: Vec<[Vec3; 3]> = (0..40_000).map(|_| [point(), point(), point()]).collect();
         tris[33_000][2] = Vec3::new(-2e3, 5e3, 1.5e3);
         let fold = |tris: &[[Vec3; 3]]| {
-            tris.iter().flatten().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+            tris.iter()
+                .flatten()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
         };
         for n in [1, 2, 16_384, 16_385, 40_000] {
             assert_eq!(bounds(&tris[..n]), fold(&tris[..n]), "{n} triangles");
