@@ -84,12 +84,19 @@ impl CellRows {
         }
         // Minimum and maximum are exact, so the parallel reduction is order-independent;
         // a NaN anywhere makes the extent NaN.
-        let (lo, hi) = points
+        // Whether all are finite found in the same pass; the first that is not only then.
+        let (lo, hi, finite) = points
             .par_iter()
             .with_min_len(MIN_LEN)
-            .fold(|| (Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
-            .reduce(|| (Vec2::INFINITY, Vec2::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
-        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
+            .fold(
+                || (Vec2::INFINITY, Vec2::NEG_INFINITY, true),
+                |(lo, hi, finite), &p| (lo.min(p), hi.max(p), finite & p.is_finite()),
+            )
+            .reduce(
+                || (Vec2::INFINITY, Vec2::NEG_INFINITY, true),
+                |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 & b.2),
+            );
+        if !finite && let Some(index) = points.iter().position(|p| !p.is_finite()) {
             return Err(GridError::NonFinite { index });
         }
         let inv = 1.0 / cell_size;
@@ -117,14 +124,23 @@ impl CellRows {
         counting_sort(&mut self.row_start, rows, &self.keys, Some(&self.scratch), &mut self.order);
         self.column.clear();
         self.column.par_extend(self.order.par_iter().with_min_len(MIN_LEN).map(|&i| cell[i as usize].1));
-        let mut max_count = 0;
-        let mut run = 0;
-        for k in 0..self.order.len() {
-            let same = k > 0 && cell[self.order[k] as usize] == cell[self.order[k - 1] as usize];
-            run = if same { run + 1 } else { 1 };
-            max_count = max_count.max(run);
-        }
-        self.max_cell_count = max_count;
+        // A cell's points are consecutive in sorted order, within their row's run: the
+        // longest run of one column within a row, rows in parallel (sequential reads of
+        // `column`, not the cells gathered through `order`).
+        let this = &*self;
+        self.max_cell_count = (0..rows)
+            .into_par_iter()
+            .map(|r| {
+                let span = &this.column[this.row(r)];
+                let (mut most, mut run) = (0, 0);
+                for k in 0..span.len() {
+                    run = if k > 0 && span[k] == span[k - 1] { run + 1 } else { 1 };
+                    most = most.max(run);
+                }
+                most
+            })
+            .max()
+            .unwrap_or(0);
         Ok(())
     }
 
