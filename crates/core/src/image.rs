@@ -272,6 +272,24 @@ impl Frame {
         [&mut self.c0, &mut self.c1, &mut self.c2]
     }
 
+    /// Set every pixel (x, y) to `f(x, y)`, rows in parallel (each pixel on its own:
+    /// the same frame for any thread count).
+    pub fn fill_with(&mut self, f: impl Fn(usize, usize) -> Vec3 + Sync) {
+        let w = self.width();
+        self.c0
+            .data
+            .par_chunks_mut(w.max(1))
+            .zip(self.c1.data.par_chunks_mut(w.max(1)))
+            .zip(self.c2.data.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(y, ((a, b), c))| {
+                for x in 0..a.len() {
+                    let v = f(x, y);
+                    (a[x], b[x], c[x]) = (v.x, v.y, v.z);
+                }
+            });
+    }
+
     /// Apply a colour matrix to every pixel, e.g. XYZ to linear sRGB.
     pub fn map_pixels(&mut self, f: impl Fn(Vec3) -> Vec3 + Sync) {
         let w = self.width();
@@ -343,6 +361,23 @@ impl Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_filled_frame_holds_each_pixels_value() {
+        for (w, h) in [(1, 1), (7, 3), (64, 65)] {
+            let mut f = Frame::new(w, h);
+            f.fill_with(|x, y| Vec3::new(x as f32, y as f32, (x * 1000 + y) as f32));
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        f.pixel(x, y),
+                        Vec3::new(x as f32, y as f32, (x * 1000 + y) as f32),
+                        "({x}, {y})"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn srgb_bytes_decode_and_resize_keeps_flat_colour() {

@@ -523,12 +523,7 @@ fn render_scene(
         let fog = (-settings.fog_per_m * buf.depth_at(x, y)).exp();
         lighting.at(p, n, albedo) * fog + sky * (1.0 - fog)
     };
-    let colours: Vec<Vec3> = (0..height)
-        .into_par_iter()
-        .flat_map_iter(|y| (0..width).map(move |x| (x, y)))
-        .map(|(x, y)| shade(x, y))
-        .collect();
-    colours.into_iter().enumerate().for_each(|(k, c)| frame.set_pixel(k % width, k / width, c));
+    frame.fill_with(shade);
     timings.shade_ms = t.ms();
     timings.glints = timed(clock, &mut timings.glitter_ms, || {
         let snow = &tris[scene.len()..];
