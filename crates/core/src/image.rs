@@ -272,38 +272,32 @@ impl Frame {
         [&mut self.c0, &mut self.c1, &mut self.c2]
     }
 
-    /// Set every pixel (x, y) to `f(x, y)`, rows in parallel (each pixel on its own:
-    /// the same frame for any thread count).
-    pub fn fill_with(&mut self, f: impl Fn(usize, usize) -> Vec3 + Sync) {
-        let w = self.width();
+    /// Set every pixel (x, y) to `f(x, y, its value)`, rows in parallel (each pixel on
+    /// its own: the same frame for any thread count).
+    fn update_pixels(&mut self, f: impl Fn(usize, usize, Vec3) -> Vec3 + Sync) {
+        let w = self.width().max(1);
         self.c0
             .data
-            .par_chunks_mut(w.max(1))
-            .zip(self.c1.data.par_chunks_mut(w.max(1)))
-            .zip(self.c2.data.par_chunks_mut(w.max(1)))
+            .par_chunks_mut(w)
+            .zip(self.c1.data.par_chunks_mut(w))
+            .zip(self.c2.data.par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, ((a, b), c))| {
                 for x in 0..a.len() {
-                    let v = f(x, y);
+                    let v = f(x, y, Vec3::new(a[x], b[x], c[x]));
                     (a[x], b[x], c[x]) = (v.x, v.y, v.z);
                 }
             });
     }
 
+    /// Set every pixel (x, y) to `f(x, y)`, rows in parallel.
+    pub fn fill_with(&mut self, f: impl Fn(usize, usize) -> Vec3 + Sync) {
+        self.update_pixels(|x, y, _| f(x, y));
+    }
+
     /// Apply a colour matrix to every pixel, e.g. XYZ to linear sRGB.
     pub fn map_pixels(&mut self, f: impl Fn(Vec3) -> Vec3 + Sync) {
-        let w = self.width();
-        self.c0
-            .data
-            .par_chunks_mut(w.max(1))
-            .zip(self.c1.data.par_chunks_mut(w.max(1)))
-            .zip(self.c2.data.par_chunks_mut(w.max(1)))
-            .for_each(|((a, b), c)| {
-                for i in 0..a.len() {
-                    let v = f(Vec3::new(a[i], b[i], c[i]));
-                    (a[i], b[i], c[i]) = (v.x, v.y, v.z);
-                }
-            });
+        self.update_pixels(|_, _, v| f(v));
     }
 
     /// Convert an XYZ frame to linear sRGB in place (flame paper eq 17).
