@@ -4,8 +4,9 @@
 //!
 //! Before a scene's benchmark, twelve frames from the middle are timed with a wall clock
 //! through the runner's records and one line goes to stderr: the particles, the median
-//! step and render, their shares, and the renderer's own breakdown where it has one
-//! (the aurora: emission, deposit, ...). Run one scene with
+//! step and render, their shares, the reference chain timed just before and after those
+//! frames (and the sum in chains, and at a quiet day's chain), and the renderer's own
+//! breakdown where it has one (the aurora: emission, deposit, ...). Run one scene with
 //! `cargo bench -p phenomena-scene --bench live -- aurora-scene2`.
 
 use std::path::Path;
@@ -49,6 +50,12 @@ impl Observer for Records {
     }
 }
 
+/// `reference/chain_2e22` on a quiet day of this machine (criterion's median,
+/// 2026-12-06 17:16, docs/performance.md): the scale of each scene's sum in chains is
+/// read back in ms at that speed (a compute-bound estimate of the quiet machine, not a
+/// measurement of it).
+const QUIET_CHAIN_MS: f64 = 35.59;
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     if v.is_empty() { 0.0 } else { v[v.len() / 2] }
@@ -68,16 +75,22 @@ fn ready(name: &str) -> Runner {
     runner.run(0..middle, &mut Simulate, &mut ()).expect("simulates");
     runner.set_clock(SharedClock::new(Wall(Instant::now())));
     let mut records = Records::default();
+    let before = reference::chain_ms_now(3);
     runner.run(middle..middle + 12, &mut Discard, &mut records).expect("renders");
+    let after = reference::chain_ms_now(3);
     let step = median(records.0.iter().map(|r| r.step_ms).collect());
     let render = median(records.0.iter().map(|r| r.render_ms.unwrap_or(0.0)).collect());
     let last = records.0.last().expect("twelve records");
     let particles = last.counters.get("particles").map_or("-".to_string(), ToString::to_string);
     let total = step + render;
+    // The chain read just before and after these frames: the load they ran under.
+    let chain = 0.5 * (before + after);
     eprintln!(
-        "live {name}: {particles} particles; median step {step:.1} ms ({:.0} %), render {render:.1} ms ({:.0} %), sum {total:.1} ms; render detail {}",
+        "live {name}: {particles} particles; median step {step:.1} ms ({:.0} %), render {render:.1} ms ({:.0} %), sum {total:.1} ms; reference chain_2e22 {before:.1} ms before, {after:.1} after: sum {:.2} chains, {:.1} ms at the quiet day's chain ({QUIET_CHAIN_MS} ms); render detail {}",
         100.0 * step / total.max(1e-9),
         100.0 * render / total.max(1e-9),
+        total / chain,
+        total / chain * QUIET_CHAIN_MS,
         last.render_detail.as_ref().map_or("-".to_string(), ToString::to_string)
     );
     runner.set_clock(SharedClock::default());

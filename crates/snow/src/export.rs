@@ -822,6 +822,8 @@ mod tests {
             meshed += usize::from(reference.positions.len() > before);
         }
         assert!(meshed >= 2, "{meshed} maps with snow");
+        // Every index names a vertex (a top vertex the box left out would be u32::MAX).
+        assert!(reference.indices.iter().all(|&k| (k as usize) < reference.positions.len()));
         assert!(boxed >= 1, "no map's snow inside a smaller box");
         for threads in [1, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();

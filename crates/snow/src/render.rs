@@ -919,8 +919,10 @@ fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
     // Chunks in parallel, each kept as nine running extremes (one per coordinate of a
     // triangle's corners: independent comparisons, in vector lanes), then merged in
     // order. The smallest and largest values do not depend on the order they are met
-    // in (the box of a one-pass fold, which took 2.2-2.4 ms for the village's 133,000
-    // triangles on one core); a NaN coordinate is passed over.
+    // in, so this is the box of a one-pass fold (which took 2.2-2.4 ms for the village's
+    // 133,000 triangles on one core), equal under `==`: a zero bound met both as +0.0
+    // and −0.0 may keep the other sign, which moves nothing. A NaN coordinate is passed
+    // over (an axis of NaNs alone gives +∞ to −∞).
     let parts: Vec<([f32; 9], [f32; 9])> = tris
         .par_chunks(16_384)
         .map(|chunk| {
@@ -1042,6 +1044,14 @@ mod tests {
         for n in [1, 2, 16_384, 16_385, 40_000] {
             assert_eq!(bounds(&tris[..n]), fold(&tris[..n]), "{n} triangles");
         }
+        // A zero bound met as +0.0 and −0.0 (a ground at y = 0): equal as numbers.
+        let mut ground = tris[..20_000].to_vec();
+        for (k, t) in ground.iter_mut().enumerate() {
+            t.iter_mut().for_each(|p| p.y = p.y.abs());
+            t[k % 3].y = if k % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        assert_eq!(bounds(&ground), fold(&ground));
+        assert_eq!(bounds(&ground).0.y, 0.0);
         assert_eq!(bounds(&tris).0.x, -2e3);
         assert_eq!(bounds(&[]), (Vec3::ZERO, Vec3::ZERO));
         // A NaN coordinate is passed over wherever it lies (glam's fold would start

@@ -33,6 +33,22 @@ fn chain(seed: u64) -> f64 {
     acc
 }
 
+/// The median wall time of `runs` runs of the chain, ms: `reference/chain_2e22` timed
+/// by hand, for a bench to read the machine's speed right beside its own frames (the
+/// load can change between criterion's reference and a bench many minutes later).
+#[allow(dead_code, reason = "only the benches that time frames by hand call it")]
+pub(crate) fn chain_ms_now(runs: usize) -> f64 {
+    let mut t: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let start = std::time::Instant::now();
+            black_box(chain(black_box(1)));
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
 /// Registers the two reference benchmarks.
 pub(crate) fn reference(c: &mut Criterion) {
     let mut g = c.benchmark_group("reference");
