@@ -29,12 +29,23 @@
 //!    the snow lands, a layer down a face at the repose, a foot filling up. A sink whose
 //!    key the level reaches takes the rest: it falls (§2.4.2) and settles in turn.
 //!
-//! Sequential, ordered by height with ties broken by node number: the same for any
-//! thread count. Mass is carried in f64 and written as the f32 depths the maps hold.
+//! Sequential, ordered by height with ties broken by node number (only the first scan
+//! for steep texels runs in parallel chunks, joined in order): the same for any thread
+//! count. Mass is carried in f64 and written as the f32 depths the maps hold.
 
 use std::collections::BinaryHeap;
 
+use rayon::prelude::*;
+
 use crate::sim::{Regions, SnowMap, Target, neighbours};
+
+/// One part of [`steep_at_first`]'s scan: its lowest ground, highest surface and
+/// candidates (the height to come down to, node), in texel order.
+type SteepPart = (f32, f32, Vec<(f32, u32)>);
+
+/// Texels a parallel part of [`steep_at_first`]'s scan covers (fixed: the candidates
+/// do not depend on the thread count).
+const STEEP_CHUNK: usize = 8192;
 
 /// Flag of a flood queue entry that is a sink (an index into `Scratch::sinks`); nodes
 /// (map · texels + texel) stay below it ([`Scratch::fits`]).
@@ -317,29 +328,44 @@ impl Buckets {
 /// repose after the snowfall, with the height it must come down to (for the queue's
 /// order). Returns the lowest ground and the highest surface of the maps.
 fn steep_at_first(g: &Grid, first: &mut Vec<(f32, u32)>) -> (f32, f32) {
-    let n = g.n;
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let (n, texels) = (g.n, g.texels());
+    let per_map = texels.div_ceil(STEEP_CHUNK);
+    // Each map's texels in chunks, in parallel, each chunk on its own; the candidates
+    // joined in map and texel order, and the smallest and largest (exact, so in any
+    // order) merged: the one pass's candidates and extremes.
+    let parts: Vec<SteepPart> = (0..g.maps.len() * per_map)
+        .into_par_iter()
+        .map(|c| {
+            let (mi, part) = (c / per_map, c % per_map);
+            let (m, inner) = (&g.maps[mi], &g.regions.inner[mi]);
+            let (mut lo, mut hi, mut out) = (f32::INFINITY, f32::NEG_INFINITY, Vec::new());
+            for k in part * STEEP_CHUNK..((part + 1) * STEEP_CHUNK).min(texels) {
+                let ground = m.ground_m[k];
+                lo = lo.min(ground);
+                let s = m.snow_m[k];
+                if !(s > 0.0) {
+                    continue;
+                }
+                let h = ground + s;
+                hi = hi.max(h);
+                let low = if inner.get(k) {
+                    m.surface(k - n).min(m.surface(k + 1)).min(m.surface(k + n)).min(m.surface(k - 1))
+                } else {
+                    g.lowest(mi, k).1
+                };
+                if h - low - g.rise > g.tol {
+                    out.push(((low + g.rise).max(ground), g.node(mi, k)));
+                }
+            }
+            (lo, hi, out)
+        })
+        .collect();
     first.clear();
-    for (mi, m) in g.maps.iter().enumerate() {
-        let inner = &g.regions.inner[mi];
-        for k in 0..g.texels() {
-            let ground = m.ground_m[k];
-            lo = lo.min(ground);
-            let s = m.snow_m[k];
-            if !(s > 0.0) {
-                continue;
-            }
-            let h = ground + s;
-            hi = hi.max(h);
-            let low = if inner.get(k) {
-                m.surface(k - n).min(m.surface(k + 1)).min(m.surface(k + n)).min(m.surface(k - 1))
-            } else {
-                g.lowest(mi, k).1
-            };
-            if h - low - g.rise > g.tol {
-                first.push(((low + g.rise).max(ground), g.node(mi, k)));
-            }
-        }
+    first.reserve(parts.iter().map(|p| p.2.len()).sum());
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for (l, h, out) in parts {
+        (lo, hi) = (lo.min(l), hi.max(h));
+        first.extend(out);
     }
     (lo, hi)
 }
