@@ -275,19 +275,28 @@ impl Frame {
     /// Set every pixel (x, y) to `f(x, y, its value)`, rows in parallel (each pixel on
     /// its own: the same frame for any thread count).
     fn update_pixels(&mut self, f: impl Fn(usize, usize, Vec3) -> Vec3 + Sync) {
-        let w = self.width().max(1);
+        self.par_bands(1, |y, [a, b, c]| {
+            for x in 0..a.len() {
+                let v = f(x, y, Vec3::new(a[x], b[x], c[x]));
+                (a[x], b[x], c[x]) = (v.x, v.y, v.z);
+            }
+        });
+    }
+
+    /// `f(first row, [c0, c1, c2])` for each band of `rows` rows (the last may hold
+    /// fewer), the bands in parallel, each channel's band row-major (pixel (x, y) at
+    /// `(y − first row) · width + x`). Work that touches only its band's pixels gives
+    /// the same frame for any thread count.
+    pub fn par_bands(&mut self, rows: usize, f: impl Fn(usize, [&mut [f32]; 3]) + Sync) {
+        let rows = rows.max(1);
+        let n = self.width().max(1) * rows;
         self.c0
             .data
-            .par_chunks_mut(w)
-            .zip(self.c1.data.par_chunks_mut(w))
-            .zip(self.c2.data.par_chunks_mut(w))
+            .par_chunks_mut(n)
+            .zip(self.c1.data.par_chunks_mut(n))
+            .zip(self.c2.data.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(y, ((a, b), c))| {
-                for x in 0..a.len() {
-                    let v = f(x, y, Vec3::new(a[x], b[x], c[x]));
-                    (a[x], b[x], c[x]) = (v.x, v.y, v.z);
-                }
-            });
+            .for_each(|(band, ((a, b), c))| f(band * rows, [a, b, c]));
     }
 
     /// Set every pixel (x, y) to `f(x, y)`, rows in parallel.
@@ -355,6 +364,28 @@ impl Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bands_cover_each_pixel_once_with_their_first_row() {
+        // 7 × 11 in bands of 1, 4 (the last of 3 rows), 11 and 20 rows: each pixel is
+        // written once, where its band's first row says it lies.
+        for rows in [1, 4, 11, 20] {
+            let mut f = Frame::new(7, 11);
+            f.par_bands(rows, |row0, [a, b, c]| {
+                assert_eq!(row0 % rows, 0);
+                assert!(a.len() == b.len() && b.len() == c.len() && a.len() <= 7 * rows);
+                for (i, ((a, b), c)) in a.iter_mut().zip(b.iter_mut()).zip(c.iter_mut()).enumerate() {
+                    let (x, y) = (i % 7, row0 + i / 7);
+                    (*a, *b, *c) = (*a + x as f32, *b + y as f32, *c + 1.0);
+                }
+            });
+            for y in 0..11 {
+                for x in 0..7 {
+                    assert_eq!(f.pixel(x, y), Vec3::new(x as f32, y as f32, 1.0), "{rows} rows, ({x}, {y})");
+                }
+            }
+        }
+    }
 
     #[test]
     fn a_filled_frame_holds_each_pixels_value() {

@@ -209,6 +209,11 @@ impl<'a> Lattice<'a> {
         [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)].map(|(di, dj)| (ci as i64 + di, cj as i64 + dj))
     }
 
+    /// Whether all four texels around corner (ci, cj) are snowy.
+    fn inside(&self, ci: usize, cj: usize) -> bool {
+        Self::around(ci, cj).iter().all(|&(i, j)| self.snowy(i, j))
+    }
+
     /// Corner (ci, cj) on the lattice: the mean top and ground of its snowy texels; where
     /// the others are bare ground continuous with them, feathered at the ground's mean.
     fn raw_corner(&self, ci: usize, cj: usize) -> Option<Corner> {
@@ -226,6 +231,10 @@ impl<'a> Lattice<'a> {
         }
         let (top, ground) = (top / c as f32, ground / c as f32);
         let xz = self.xz(ci, cj);
+        if c == 4 {
+            // Inside a patch: never feathered, whatever the grounds around.
+            return Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered: false });
+        }
         let step = CONTINUOUS_TEXELS * self.fp.texel_m;
         let grounds = Self::around(ci, cj).map(|(i, j)| self.ground(i, j));
         let continuous = grounds.iter().all(|g| g.is_some_and(|g| (g - ground).abs() <= step));
@@ -269,7 +278,8 @@ impl<'a> Lattice<'a> {
         let n1 = self.fp.n + 1;
         let chain: Vec<(usize, [(usize, usize); 2])> = self
             .box_corners()
-            .filter(|&c| self.corners[c].is_some())
+            // A corner among four snowy texels has no edge, one among none no snow.
+            .filter(|&c| self.corners[c].is_some() && !self.inside(c % n1, c / n1))
             .filter_map(|c| {
                 // Exactly two neighbours (of at most four), both with snow.
                 let mut e = self.edge_neighbours(c % n1, c / n1);
@@ -330,18 +340,16 @@ impl<'a> Lattice<'a> {
         let (n, t) = (self.fp.n, self.fp.texel_m);
         let mut top_index = vec![u32::MAX; (n + 1) * (n + 1)];
         let height = |ci: usize, cj: usize| self.corner(ci, cj).map(|c| c.top.y);
-        let (cols, rows) = self.box_corners.clone();
-        for cj in rows {
-            for ci in cols.clone() {
-                let Some(corner) = self.corner(ci, cj) else { continue };
-                let h = corner.top.y;
-                let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
-                let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
-                let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
-                let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
-                let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
-                top_index[cj * (n + 1) + ci] = mesh.vertex(corner.top, normal);
-            }
+        for c in self.box_corners() {
+            let Some(corner) = self.corners[c] else { continue };
+            let (ci, cj) = (c % (n + 1), c / (n + 1));
+            let h = corner.top.y;
+            let hx0 = if ci > 0 { height(ci - 1, cj) } else { None }.unwrap_or(h);
+            let hx1 = if ci < n { height(ci + 1, cj) } else { None }.unwrap_or(h);
+            let hz0 = if cj > 0 { height(ci, cj - 1) } else { None }.unwrap_or(h);
+            let hz1 = if cj < n { height(ci, cj + 1) } else { None }.unwrap_or(h);
+            let normal = Vec3::new(-(hx1 - hx0) / (2.0 * t), 1.0, -(hz1 - hz0) / (2.0 * t)).normalize();
+            top_index[c] = mesh.vertex(corner.top, normal);
         }
         top_index
     }
@@ -784,6 +792,37 @@ mod tests {
             sim.step().unwrap();
         }
         sim
+    }
+
+    #[test]
+    fn a_corner_inside_a_patch_is_its_four_texels_mean() {
+        // Where all four texels around a corner hold snow, the corner lies at their mean
+        // top and ground (summed in the texels' order), is not feathered and is left
+        // where it is by the edges' smoothing.
+        let sim = snowy_sim();
+        let fp = sim.footprint();
+        let mut inside = 0;
+        for map in sim.maps() {
+            let lattice = Lattice::new(map, &fp);
+            for c in 0..(fp.n + 1) * (fp.n + 1) {
+                let (ci, cj) = (c % (fp.n + 1), c / (fp.n + 1));
+                let around = Lattice::around(ci, cj);
+                if !around.iter().all(|&(i, j)| lattice.snowy(i, j)) {
+                    continue;
+                }
+                let texels = around.map(|(i, j)| j as usize * fp.n + i as usize);
+                let mean = |f: &dyn Fn(usize) -> f32| texels.iter().fold(0.0f32, |s, &k| s + f(k)) / 4.0;
+                let (top, ground) = (mean(&|k| map.surface(k)), mean(&|k| map.ground_m[k]));
+                let xz = lattice.xz(ci, cj);
+                let corner = lattice.corner(ci, cj).expect("snow around");
+                assert_eq!(
+                    (corner.top, corner.ground, corner.feathered),
+                    (Vec3::new(xz.x, top, xz.y), ground, false)
+                );
+                inside += 1;
+            }
+        }
+        assert!(inside >= 100, "{inside} corners inside patches");
     }
 
     #[test]

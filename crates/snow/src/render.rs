@@ -559,8 +559,6 @@ fn draw_glitter(
     let gl = cache.glints(&up, Viewing { eye, sun: lighting.sun }, g, seed);
     let colour = SUN_RGB * (settings.sun_strength * g.mirror_radiance * SNOW_ALBEDO);
     let face_m2 = (1e-3 * g.grain_mm).powi(2);
-    let (w, h) = (frame.width() as i64, frame.height() as i64);
-    let mut drawn = 0;
     // Each glint's pixel and light in parallel, added to the frame in the glints' order.
     let shown: Vec<(i64, i64, Vec3, bool)> = gl
         .par_iter()
@@ -573,20 +571,49 @@ fn draw_glitter(
             Some((x, y, colour * (glint.intensity * lit * fog * share), lit > 0.0))
         })
         .collect();
-    for (x, y, c, lit) in shown {
-        drawn += usize::from(lit);
-        let halo = 0.12;
-        for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, halo), (1, 0, halo), (0, -1, halo), (0, 1, halo)] {
-            let (px, py) = (x + dx, y + dy);
-            // Only onto the scene's surfaces (the snow's image covers nothing else).
-            if px >= 0 && py >= 0 && px < w && py < h && buf.id_at(px as usize, py as usize) != NO_ID {
-                let at = frame.pixel(px as usize, py as usize);
-                frame.set_pixel(px as usize, py as usize, at + c * weight);
-            }
+    add_glints(frame, buf, &shown);
+    shown.iter().filter(|s| s.3).count()
+}
+
+/// Adds each glint `(x, y, light, _)` (a pixel of the frame) to its pixel and, by
+/// [`HALO`], to the four around it, where `buf` shows the scene, in the glints' order:
+/// bands of rows in parallel, each adding the glints that reach it, so every pixel sums
+/// its glints in the same order as one pass over them all.
+fn add_glints(frame: &mut Frame, buf: &DepthBuffer, shown: &[(i64, i64, Vec3, bool)]) {
+    let (w, h) = (frame.width() as i64, frame.height() as i64);
+    if shown.is_empty() || w == 0 || h == 0 {
+        return;
+    }
+    let mut bands: Vec<Vec<u32>> = vec![Vec::new(); (h as usize).div_ceil(GLINT_BAND_ROWS)];
+    for (k, &(_, y, ..)) in shown.iter().enumerate() {
+        let (first, last) = ((y - 1).clamp(0, h - 1), (y + 1).clamp(0, h - 1));
+        for band in &mut bands[first as usize / GLINT_BAND_ROWS..=last as usize / GLINT_BAND_ROWS] {
+            band.push(k as u32);
         }
     }
-    drawn
+    frame.par_bands(GLINT_BAND_ROWS, |row0, [r, g, b]| {
+        let rows = (row0 as i64)..(row0 as i64 + (r.len() / w as usize) as i64);
+        for &k in &bands[row0 / GLINT_BAND_ROWS] {
+            let (x, y, c, _) = shown[k as usize];
+            for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, HALO), (1, 0, HALO), (0, -1, HALO), (0, 1, HALO)] {
+                let (px, py) = (x + dx, y + dy);
+                // Only onto the scene's surfaces (the snow's image covers nothing else).
+                if px >= 0 && px < w && rows.contains(&py) && buf.id_at(px as usize, py as usize) != NO_ID {
+                    let i = (py - rows.start) as usize * w as usize + px as usize;
+                    let add = c * weight;
+                    (r[i], g[i], b[i]) = (r[i] + add.x, g[i] + add.y, b[i] + add.z);
+                }
+            }
+        }
+    });
 }
+
+/// The share of a glint's light on each of the four pixels around its own (the lens's
+/// spread).
+const HALO: f32 = 0.12;
+
+/// Rows of the frame's bands to which the glints are added in parallel.
+const GLINT_BAND_ROWS: usize = 16;
 
 /// The farthest a glint may lie and still be the snow a pixel shows at depth d: 2 cm +
 /// 1 % of d behind it (the snow's faces and the depth buffer's rounding), summed in
@@ -1060,6 +1087,73 @@ mod tests {
         tris[100][1].y = f32::NAN;
         tris[20_000][0].x = f32::NAN;
         assert_eq!(bounds(&tris), clean);
+    }
+
+    #[test]
+    fn glints_added_by_bands_are_the_one_pass_sums() {
+        // A 41 × 37 frame (bands of 16, 16 and 5 rows) over a floor that covers only
+        // columns 5.. (the rest shows nothing: no glint light there), with glints on the
+        // rows either side of each band's edge, on the frame's edges, and many on one
+        // pixel (whose sum depends on the order of its terms).
+        let (w, h) = (41usize, 37usize);
+        let camera = phenomena_core::camera::Camera {
+            position: Vec3::new(0.0, 10.0, 0.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Z,
+            projection: phenomena_core::camera::Projection::Orthographic { height_m: h as f32 },
+        };
+        let view = camera.view(w, h).unwrap();
+        // (The view looks down with +z up the frame, so world x runs leftwards.)
+        let (x0, x1, z0, z1) = (-20.5, 20.5 - 5.0, -18.5, 18.5);
+        let [a, b, c, d] = [(x0, z0), (x1, z0), (x1, z1), (x0, z1)].map(|(x, z)| Vec3::new(x, 0.0, z));
+        let (buf, _) = rasterize(&view, &[[a, c, b], [a, d, c]], None, Cull::None).unwrap();
+        assert_eq!(buf.id_at(2, 10), NO_ID);
+        assert_ne!(buf.id_at(6, 10), NO_ID);
+        let mut rng =
+            phenomena_core::rng::Stream::new(5, phenomena_core::rng::Purpose::named("test.glints"), 0);
+        let mut shown = Vec::new();
+        for y in [0, 1, 14, 15, 16, 17, 31, 32, 33, 35, 36] {
+            for x in [0, 4, 5, 6, 20, 39, 40] {
+                let light = Vec3::new(rng.uniform(0.0, 3.0), rng.uniform(0.0, 1e-3), rng.uniform(0.0, 7.0));
+                shown.push((x, y, light, rng.next_f32() < 0.5));
+            }
+        }
+        for _ in 0..200 {
+            let light = Vec3::new(rng.uniform(0.0, 3.0), rng.uniform(0.0, 1e-3), rng.uniform(0.0, 7.0));
+            shown.push((20, 16, light, true));
+        }
+        // The one pass: each glint in turn.
+        let mut serial = Frame::new(w, h);
+        for &(x, y, c, _) in &shown {
+            for (dx, dy, weight) in [(0, 0, 1.0), (-1, 0, HALO), (1, 0, HALO), (0, -1, HALO), (0, 1, HALO)] {
+                let (px, py) = (x + dx, y + dy);
+                if px >= 0
+                    && py >= 0
+                    && px < w as i64
+                    && py < h as i64
+                    && buf.id_at(px as usize, py as usize) != NO_ID
+                {
+                    let at = serial.pixel(px as usize, py as usize);
+                    serial.set_pixel(px as usize, py as usize, at + c * weight);
+                }
+            }
+        }
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut banded = Frame::new(w, h);
+            pool.install(|| add_glints(&mut banded, &buf, &shown));
+            let bits = |f: &Frame| {
+                f.c0.data()
+                    .iter()
+                    .chain(f.c1.data())
+                    .chain(f.c2.data())
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&banded), bits(&serial), "{threads} threads");
+        }
+        assert!(serial.pixel(20, 16).x > 0.0 && serial.pixel(6, 17).z > 0.0);
+        assert_eq!(serial.pixel(4, 16), Vec3::ZERO);
     }
 
     fn render(sim: &SnowSim, settings: &SnowRenderSettings, width: usize, height: usize) -> Frame {
