@@ -671,10 +671,10 @@ fn glinting_faces(
             ![t[0], t[1], t[2], centre].iter().any(|&p| m.any_lit(p, 1.0))
         })
     };
-    // In parallel; rayon's collect keeps the triangles' order.
-    snow.par_iter()
-        .copied()
-        .filter(|t| {
+    // Which to keep, in parallel, straight into place; then those kept, in order.
+    let keep: Vec<bool> = snow
+        .par_iter()
+        .map(|t| {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
             n.y > 0.0
                 && n.dot(eye - t[0]) > 0.0
@@ -682,7 +682,8 @@ fn glinting_faces(
                 && may_show(t)
                 && !in_full_shadow(t)
         })
-        .collect()
+        .collect();
+    snow.iter().zip(keep).filter_map(|(t, keep)| keep.then_some(*t)).collect()
 }
 
 /// A triangle's image: its corners' box, pixels, its nearest corner's depth, and the
