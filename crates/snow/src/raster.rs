@@ -89,6 +89,16 @@ pub enum RasterError {
         /// Triangles given.
         triangles: usize,
     },
+    /// Indexed triangles whose indices are not three a triangle, each naming a vertex.
+    #[error(
+        "{indices} indices into {vertices} vertices: not three a triangle, each below the vertices' count"
+    )]
+    Indices {
+        /// Indices given.
+        indices: usize,
+        /// Vertices given.
+        vertices: usize,
+    },
 }
 
 /// A depth buffer with the id of the nearest triangle per pixel.
@@ -186,6 +196,21 @@ pub fn rasterize(
     Ok((buf, stats))
 }
 
+/// [`rasterize`] for triangles given as shared vertices `positions` and three
+/// `indices` a triangle: each vertex is projected once, not once per triangle corner.
+/// The same buffer and counts as [`rasterize`] of the triangles the indices name.
+pub fn rasterize_indexed(
+    view: &CameraView,
+    (positions, indices): (&[Vec3], &[u32]),
+    ids: Option<&[u32]>,
+    cull: Cull,
+) -> Result<(DepthBuffer, RasterStats), RasterError> {
+    let mut r = Rasterizer::default();
+    let stats = r.draw_indexed(view, (positions, indices), ids, cull)?.1;
+    let buf = r.parts.swap_remove(0);
+    Ok((buf, stats))
+}
+
 /// A rasteriser that keeps its buffers between calls, for many rasterisations of the
 /// same size (a depth map per snowfall direction): [`rasterize`] without the
 /// allocations. Same output as [`rasterize`].
@@ -220,23 +245,57 @@ impl Rasterizer {
         if !view.is_planar() {
             return Err(RasterError::NotPlanar);
         }
+        self.draw_source(view, Source::Soup(triangles), ids, cull)
+    }
+
+    /// Rasterise indexed triangles into the kept buffer and borrow it; see
+    /// [`rasterize_indexed`].
+    pub fn draw_indexed(
+        &mut self,
+        view: &CameraView,
+        (positions, indices): (&[Vec3], &[u32]),
+        ids: Option<&[u32]>,
+        cull: Cull,
+    ) -> Result<(&DepthBuffer, RasterStats), RasterError> {
+        if !view.is_planar() {
+            return Err(RasterError::NotPlanar);
+        }
+        let named = |&k: &u32| (k as usize) < positions.len();
+        if indices.len() % 3 != 0 || !indices.par_iter().all(named) {
+            return Err(RasterError::Indices { indices: indices.len(), vertices: positions.len() });
+        }
+        let (projector, perspective) = (Projector::new(view), view.is_perspective());
+        // Every vertex once, in parallel: what each triangle corner naming it would give.
+        let corners: Vec<Corner> =
+            positions.par_iter().map(|&p| corner(&projector, p, perspective)).collect();
+        self.draw_source(view, Source::Indexed { positions, indices, corners: &corners }, ids, cull)
+    }
+
+    fn draw_source(
+        &mut self,
+        view: &CameraView,
+        source: Source<'_>,
+        ids: Option<&[u32]>,
+        cull: Cull,
+    ) -> Result<(&DepthBuffer, RasterStats), RasterError> {
+        let triangles = source.len();
         if let Some(ids) = ids
-            && ids.len() != triangles.len()
+            && ids.len() != triangles
         {
-            return Err(RasterError::IdCount { ids: ids.len(), triangles: triangles.len() });
+            return Err(RasterError::IdCount { ids: ids.len(), triangles });
         }
         let (w, h) = view.size();
         let job = Job {
             projector: Projector::new(view),
-            triangles,
+            source,
             ids,
             cull,
             perspective: view.is_perspective(),
             w,
             h,
         };
-        let parts = self.prepare_parts(w, h, triangles.len());
-        let runs = triangles.len().div_ceil(RUN);
+        let parts = self.prepare_parts(w, h, triangles);
+        let runs = triangles.div_ceil(RUN);
         let results: Vec<(RasterStats, Vec<Setup>)> = self
             .parts
             .par_iter_mut()
@@ -277,7 +336,7 @@ impl Rasterizer {
 /// the buffer (`w × h` px).
 struct Job<'a> {
     projector: Projector<'a>,
-    triangles: &'a [[Vec3; 3]],
+    source: Source<'a>,
     ids: Option<&'a [u32]>,
     cull: Cull,
     perspective: bool,
@@ -294,7 +353,7 @@ impl Job<'_> {
         buf: &mut DepthBuffer,
         runs: impl Iterator<Item = usize>,
     ) -> (RasterStats, Vec<Setup>) {
-        let (w, h, perspective, triangles) = (self.w, self.h, self.perspective, self.triangles);
+        let (w, h, perspective, triangles) = (self.w, self.h, self.perspective, self.source.len());
         buf.width = w;
         buf.height = h;
         buf.depth.clear();
@@ -305,8 +364,7 @@ impl Job<'_> {
         let mut large = Vec::new();
         for run in runs {
             let first = run * RUN;
-            for (t, tri) in triangles[first..(first + RUN).min(triangles.len())].iter().enumerate() {
-                let t = first + t;
+            for t in first..(first + RUN).min(triangles) {
                 let id = self.ids.map_or(t as u32, |ids| ids[t]);
                 let cull = match self.cull {
                     Cull::BackAmongFirst(n) if t < n => Cull::Back,
@@ -315,11 +373,26 @@ impl Job<'_> {
                     Cull::BackFrom(_) => Cull::None,
                     c => c,
                 };
-                if self.projector.surely_culled(tri, cull) {
+                let (culled, corners) = match self.source {
+                    Source::Soup(tris) => {
+                        (self.projector.surely_culled(&tris[t], cull), Corners::Projected(&tris[t]))
+                    }
+                    Source::Indexed { positions, indices, corners } => {
+                        let k = [0, 1, 2].map(|c| indices[3 * t + c] as usize);
+                        let culled = self.projector.is_affine()
+                            && self.projector.surely_culled(&k.map(|k| positions[k]), cull);
+                        (culled, Corners::Given(k.map(|k| corners[k])))
+                    }
+                };
+                if culled {
                     stats.culled += 1;
                     continue;
                 }
-                match setup(&self.projector, tri, id, perspective, cull, w, h) {
+                let corners = match corners {
+                    Corners::Projected(tri) => tri.map(|p| corner(&self.projector, p, perspective)),
+                    Corners::Given(c) => c,
+                };
+                match setup_corners(corners, id, cull, w, h) {
                     Ok(Some(s)) => {
                         stats.drawn += 1;
                         if s.box_px() > LARGE_PX {
@@ -422,6 +495,59 @@ enum Skip {
     Clipped,
 }
 
+/// The triangles of one rasterisation.
+#[derive(Clone, Copy)]
+enum Source<'a> {
+    /// Three world-space corners each.
+    Soup(&'a [[Vec3; 3]]),
+    /// Three indices each into `positions`, whose projections are `corners`.
+    Indexed { positions: &'a [Vec3], indices: &'a [u32], corners: &'a [Corner] },
+}
+
+impl Source<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Self::Soup(tris) => tris.len(),
+            Self::Indexed { indices, .. } => indices.len() / 3,
+        }
+    }
+}
+
+/// A triangle's corners: to project, or projected.
+enum Corners<'a> {
+    Projected(&'a [Vec3; 3]),
+    Given([Corner; 3]),
+}
+
+/// A vertex as [`setup_corners`] meets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Corner {
+    /// Snapped to 1/256 px, with its depth (orthographic) or 1/depth (perspective).
+    At((i64, i64), f64),
+    /// A coordinate is not finite.
+    NonFinite,
+    /// Behind a perspective camera or more than [`MAX_PX`] off-screen.
+    Clipped,
+}
+
+/// Vertex `p` projected and snapped for [`setup_corners`].
+#[inline(always)]
+fn corner(view: &Projector, p: Vec3, perspective: bool) -> Corner {
+    if !p.is_finite() {
+        return Corner::NonFinite;
+    }
+    let Some((x, y, d)) = view.project(p) else { return Corner::Clipped };
+    let (x, y) = (f64::from(x), f64::from(y));
+    if !(x.abs() < MAX_PX && y.abs() < MAX_PX) {
+        return Corner::Clipped;
+    }
+    let d = f64::from(d);
+    Corner::At(
+        (round_half_even(x * SUBPIXEL), round_half_even(y * SUBPIXEL)),
+        if perspective { 1.0 / d } else { d },
+    )
+}
+
 /// Projection to pixels and depth: an orthographic view as three affine maps (nine
 /// multiply-adds per vertex), any other planar view through [`CameraView::project`].
 #[derive(Clone, Copy)]
@@ -436,6 +562,11 @@ impl<'a> Projector<'a> {
         view.orthographic_affine().map_or(Self::View(view), |[x, y, d]| {
             Self::Affine([x, y, d].map(|r| r.to_array()), d.truncate(), x.truncate().length())
         })
+    }
+
+    /// Whether [`Projector::surely_culled`] can ever answer yes.
+    fn is_affine(&self) -> bool {
+        matches!(self, Self::Affine(..))
     }
 
     /// (x px, y px, depth); `None` behind a perspective camera.
@@ -486,6 +617,7 @@ impl<'a> Projector<'a> {
     }
 }
 
+#[cfg(test)]
 fn setup(
     view: &Projector,
     tri: &[Vec3; 3],
@@ -495,20 +627,27 @@ fn setup(
     w: usize,
     h: usize,
 ) -> Result<Option<Setup>, Skip> {
-    if !tri.iter().all(|p| p.is_finite()) {
+    setup_corners(tri.map(|p| corner(view, p, perspective)), id, cull, w, h)
+}
+
+/// The triangle of `corners` (projected by [`corner`]) ready to draw; `None` when it
+/// covers no pixel centre of the `w × h` buffer. Skipped when a corner is not finite
+/// (degenerate), then when one is clipped, then by its snapped area and `cull`.
+fn setup_corners(
+    corners: [Corner; 3],
+    id: u32,
+    cull: Cull,
+    w: usize,
+    h: usize,
+) -> Result<Option<Setup>, Skip> {
+    if corners.contains(&Corner::NonFinite) {
         return Err(Skip::Degenerate);
     }
     let mut v = [(0i64, 0i64); 3];
     let mut z = [0.0f64; 3];
     for k in 0..3 {
-        let (x, y, d) = view.project(tri[k]).ok_or(Skip::Clipped)?;
-        let (x, y) = (f64::from(x), f64::from(y));
-        if !(x.abs() < MAX_PX && y.abs() < MAX_PX) {
-            return Err(Skip::Clipped);
-        }
-        v[k] = (round_half_even(x * SUBPIXEL), round_half_even(y * SUBPIXEL));
-        let d = f64::from(d);
-        z[k] = if perspective { 1.0 / d } else { d };
+        let Corner::At(at, depth) = corners[k] else { return Err(Skip::Clipped) };
+        (v[k], z[k]) = (at, depth);
     }
     // Signed doubled area with y down: positive for clockwise on screen, which is
     // counter-clockwise as seen by the camera with y up.
@@ -738,6 +877,74 @@ mod tests {
         let (buf, _) = rasterize(&view, &[ccw, cw], None, Cull::Back).unwrap();
         assert!(buf.ids().iter().all(|&i| i == 0 || i == NO_ID));
         assert!(buf.ids().contains(&0));
+    }
+
+    #[test]
+    fn indexed_triangles_give_the_soups_buffer_and_counts() {
+        // Closed octahedra (shared vertices), a few vertices not finite, behind the eye
+        // or far off-screen, some triangles large: drawn from their indices and from
+        // their corners, the same buffer and counts for orthographic, slanted and
+        // perspective views, each cull, given ids or not, on 1 and 3 threads.
+        let mut r = uniform(9);
+        let mut positions = Vec::new();
+        let mut indices = Vec::new();
+        for _ in 0..150 {
+            let base = positions.len() as u32;
+            let c = Vec3::new(r() * 4.0, r() * 2.0, r() * 4.0);
+            let s = 0.05 + 0.6 * r().abs();
+            positions.extend([Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z].map(|e| c + e * s));
+            for (a, b, t) in
+                [(0, 2, 4), (2, 1, 4), (1, 3, 4), (3, 0, 4), (2, 0, 5), (1, 2, 5), (3, 1, 5), (0, 3, 5)]
+            {
+                indices.extend([base + a, base + b, base + t]);
+            }
+        }
+        // A large floor, shared by two triangles.
+        let f = positions.len() as u32;
+        positions
+            .extend([(-6.0, -6.0), (6.0, -6.0), (6.0, 6.0), (-6.0, 6.0)].map(|(x, z)| Vec3::new(x, -1.5, z)));
+        indices.extend([f, f + 2, f + 1, f, f + 3, f + 2]);
+        positions[7] = Vec3::new(f32::NAN, 0.0, 0.0);
+        positions[20] = Vec3::new(0.0, 30.0, 0.0); // behind the perspective eye
+        positions[33] = Vec3::new(1e9, 0.0, 0.0); // far off-screen
+        let soup: Vec<[Vec3; 3]> =
+            indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| positions[t[k] as usize])).collect();
+        let ids: Vec<u32> = (0..soup.len() as u32).map(|t| t * 7 + 3).collect();
+        let perspective = Camera {
+            position: Vec3::new(0.0, 12.0, 2.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Z,
+            projection: Projection::Perspective { fov_y_deg: 70.0 },
+        }
+        .view(90, 70)
+        .unwrap();
+        let mut checked = 0;
+        for view in [top_view(80, 12.0), slanted_view(64, 12.0), perspective] {
+            for cull in [Cull::None, Cull::Back, Cull::Front, Cull::BackFrom(600), Cull::BackAmongFirst(500)]
+            {
+                for ids in [None, Some(&ids[..])] {
+                    let soup_drawn = rasterize(&view, &soup, ids, cull).unwrap();
+                    for threads in [1, 3] {
+                        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                        let drawn = pool
+                            .install(|| rasterize_indexed(&view, (&positions, &indices), ids, cull).unwrap());
+                        assert_eq!(drawn, soup_drawn, "{cull:?}, {threads} threads");
+                    }
+                    let (buf, stats) = soup_drawn;
+                    assert!(stats.degenerate >= 1 && stats.clipped >= 1 && stats.drawn > 100, "{stats:?}");
+                    assert!(buf.ids().iter().filter(|&&i| i != NO_ID).count() > 500);
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 30);
+        // Indices that do not name three vertices a triangle are refused.
+        for bad in [&indices[..4], &[0, 1, positions.len() as u32][..]] {
+            assert_eq!(
+                rasterize_indexed(&top_view(8, 1.0), (&positions, bad), None, Cull::None).err(),
+                Some(RasterError::Indices { indices: bad.len(), vertices: positions.len() })
+            );
+        }
     }
 
     #[test]

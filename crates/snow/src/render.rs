@@ -2,7 +2,7 @@
 //! the sky, with optional fog as in the paper's figures; or the snow probability P_a of
 //! the topmost map seen from above.
 
-use crate::raster::{Cull, DepthBuffer, NO_ID, rasterize};
+use crate::raster::{Cull, DepthBuffer, NO_ID, rasterize_indexed};
 use glam::Vec3;
 use phenomena_core::camera::{Camera, CameraView, Projected};
 use phenomena_core::clock::SharedClock;
@@ -454,6 +454,20 @@ fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
     (tris, snow)
 }
 
+/// The triangles [`triangles`] lists as shared vertices and three indices a triangle,
+/// for [`rasterize_indexed`]: the scene's corners each a vertex of its own, then the
+/// snow's mesh.
+fn indexed(scene: &[[Vec3; 3]], snow: &TriMesh) -> (Vec<Vec3>, Vec<u32>) {
+    let mut positions = Vec::with_capacity(3 * scene.len() + snow.positions.len());
+    positions.extend(scene.iter().flatten());
+    positions.extend_from_slice(&snow.positions);
+    let offset = 3 * scene.len() as u32;
+    let mut indices = Vec::with_capacity(3 * scene.len() + snow.indices.len());
+    indices.extend(0..offset);
+    indices.par_extend(snow.indices.par_iter().map(|&k| k + offset));
+    (positions, indices)
+}
+
 /// `f()`, its time (by `clock`) into `ms`.
 fn timed<T>(clock: &SharedClock, ms: &mut f64, f: impl FnOnce() -> T) -> T {
     let t = clock.stopwatch();
@@ -486,14 +500,23 @@ fn render_scene(
     // (`snow_surface`: they lie on the planar ground that holds the snow): their back
     // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
     let cull = Cull::BackFrom(scene.len());
-    let Ok((buf, _)) = timed(clock, &mut timings.raster_ms, || rasterize(&view, &tris, None, cull)) else {
+    // Drawn from the shared vertices (each projected once), for both the view and the
+    // sun's map.
+    let (indexed, raster) = timed(clock, &mut timings.raster_ms, || {
+        let indexed = indexed(scene, &snow);
+        let raster = rasterize_indexed(&view, (&indexed.0, &indexed.1), None, cull);
+        (indexed, raster)
+    });
+    let indexed = (&indexed.0[..], &indexed.1[..]);
+    let Ok((buf, _)) = raster else {
         let (d, seen) = none();
         return (frame, d, seen);
     };
     let eye = camera.position;
     let sun = settings.sun_direction.normalize_or_zero();
-    let shadows =
-        timed(clock, &mut timings.shadow_ms, || SunShadow::new(&tris, sun, settings.shadow_map_px, cull));
+    let shadows = timed(clock, &mut timings.shadow_ms, || {
+        SunShadow::new_indexed(&tris, indexed, sun, settings.shadow_map_px, cull)
+    });
     let lighting =
         Lighting { settings, sun, shadows, sky_seen: SkyVisibility { sim, fp: sim.footprint() }, lights };
     let t = clock.stopwatch();
@@ -840,7 +863,33 @@ impl SunShadow {
     /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
     /// side, with faces skipped as `cull` says; `None` for no shadows (0 pixels, no sun,
     /// nothing to shade).
+    #[cfg(test)]
     fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
+        Self::framed(tris, sun, px, |view| crate::raster::rasterize(view, tris, None, cull))
+    }
+
+    /// [`SunShadow::new`] drawing `tris` from their shared vertices and indices
+    /// (`rasterize_indexed`: the same map).
+    fn new_indexed(
+        tris: &[[Vec3; 3]],
+        indexed: (&[Vec3], &[u32]),
+        sun: Vec3,
+        px: u32,
+        cull: Cull,
+    ) -> Option<Self> {
+        Self::framed(tris, sun, px, |view| rasterize_indexed(view, indexed, None, cull))
+    }
+
+    /// The map of `tris` from direction `sun` at `px` pixels a side, drawn by `draw`.
+    fn framed(
+        tris: &[[Vec3; 3]],
+        sun: Vec3,
+        px: u32,
+        draw: impl FnOnce(
+            &CameraView,
+        )
+            -> Result<(DepthBuffer, crate::raster::RasterStats), crate::raster::RasterError>,
+    ) -> Option<Self> {
         if px == 0 || sun == Vec3::ZERO || tris.is_empty() {
             return None;
         }
@@ -855,7 +904,7 @@ impl SunShadow {
             projection: phenomena_core::camera::Projection::Orthographic { height_m: 2.0 * radius },
         };
         let view = camera.view(px as usize, px as usize)?;
-        let (buf, _) = rasterize(&view, tris, None, cull).ok()?;
+        let (buf, _) = draw(&view).ok()?;
         Some(Self { view, buf, texel_m: 2.0 * radius / px as f32 })
     }
 
@@ -1053,6 +1102,7 @@ mod tests {
     use super::*;
     use crate::glitter::{Glint, glints};
     use crate::mesh::table_scene;
+    use crate::raster::rasterize;
     use crate::sim::SnowConfig;
 
     #[test]
