@@ -496,27 +496,14 @@ fn render_scene(
     };
     let (tris, snow) = timed(clock, &mut timings.mesh_ms, || triangles(sim));
     timings.triangles = tris.len();
-    // The snow's texel solids face outwards and are closed but for the bottoms left out
-    // (`snow_surface`: they lie on the planar ground that holds the snow): their back
-    // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
-    let cull = Cull::BackFrom(scene.len());
-    // Drawn from the shared vertices (each projected once), for both the view and the
-    // sun's map.
-    let (indexed, raster) = timed(clock, &mut timings.raster_ms, || {
-        let indexed = indexed(scene, &snow);
-        let raster = rasterize_indexed(&view, (&indexed.0, &indexed.1), None, cull);
-        (indexed, raster)
-    });
-    let indexed = (&indexed.0[..], &indexed.1[..]);
-    let Ok((buf, _)) = raster else {
+    let sun = settings.sun_direction.normalize_or_zero();
+    let Some((buf, shadows)) =
+        depth_and_shadow(&view, (scene, &snow, &tris), (sun, settings), (clock, timings))
+    else {
         let (d, seen) = none();
         return (frame, d, seen);
     };
     let eye = camera.position;
-    let sun = settings.sun_direction.normalize_or_zero();
-    let shadows = timed(clock, &mut timings.shadow_ms, || {
-        SunShadow::new_indexed(&tris, indexed, sun, settings.shadow_map_px, cull)
-    });
     let lighting =
         Lighting { settings, sun, shadows, sky_seen: SkyVisibility { sim, fp: sim.footprint() }, lights };
     let t = clock.stopwatch();
@@ -558,6 +545,31 @@ fn render_scene(
         draw_flakes(sim, &settings.flakes, &view, &buf, flake_light, &mut frame)
     });
     (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
+}
+
+/// The view's depth buffer and the sun's shadow map (towards unit `sun`) of `tris` (the
+/// `scene`'s triangles, then the `snow` mesh's), both drawn from shared vertices (each
+/// projected once); `None` when the view cannot be drawn.
+fn depth_and_shadow(
+    view: &CameraView,
+    (scene, snow, tris): (&[[Vec3; 3]], &TriMesh, &[[Vec3; 3]]),
+    (sun, settings): (Vec3, &SnowRenderSettings),
+    (clock, timings): (&SharedClock, &mut SnowTimings),
+) -> Option<(DepthBuffer, Option<SunShadow>)> {
+    // The snow's texel solids face outwards and are closed but for the bottoms left out
+    // (`snow_surface`: they lie on the planar ground that holds the snow): their back
+    // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
+    let cull = Cull::BackFrom(scene.len());
+    let (indexed, raster) = timed(clock, &mut timings.raster_ms, || {
+        let indexed = indexed(scene, snow);
+        let raster = rasterize_indexed(view, (&indexed.0, &indexed.1), None, cull);
+        (indexed, raster)
+    });
+    let (buf, _) = raster.ok()?;
+    let shadows = timed(clock, &mut timings.shadow_ms, || {
+        SunShadow::new_indexed(tris, (&indexed.0, &indexed.1), sun, settings.shadow_map_px, cull)
+    });
+    Some((buf, shadows))
 }
 
 /// The glints of the snow's grains (`snow`: the snow's triangles) where the sun reaches
