@@ -289,7 +289,7 @@ impl Frame {
     /// the same frame for any thread count.
     pub fn par_bands(&mut self, rows: usize, f: impl Fn(usize, [&mut [f32]; 3]) + Sync) {
         let rows = rows.max(1);
-        let n = self.width().max(1) * rows;
+        let n = self.width().max(1).saturating_mul(rows);
         self.c0
             .data
             .par_chunks_mut(n)

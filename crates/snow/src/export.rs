@@ -238,7 +238,8 @@ impl<'a> Lattice<'a> {
         let step = CONTINUOUS_TEXELS * self.fp.texel_m;
         let grounds = Self::around(ci, cj).map(|(i, j)| self.ground(i, j));
         let continuous = grounds.iter().all(|g| g.is_some_and(|g| (g - ground).abs() <= step));
-        let feathered = c < 4 && continuous;
+        // Fewer than four snowy texels here (four returned above).
+        let feathered = continuous;
         let ground =
             if feathered { grounds.iter().map(|g| g.unwrap_or(ground)).sum::<f32>() / 4.0 } else { ground };
         let top = if feathered { ground } else { top };
@@ -797,19 +798,25 @@ mod tests {
     #[test]
     fn a_corner_inside_a_patch_is_its_four_texels_mean() {
         // Where all four texels around a corner hold snow, the corner lies at their mean
-        // top and ground (summed in the texels' order), is not feathered and is left
-        // where it is by the edges' smoothing.
+        // top and ground (summed in the texels' order), is not feathered, has no edge
+        // and is left where it is by the edges' smoothing; every other corner with snow
+        // is not `inside`.
         let sim = snowy_sim();
         let fp = sim.footprint();
-        let mut inside = 0;
+        let (mut inside, mut edges) = (0, 0);
         for map in sim.maps() {
             let lattice = Lattice::new(map, &fp);
             for c in 0..(fp.n + 1) * (fp.n + 1) {
                 let (ci, cj) = (c % (fp.n + 1), c / (fp.n + 1));
                 let around = Lattice::around(ci, cj);
                 if !around.iter().all(|&(i, j)| lattice.snowy(i, j)) {
+                    assert!(!lattice.inside(ci, cj));
+                    edges += usize::from(lattice.edge_neighbours(ci, cj).next().is_some());
                     continue;
                 }
+                // So the edges' smoothing may skip it: no lattice edge from it parts snow
+                // from bare ground.
+                assert!(lattice.inside(ci, cj) && lattice.edge_neighbours(ci, cj).next().is_none());
                 let texels = around.map(|(i, j)| j as usize * fp.n + i as usize);
                 let mean = |f: &dyn Fn(usize) -> f32| texels.iter().fold(0.0f32, |s, &k| s + f(k)) / 4.0;
                 let (top, ground) = (mean(&|k| map.surface(k)), mean(&|k| map.ground_m[k]));
@@ -822,7 +829,7 @@ mod tests {
                 inside += 1;
             }
         }
-        assert!(inside >= 100, "{inside} corners inside patches");
+        assert!(inside >= 100 && edges >= 20, "{inside} corners inside patches, {edges} on edges");
     }
 
     #[test]

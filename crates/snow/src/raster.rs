@@ -212,8 +212,9 @@ pub fn rasterize_indexed(
 }
 
 /// A rasteriser that keeps its buffers between calls, for many rasterisations of the
-/// same size (a depth map per snowfall direction): [`rasterize`] without the
-/// allocations. Same output as [`rasterize`].
+/// same size (a depth map per snowfall direction): [`rasterize`] without allocating
+/// the buffers again ([`Rasterizer::draw_indexed`] still makes its table of projected
+/// vertices each call). Same output as [`rasterize`].
 ///
 /// How it runs: runs of `RUN` consecutive triangles are dealt round-robin to a few
 /// parts (about one per thread), each drawing into a buffer of its own; the parts are
@@ -586,7 +587,7 @@ impl<'a> Projector<'a> {
     /// when its normal n = (b − a) × (c − a) points along the view direction f; on
     /// screen, before rounding, its doubled area is s²(n·f) for s pixels per metre. The
     /// answer is only `true` when s²|n·f| exceeds a bound on every difference between
-    /// that and the snapped doubled area [`setup`] tests:
+    /// that and the snapped doubled area [`setup_corners`] tests:
     /// - f32 rounding of n·f and of the rows' own axes: allowed 10⁻⁵ of
     ///   s²|b − a|₁|c − a|₁, far above the few ulps they can be;
     /// - each screen coordinate moved by δ at most: 1/512 px by snapping to 1/256 px, plus
@@ -596,7 +597,7 @@ impl<'a> Projector<'a> {
     ///   2δ(|e₁'|₁ + |e₂'|₁) + 8δ², and a world edge e spans at most 2s|e|₁ pixels in
     ///   L1 on screen: 4δs(|b − a|₁ + |c − a|₁) + 8δ², plus 10⁻³ px² to spare.
     ///
-    /// So it never skips a triangle that [`setup`] would draw, and the buffer is the same
+    /// So it never skips a triangle that [`setup_corners`] would draw, and the buffer is the same
     /// with or without it (tested, near the origin and 10⁴ m from it).
     #[inline(always)]
     fn surely_culled(&self, tri: &[Vec3; 3], cull: Cull) -> bool {
@@ -617,6 +618,7 @@ impl<'a> Projector<'a> {
     }
 }
 
+/// The old one-triangle entry: [`setup_corners`] of `tri`'s corners.
 #[cfg(test)]
 fn setup(
     view: &Projector,
@@ -630,8 +632,8 @@ fn setup(
     setup_corners(tri.map(|p| corner(view, p, perspective)), id, cull, w, h)
 }
 
-/// The triangle of `corners` (projected by [`corner`]) ready to draw; `None` when it
-/// covers no pixel centre of the `w × h` buffer. Skipped when a corner is not finite
+/// The triangle of `corners` (projected by [`corner`]) ready to draw; `None` when its
+/// bounding box holds no pixel centre of the `w × h` buffer. Skipped when a corner is not finite
 /// (degenerate), then when one is clipped, then by its snapped area and `cull`.
 fn setup_corners(
     corners: [Corner; 3],

@@ -197,7 +197,8 @@ pub struct SnowRenderer {
 pub struct SnowTimings {
     /// The snow's surface made into triangles ([`snow_surface`]) beside the scene's.
     pub mesh_ms: f64,
-    /// The camera's depth buffer of every triangle.
+    /// The camera's depth buffer of every triangle (with the shared vertices and
+    /// indices it is drawn from, which the shadow map draws from too).
     pub raster_ms: f64,
     /// The sun's shadow map.
     pub shadow_ms: f64,
@@ -456,16 +457,20 @@ fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
 
 /// The triangles [`triangles`] lists as shared vertices and three indices a triangle,
 /// for [`rasterize_indexed`]: the scene's corners each a vertex of its own, then the
-/// snow's mesh.
-fn indexed(scene: &[[Vec3; 3]], snow: &TriMesh) -> (Vec<Vec3>, Vec<u32>) {
-    let mut positions = Vec::with_capacity(3 * scene.len() + snow.positions.len());
+/// snow's mesh. `None` past 2³² vertices (what a `u32` index can name).
+fn indexed(scene: &[[Vec3; 3]], snow: &TriMesh) -> Option<(Vec<Vec3>, Vec<u32>)> {
+    let vertices = scene.len().checked_mul(3)?.checked_add(snow.positions.len())?;
+    u32::try_from(vertices).ok()?;
+    let offset = u32::try_from(3 * scene.len()).ok()?;
+    let mut positions = Vec::with_capacity(vertices);
     positions.extend(scene.iter().flatten());
     positions.extend_from_slice(&snow.positions);
-    let offset = 3 * scene.len() as u32;
     let mut indices = Vec::with_capacity(3 * scene.len() + snow.indices.len());
     indices.extend(0..offset);
-    indices.par_extend(snow.indices.par_iter().map(|&k| k + offset));
-    (positions, indices)
+    // The snow's indices name its vertices, so each sum stays below `vertices`; one that
+    // does not (a bad mesh) saturates and the rasteriser refuses it.
+    indices.par_extend(snow.indices.par_iter().map(|&k| k.saturating_add(offset)));
+    Some((positions, indices))
 }
 
 /// `f()`, its time (by `clock`) into `ms`.
@@ -561,10 +566,10 @@ fn depth_and_shadow(
     // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
     let cull = Cull::BackFrom(scene.len());
     let (indexed, raster) = timed(clock, &mut timings.raster_ms, || {
-        let indexed = indexed(scene, snow);
+        let indexed = indexed(scene, snow)?;
         let raster = rasterize_indexed(view, (&indexed.0, &indexed.1), None, cull);
-        (indexed, raster)
-    });
+        Some((indexed, raster))
+    })?;
     let (buf, _) = raster.ok()?;
     let shadows = timed(clock, &mut timings.shadow_ms, || {
         SunShadow::new_indexed(tris, (&indexed.0, &indexed.1), sun, settings.shadow_map_px, cull)
@@ -873,15 +878,16 @@ struct SunShadow {
 
 impl SunShadow {
     /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
-    /// side, with faces skipped as `cull` says; `None` for no shadows (0 pixels, no sun,
-    /// nothing to shade).
+    /// side, with faces skipped as `cull` says (see [`SunShadow::framed`]).
     #[cfg(test)]
     fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
         Self::framed(tris, sun, px, |view| crate::raster::rasterize(view, tris, None, cull))
     }
 
-    /// [`SunShadow::new`] drawing `tris` from their shared vertices and indices
-    /// (`rasterize_indexed`: the same map).
+    /// The map of `tris` (towards unit `sun`, `px` pixels a side, faces skipped as
+    /// `cull` says) drawn from their shared vertices and indices `indexed`
+    /// ([`rasterize_indexed`]: the same map as drawing `tris` themselves); see
+    /// [`SunShadow::framed`].
     fn new_indexed(
         tris: &[[Vec3; 3]],
         indexed: (&[Vec3], &[u32]),
@@ -892,7 +898,9 @@ impl SunShadow {
         Self::framed(tris, sun, px, |view| rasterize_indexed(view, indexed, None, cull))
     }
 
-    /// The map of `tris` from direction `sun` at `px` pixels a side, drawn by `draw`.
+    /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
+    /// side, framed on their box and drawn by `draw`; `None` for no shadows (0 pixels,
+    /// no sun, nothing to shade, or a map that cannot be drawn).
     fn framed(
         tris: &[[Vec3; 3]],
         sun: Vec3,
