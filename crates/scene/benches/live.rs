@@ -4,7 +4,8 @@
 //!
 //! Before a scene's benchmark, twelve frames from the middle are timed with a wall clock
 //! through the runner's records and one line goes to stderr: the particles, the median
-//! step and render, their shares, the reference chain timed just before and after those
+//! step and render, their shares (where a scene steps its next frame beside the render,
+//! that step's time within the render), the reference chain timed just before and after those
 //! frames (and the sum in chains, and at a quiet day's chain), and the renderer's own
 //! breakdown where it has one (the aurora: emission, deposit, ...). Run one scene with
 //! `cargo bench -p phenomena-scene --bench live -- aurora-scene2`.
@@ -80,13 +81,20 @@ fn ready(name: &str) -> Runner {
     let after = reference::chain_ms_now(3);
     let step = median(records.0.iter().map(|r| r.step_ms).collect());
     let render = median(records.0.iter().map(|r| r.render_ms.unwrap_or(0.0)).collect());
+    // A step taken beside the render (the snow's): within `render`.
+    let aheads: Vec<f64> = records.0.iter().filter_map(|r| r.ahead_ms).collect();
+    let ahead = if aheads.is_empty() {
+        String::new()
+    } else {
+        format!(", the next frame's step {:.1} ms of it taken beside the render", median(aheads))
+    };
     let last = records.0.last().expect("twelve records");
     let particles = last.counters.get("particles").map_or("-".to_string(), ToString::to_string);
     let total = step + render;
     // The chain read just before and after these frames: the load they ran under.
     let chain = 0.5 * (before + after);
     eprintln!(
-        "live {name}: {particles} particles; median step {step:.1} ms ({:.0} %), render {render:.1} ms ({:.0} %), sum {total:.1} ms; reference chain_2e22 {before:.1} ms before, {after:.1} after: sum {:.2} chains, {:.1} ms at the quiet day's chain ({QUIET_CHAIN_MS} ms); render detail {}",
+        "live {name}: {particles} particles; median step {step:.1} ms ({:.0} %), render {render:.1} ms ({:.0} %{ahead}), sum {total:.1} ms; reference chain_2e22 {before:.1} ms before, {after:.1} after: sum {:.2} chains, {:.1} ms at the quiet day's chain ({QUIET_CHAIN_MS} ms); render detail {}",
         100.0 * step / total.max(1e-9),
         100.0 * render / total.max(1e-9),
         total / chain,

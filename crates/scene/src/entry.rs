@@ -149,7 +149,9 @@ pub(crate) trait Dispatch: Sync {
 
     // Its built simulations.
     fn step(&self, built: &mut dyn Any) -> Result<Value, String>;
-    fn render(&self, built: &mut dyn Any, preview: Option<u32>);
+    /// Render; the time of the next frame's step when it was taken beside the render
+    /// (timed on `clock`).
+    fn render(&self, built: &mut dyn Any, preview: Option<u32>, clock: &SharedClock) -> Option<f64>;
     fn frame<'a>(&self, built: &'a dyn Any) -> &'a Frame;
     fn layers<'a>(&self, built: &'a dyn Any) -> Vec<Layer<'a>>;
     fn render_detail(&self, built: &dyn Any) -> Option<Value>;
@@ -182,6 +184,19 @@ struct Live<P: Phenomenon> {
     /// The scene's checkpoint identity ([`checkpoint::identity`]).
     identity: u64,
     seed: u64,
+    /// A copy of the simulation the next frame is stepped on while this one renders
+    /// ([`Phenomenon::sync_spare`]).
+    spare: Option<P::Sim>,
+    /// The spare's step, when the spare holds the next frame: the next `step` takes it
+    /// (swapping the spare in) instead of stepping. Anything else that changes the
+    /// simulation (steering, a checkpoint, a clock) drops it.
+    ahead: Option<Result<Value, String>>,
+}
+
+/// Step `sim` one frame, its counters as JSON.
+fn step_value<S: Simulation>(sim: &mut S) -> Result<Value, String> {
+    let stats = sim.step().map_err(|e| e.to_string())?;
+    serde_json::to_value(stats).map_err(|e| e.to_string())
 }
 
 /// `P`'s file struct in `file` (the entry that made the box opens it).
@@ -340,20 +355,49 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
         let estimate = estimate(scene, &loaded).within(limits)?;
         let identity = checkpoint::identity(P::NAME, &scene.simulation_tables(), P::files_identity(&loaded));
         let seed = scene.settings().seed;
-        let live = Live::<P> { built: scene.build(loaded)?, identity, seed };
+        let live = Live::<P> { built: scene.build(loaded)?, identity, seed, spare: None, ahead: None };
         Ok((Box::new(live), estimate))
     }
 
+    /// The step taken ahead while the last frame rendered, if there is one (the spare,
+    /// which took it, swapped in when it went well), else a step now.
     fn step(&self, b: &mut dyn Any) -> Result<Value, String> {
-        let stats = live_mut::<P>(b).built.sim.step().map_err(|e| e.to_string())?;
-        serde_json::to_value(stats).map_err(|e| e.to_string())
+        let live = live_mut::<P>(b);
+        match (live.ahead.take(), live.spare.as_mut()) {
+            (Some(Ok(counters)), Some(spare)) => {
+                std::mem::swap(&mut live.built.sim, spare);
+                Ok(counters)
+            }
+            (Some(Err(e)), _) => Err(e),
+            _ => step_value(&mut live.built.sim),
+        }
     }
 
-    fn render(&self, b: &mut dyn Any, preview: Option<u32>) {
-        let built = &mut live_mut::<P>(b).built;
-        P::before_render(built, preview);
-        let Built { sim, renderer, .. } = built;
-        renderer.render(sim);
+    /// Render the current state; where the phenomenon steps ahead
+    /// ([`Phenomenon::sync_spare`]) and the next frame is not stepped yet, step it on
+    /// the spare at the same time (`rayon::join`: the step's one-thread parts run while
+    /// the render's parallel parts take the other threads). The simulation itself is
+    /// left as it was, so what is read after the render (a checkpoint, a volume) is
+    /// this frame's. Gives the time of the step taken beside the render.
+    fn render(&self, b: &mut dyn Any, preview: Option<u32>, clock: &SharedClock) -> Option<f64> {
+        let live = live_mut::<P>(b);
+        P::before_render(&mut live.built, preview);
+        let Live { built: Built { sim, renderer, .. }, spare, ahead, .. } = live;
+        if ahead.is_none()
+            && P::sync_spare(sim, spare)
+            && let Some(next) = spare.as_mut()
+        {
+            let step = || {
+                let t = clock.stopwatch();
+                (step_value(next), t.ms())
+            };
+            let ((stepped, ms), _) = rayon::join(step, || renderer.render(sim));
+            *ahead = Some(stepped);
+            Some(ms)
+        } else {
+            renderer.render(sim);
+            None
+        }
     }
 
     fn frame<'a>(&self, b: &'a dyn Any) -> &'a Frame {
@@ -369,7 +413,9 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
     }
 
     fn set_clock(&self, b: &mut dyn Any, clock: &SharedClock) {
-        P::set_clock(&mut live_mut::<P>(b).built, clock)
+        let live = live_mut::<P>(b);
+        live.ahead = None;
+        P::set_clock(&mut live.built, clock)
     }
 
     fn export(&self, b: &dyn Any, name: &str, format: &str) -> Result<Exported, String> {
@@ -377,7 +423,9 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
     }
 
     fn steer(&self, b: &mut dyn Any, path: &str, value: &Value) -> Steer {
-        P::steer(&mut live_mut::<P>(b).built, path, value)
+        let live = live_mut::<P>(b);
+        live.ahead = None;
+        P::steer(&mut live.built, path, value)
     }
 
     fn warnings<'a>(&self, b: &'a dyn Any) -> &'a [String] {
@@ -400,7 +448,9 @@ impl<P: Phenomenon> Dispatch for Registered<P> {
 
     fn restore(&self, b: &mut dyn Any, payload: &[u8]) -> Result<(), CheckpointError> {
         let state = checkpoint::decode_state(payload)?;
-        live_mut::<P>(b).built.sim.restore(state).map_err(|e| CheckpointError::State(e.to_string()))
+        let live = live_mut::<P>(b);
+        live.ahead = None;
+        live.built.sim.restore(state).map_err(|e| CheckpointError::State(e.to_string()))
     }
 
     fn checkpoint(&self, b: &dyn Any) -> Result<Vec<u8>, SinkError> {

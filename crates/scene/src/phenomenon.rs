@@ -343,7 +343,7 @@ pub trait Phenomenon:
     const COMPOSITE: bool = false;
 
     /// The simulation.
-    type Sim: Simulation;
+    type Sim: Simulation + Sync;
     /// Its renderer.
     type Renderer: Renderer<Self::Sim>;
     /// The scene's files, read and decoded (a mesh, a background image).
@@ -444,6 +444,14 @@ pub trait Phenomenon:
     /// Export `name` ([`Phenomenon::EXPORTS`]) in `format`.
     fn export(_built: &Built<Self>, name: &str, _format: &str) -> Result<Exported, String> {
         Err(format!("{} scenes export nothing called `{name}`", Self::NAME))
+    }
+    /// Make `spare` a copy of `sim` that steps as `sim` would (made the first time), and
+    /// say so: the next frame is then stepped on it while this frame renders, and the
+    /// next step takes it. `false` (the default): the phenomenon steps after its render.
+    /// Worth it where part of the step runs on one thread while the render keeps every
+    /// thread busy (the snow's flood); the frames are the same either way.
+    fn sync_spare(_sim: &Self::Sim, _spare: &mut Option<Self::Sim>) -> bool {
+        false
     }
     /// Change parameter `path` of the running simulation to `value` without a restart.
     fn steer(_built: &mut Built<Self>, _path: &str, _value: &Value) -> Steer {

@@ -140,7 +140,8 @@ impl Runner {
         let t = self.clock.stopwatch();
         // A preview's subset turns with the frames simulated (0 before the first step).
         let done = self.frames_done();
-        self.entry.ops().render(&mut *self.built, self.preview.then_some(done));
+        record.ahead_ms =
+            self.entry.ops().render(&mut *self.built, self.preview.then_some(done), &self.clock);
         record.render_ms = Some(t.ms());
         record.render_detail = self.entry.ops().render_detail(&*self.built);
     }

@@ -27,6 +27,11 @@ pub struct FrameRecord {
     pub step_ms: f64,
     /// Time of the render, ms (`None`: not rendered).
     pub render_ms: Option<f64>,
+    /// The next frame's step when it was taken on a spare beside this render (a snow
+    /// scene's), ms: within `render_ms`, and the next frame's `step_ms` is then only
+    /// taking it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ahead_ms: Option<f64>,
     /// The renderer's own breakdown of `render_ms`, where it has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub render_detail: Option<Value>,

@@ -246,7 +246,8 @@ impl Phenomenon for SnowScene {
     /// transit, marks and distances per texel of every map), one depth map per worker thread for the
     /// probability (depth and id per pixel, the rasteriser's parts), the scene's
     /// triangles twice (as given and ordered for culling), the snow mesh drawn each
-    /// frame, and the frame with its depth buffer.
+    /// frame, the frame with its depth buffer, and a spare of the simulation's parts
+    /// (the next frame is stepped on it while a frame renders).
     fn estimate(&self, files: &SnowFiles) -> Estimate {
         let c = &self.snow;
         let maps = SnowSim::check(&files.mesh, c).unwrap_or(1) as f64;
@@ -265,6 +266,12 @@ impl Phenomenon for SnowScene {
         if c.stabiliser == phenomena_snow::Stabiliser::Flood {
             parts.insert(1, ("flood stabilisation's buffers", maps * n2 * 36.0));
         }
+        // The spare simulation the next frame is stepped on while a frame renders
+        // (`sync_spare`): the simulation's parts again.
+        let spare =
+            parts.iter().filter(|(what, _)| !what.starts_with("snow mesh") && !what.starts_with("frame"));
+        let spare = spare.map(|(_, bytes)| bytes).sum();
+        parts.push(("a spare of the simulation, stepped while a frame renders", spare));
         Estimate::of(
             format!(
                 "{} directions × {}² depth-map pixels per probability; {maps:.0} maps of {}² texels, up to {} stabilisation passes a step; {triangles:.0} triangles; {w}x{h} pixels",
@@ -328,6 +335,17 @@ impl Phenomenon for SnowScene {
         let renderer = SnowRenderer::new(self.render.clone(), w, h, background.as_ref())
             .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings })
+    }
+
+    /// The flood that brings the snow to rest runs on one thread (8-10 ms of the
+    /// yard's step); stepped on a spare while the frame renders, the render's threads
+    /// fill that time.
+    fn sync_spare(sim: &SnowSim, spare: &mut Option<SnowSim>) -> bool {
+        match spare {
+            Some(s) => s.sync_from(sim),
+            None => *spare = Some(sim.clone()),
+        }
+        true
     }
 
     fn set_clock(built: &mut Built<Self>, clock: &phenomena_core::clock::SharedClock) {

@@ -1374,4 +1374,22 @@ impl SnowSim {
         self.fallen_off_m3 = state.fallen_off_m3;
         Ok(())
     }
+
+    /// Make this simulation continue as `other` does: what [`SnowSim::restore`] of
+    /// `other.state()` makes, without the checks or new buffers (the maps are copied into
+    /// this one's). Both must be built from the same configuration and mesh, with grounds
+    /// unchanged through [`SnowSim::maps_mut`] (a checkpoint's contract); a simulation
+    /// stepped ahead on a spare copy while the frame renders is kept in step so.
+    pub fn sync_from(&mut self, other: &SnowSim) {
+        if self.maps.len() != other.maps.len() {
+            self.maps.clone_from(&other.maps);
+        }
+        for (map, from) in self.maps.iter_mut().zip(&other.maps) {
+            map.snow_m.clone_from(&from.snow_m);
+            map.probability.clone_from(&from.probability);
+        }
+        self.steps = other.steps;
+        self.time_h = other.time_h;
+        self.fallen_off_m3 = other.fallen_off_m3;
+    }
 }

@@ -421,3 +421,36 @@ fn snow_walled_in_by_deeper_snow_stays_where_it_is() {
         }
     }
 }
+
+#[test]
+fn a_spare_synced_from_a_simulation_steps_as_it_does() {
+    // Heavy snow that slides off the table's edges and falls off the scene, with the
+    // probability drawn again every second step: every part of the state a step reads.
+    let params = SnowConfig {
+        map_resolution: 48,
+        directions: 8,
+        shadow_resolution: 64,
+        rate_cm_per_h: 400.0,
+        repose_deg: 35.0,
+        probability_every_steps: 2,
+        ..SnowConfig::default()
+    };
+    let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).expect("table scene");
+    let mut spare = s.clone();
+    for _ in 0..5 {
+        s.step().expect("steps");
+    }
+    // The spare is five steps behind; synced, it takes the next steps as `s` does.
+    spare.sync_from(&s);
+    assert_eq!(spare.state(), s.state());
+    for step in 0..4 {
+        let (a, b) = (s.step().expect("steps"), spare.step().expect("steps"));
+        assert_eq!(a, b, "step {step}");
+        assert_eq!(spare.state(), s.state(), "step {step}");
+        let bits = |sim: &SnowSim| -> Vec<u32> {
+            sim.maps().iter().flat_map(|m| m.ground_m.iter().chain(&m.snow_m).map(|x| x.to_bits())).collect()
+        };
+        assert_eq!(bits(&spare), bits(&s), "step {step}");
+    }
+    assert!(s.fallen_off_m3() > 0.0, "the test should see snow fall off the scene");
+}

@@ -380,6 +380,7 @@ impl FrameSink for PreviewSink<'_> {
             "length": self.length,
             "step_ms": r.step_ms,
             "render_ms": r.render_ms,
+            "ahead_ms": r.ahead_ms,
             "tonemap_ms": t.elapsed().as_secs_f64() * 1e3,
             "counters": r.counters,
         });

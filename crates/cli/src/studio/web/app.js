@@ -317,6 +317,8 @@ function onCounters(msg) {
   studio.counters = msg;
   const c = msg.counters || {};
   const parts = [`step ${msg.step_ms.toFixed(1)} ms`, `render ${msg.render_ms.toFixed(1)} ms`];
+  // A snow scene steps its next frame beside the render (within render_ms).
+  if (msg.ahead_ms != null) parts.push(`next step ${msg.ahead_ms.toFixed(1)} ms beside it`);
   if (c.virtual_count != null) parts.unshift(`virtual ${c.virtual_count.toExponential(2)}`, `generated ${c.generated}`);
   else if (c.particles != null) parts.unshift(`particles now ${c.particles.toLocaleString('en')}`);
   $('counters').textContent = parts.join(' · ');
