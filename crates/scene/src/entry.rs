@@ -229,10 +229,16 @@ fn live_mut<P: Phenomenon>(built: &mut dyn Any) -> &mut Live<P> {
 }
 
 /// The phenomenon's estimate plus writing a frame: the frame interleaved as f32 and as
-/// 8-bit sRGB for PNG (EXR copies the planes, the same order of size).
+/// 8-bit sRGB for PNG (EXR copies the planes, the same order of size), and the spare it
+/// steps ahead on ([`Phenomenon::spare_bytes`]; charged also to a run that renders no
+/// frame, which makes none).
 fn estimate<P: Phenomenon>(scene: &P, loaded: &P::Loaded) -> Estimate {
     let (w, h) = scene.settings().size();
-    scene.estimate(loaded).with("writing a frame", (w as u64) * (h as u64) * 15)
+    let estimate = scene.estimate(loaded).with("writing a frame", (w as u64) * (h as u64) * 15);
+    match scene.spare_bytes(loaded) {
+        0 => estimate,
+        spare => estimate.with("a spare of the simulation, stepped while a frame renders", spare),
+    }
 }
 
 impl<P: Phenomenon> Dispatch for Registered<P> {

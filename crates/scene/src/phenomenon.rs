@@ -453,6 +453,11 @@ pub trait Phenomenon:
     fn sync_spare(_sim: &Self::Sim, _spare: &mut Option<Self::Sim>) -> bool {
         false
     }
+    /// Bytes the spare of [`Phenomenon::sync_spare`] takes (0: none), charged to a
+    /// scene of this phenomenon alone (a shot steps its parts without one).
+    fn spare_bytes(&self, _loaded: &Self::Loaded) -> u64 {
+        0
+    }
     /// Change parameter `path` of the running simulation to `value` without a restart.
     fn steer(_built: &mut Built<Self>, _path: &str, _value: &Value) -> Steer {
         Steer::NotLive

@@ -246,8 +246,7 @@ impl Phenomenon for SnowScene {
     /// transit, marks and distances per texel of every map), one depth map per worker thread for the
     /// probability (depth and id per pixel, the rasteriser's parts), the scene's
     /// triangles twice (as given and ordered for culling), the snow mesh drawn each
-    /// frame, the frame with its depth buffer, and a spare of the simulation's parts
-    /// (the next frame is stepped on it while a frame renders).
+    /// frame, and the frame with its depth buffer.
     fn estimate(&self, files: &SnowFiles) -> Estimate {
         let c = &self.snow;
         let maps = SnowSim::check(&files.mesh, c).unwrap_or(1) as f64;
@@ -266,12 +265,6 @@ impl Phenomenon for SnowScene {
         if c.stabiliser == phenomena_snow::Stabiliser::Flood {
             parts.insert(1, ("flood stabilisation's buffers", maps * n2 * 36.0));
         }
-        // The spare simulation the next frame is stepped on while a frame renders
-        // (`sync_spare`): the simulation's parts again.
-        let spare =
-            parts.iter().filter(|(what, _)| !what.starts_with("snow mesh") && !what.starts_with("frame"));
-        let spare = spare.map(|(_, bytes)| bytes).sum();
-        parts.push(("a spare of the simulation, stepped while a frame renders", spare));
         Estimate::of(
             format!(
                 "{} directions × {}² depth-map pixels per probability; {maps:.0} maps of {}² texels, up to {} stabilisation passes a step; {triangles:.0} triangles; {w}x{h} pixels",
@@ -335,6 +328,22 @@ impl Phenomenon for SnowScene {
         let renderer = SnowRenderer::new(self.render.clone(), w, h, background.as_ref())
             .map_err(|e| BuildError::render("render", e))?;
         Ok(Built { sim, renderer, warnings })
+    }
+
+    /// The spare is a clone: the maps and the flood's buffers, the scene's triangles
+    /// twice, and one depth map per thread where the probability is drawn again as the
+    /// snow lies (a clone's depth maps are made when first drawn).
+    fn spare_bytes(&self, files: &SnowFiles) -> u64 {
+        let c = &self.snow;
+        let maps = SnowSim::check(&files.mesh, c).unwrap_or(1) as f64;
+        let n2 = f64::from(c.map_resolution).powi(2);
+        let flood = if c.stabiliser == phenomena_snow::Stabiliser::Flood { 36.0 } else { 0.0 };
+        let mut bytes = maps * n2 * (32.0 + flood) + files.mesh.len() as f64 * 2.0 * 40.0;
+        if c.probability_every_steps > 0 {
+            let threads = rayon::current_num_threads() as f64;
+            bytes += threads * f64::from(c.shadow_resolution).powi(2) * 16.0;
+        }
+        bytes as u64
     }
 
     /// The flood that brings the snow to rest runs on one thread (8-10 ms of the

@@ -6,10 +6,11 @@
 //! continuing from itself (the step taken ahead dropped).
 
 use phenomena_core::image::Frame;
+use phenomena_scene::checkpoint;
 use phenomena_scene::shipped::SHIPPED;
 use phenomena_scene::snow::SnowScene;
 use phenomena_scene::{Assets, FrameSink, Output, Runner, Scene, SinkError};
-use phenomena_snow::{SnowRenderer, SnowSim};
+use phenomena_snow::{SnowRenderer, SnowSim, SnowState};
 use serde_json::Value;
 
 /// Every frame given: its index, image, checkpoint and counters; and how many frames
@@ -26,8 +27,9 @@ impl FrameSink for Keep {
     }
 }
 
-/// The shipped snow yard, small and heavy: 48² maps, 16 directions, 96x54 pixels, and
-/// snow falling fast enough to slide off its roofs within the frames drawn.
+/// The shipped snow yard, small and heavy: 48² maps, 16 directions, 96x54 pixels, snow
+/// falling fast enough to slide off its roofs within the frames drawn, and its
+/// probability drawn again every second step (so the spare syncs a changed one).
 fn yard() -> Scene {
     let shipped = SHIPPED.iter().find(|s| s.name == "snow-yard").expect("the yard is shipped");
     let mut scene = shipped.scene().unwrap_or_else(|e| panic!("{e}"));
@@ -36,6 +38,7 @@ fn yard() -> Scene {
     file.snow.directions = 16;
     file.snow.shadow_resolution = 64;
     file.snow.rate_cm_per_h = 60.0;
+    file.snow.probability_every_steps = 2;
     file.scene.width = 96;
     file.scene.height = 54;
     scene
@@ -62,10 +65,18 @@ fn frames_stepped_ahead_are_those_stepped_after_each_render() {
     assert_eq!(kept.0.len(), frames as usize);
     // Each render took the next frame's step beside it.
     assert_eq!(kept.1, frames as usize);
-    for (index, frame, _, counters) in &kept.0 {
+    for (index, frame, bytes, counters) in &kept.0 {
         let stats = serde_json::to_value(sim.step().expect("steps")).expect("counters");
         assert_eq!(counters, &stats, "frame {index}: the counters");
         assert_eq!(frame, renderer.render(&sim), "frame {index}: the image");
+        // The frame's checkpoint holds this frame's state, not the next one's.
+        let (header, payload) = checkpoint::open(bytes).expect("a checkpoint");
+        let state: SnowState = checkpoint::decode_state(payload).expect("the snow's state");
+        assert_eq!(
+            (header.frames_done, &state),
+            (sim.steps(), &sim.state()),
+            "frame {index}: the checkpoint"
+        );
     }
     assert!(sim.fallen_off_m3() > 0.0, "the frames should see snow fall off the yard");
 }

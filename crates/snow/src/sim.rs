@@ -1379,10 +1379,13 @@ impl SnowSim {
     /// `other.state()` makes, without the checks or new buffers (the maps are copied into
     /// this one's). Both must be built from the same configuration and mesh, with grounds
     /// unchanged through [`SnowSim::maps_mut`] (a checkpoint's contract); a simulation
-    /// stepped ahead on a spare copy while the frame renders is kept in step so.
+    /// stepped ahead on a spare copy while the frame renders is kept in step so. Maps of
+    /// another number or size make this a clone of `other`.
     pub fn sync_from(&mut self, other: &SnowSim) {
-        if self.maps.len() != other.maps.len() {
-            self.maps.clone_from(&other.maps);
+        let texels = |s: &SnowSim| s.maps.first().map(|m| m.snow_m.len());
+        if self.maps.len() != other.maps.len() || texels(self) != texels(other) {
+            *self = other.clone();
+            return;
         }
         for (map, from) in self.maps.iter_mut().zip(&other.maps) {
             map.snow_m.clone_from(&from.snow_m);

@@ -437,10 +437,15 @@ fn a_spare_synced_from_a_simulation_steps_as_it_does() {
     };
     let mut s = SnowSim::new(table_scene(4.0, 1.2, 0.7), params, 3).expect("table scene");
     let mut spare = s.clone();
+    // The spare's own buffers (the flood's, the regions, the depth maps) are made and
+    // used before it is synced, as a spare's are when it is synced frame after frame.
+    for _ in 0..2 {
+        spare.step().expect("steps");
+    }
     for _ in 0..5 {
         s.step().expect("steps");
     }
-    // The spare is five steps behind; synced, it takes the next steps as `s` does.
+    // The spare is three steps behind; synced, it takes the next steps as `s` does.
     spare.sync_from(&s);
     assert_eq!(spare.state(), s.state());
     for step in 0..4 {
