@@ -145,6 +145,8 @@ struct Corner {
     /// On the edge of a patch over a continuous surface: the snow thins to nothing here
     /// (top = ground).
     feathered: bool,
+    /// Among four snowy texels (inside a patch: no edge runs through it).
+    inside: bool,
 }
 
 /// One snow map's texels and the (n+1)² lattice of their corners, through which the
@@ -209,11 +211,6 @@ impl<'a> Lattice<'a> {
         [(-1i64, -1i64), (0, -1), (-1, 0), (0, 0)].map(|(di, dj)| (ci as i64 + di, cj as i64 + dj))
     }
 
-    /// Whether all four texels around corner (ci, cj) are snowy.
-    fn inside(&self, ci: usize, cj: usize) -> bool {
-        Self::around(ci, cj).iter().all(|&(i, j)| self.snowy(i, j))
-    }
-
     /// Corner (ci, cj) on the lattice: the mean top and ground of its snowy texels; where
     /// the others are bare ground continuous with them, feathered at the ground's mean.
     fn raw_corner(&self, ci: usize, cj: usize) -> Option<Corner> {
@@ -233,7 +230,7 @@ impl<'a> Lattice<'a> {
         let xz = self.xz(ci, cj);
         if c == 4 {
             // Inside a patch: never feathered, whatever the grounds around.
-            return Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered: false });
+            return Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered: false, inside: true });
         }
         let step = CONTINUOUS_TEXELS * self.fp.texel_m;
         let grounds = Self::around(ci, cj).map(|(i, j)| self.ground(i, j));
@@ -243,7 +240,7 @@ impl<'a> Lattice<'a> {
         let ground =
             if feathered { grounds.iter().map(|g| g.unwrap_or(ground)).sum::<f32>() / 4.0 } else { ground };
         let top = if feathered { ground } else { top };
-        Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered })
+        Some(Corner { top: Vec3::new(xz.x, top, xz.y), ground, feathered, inside: false })
     }
 
     /// Position (x, z) of corner (ci, cj) on the lattice, m.
@@ -280,7 +277,7 @@ impl<'a> Lattice<'a> {
         let chain: Vec<(usize, [(usize, usize); 2])> = self
             .box_corners()
             // A corner among four snowy texels has no edge, one among none no snow.
-            .filter(|&c| self.corners[c].is_some() && !self.inside(c % n1, c / n1))
+            .filter(|&c| self.corners[c].is_some_and(|k| !k.inside))
             .filter_map(|c| {
                 // Exactly two neighbours (of at most four), both with snow.
                 let mut e = self.edge_neighbours(c % n1, c / n1);
@@ -810,13 +807,14 @@ mod tests {
                 let (ci, cj) = (c % (fp.n + 1), c / (fp.n + 1));
                 let around = Lattice::around(ci, cj);
                 if !around.iter().all(|&(i, j)| lattice.snowy(i, j)) {
-                    assert!(!lattice.inside(ci, cj));
+                    assert!(lattice.corner(ci, cj).is_none_or(|k| !k.inside));
                     edges += usize::from(lattice.edge_neighbours(ci, cj).next().is_some());
                     continue;
                 }
                 // So the edges' smoothing may skip it: no lattice edge from it parts snow
                 // from bare ground.
-                assert!(lattice.inside(ci, cj) && lattice.edge_neighbours(ci, cj).next().is_none());
+                let flagged = lattice.corner(ci, cj).is_some_and(|k| k.inside);
+                assert!(flagged && lattice.edge_neighbours(ci, cj).next().is_none());
                 let texels = around.map(|(i, j)| j as usize * fp.n + i as usize);
                 let mean = |f: &dyn Fn(usize) -> f32| texels.iter().fold(0.0f32, |s, &k| s + f(k)) / 4.0;
                 let (top, ground) = (mean(&|k| map.surface(k)), mean(&|k| map.ground_m[k]));

@@ -246,7 +246,7 @@ impl Rasterizer {
         if !view.is_planar() {
             return Err(RasterError::NotPlanar);
         }
-        self.draw_source(view, Source::Soup(triangles), ids, cull)
+        self.draw_source(view, Projector::new(view), Source::Soup(triangles), ids, cull)
     }
 
     /// Rasterise indexed triangles into the kept buffer and borrow it; see
@@ -269,12 +269,20 @@ impl Rasterizer {
         // Every vertex once, in parallel: what each triangle corner naming it would give.
         let corners: Vec<Corner> =
             positions.par_iter().map(|&p| corner(&projector, p, perspective)).collect();
-        self.draw_source(view, Source::Indexed { positions, indices, corners: &corners }, ids, cull)
+        self.draw_source(
+            view,
+            projector,
+            Source::Indexed { positions, indices, corners: &corners },
+            ids,
+            cull,
+        )
     }
 
+    /// Draw `source` as `projector` (of `view`) projects it.
     fn draw_source(
         &mut self,
         view: &CameraView,
+        projector: Projector<'_>,
         source: Source<'_>,
         ids: Option<&[u32]>,
         cull: Cull,
@@ -286,15 +294,7 @@ impl Rasterizer {
             return Err(RasterError::IdCount { ids: ids.len(), triangles });
         }
         let (w, h) = view.size();
-        let job = Job {
-            projector: Projector::new(view),
-            source,
-            ids,
-            cull,
-            perspective: view.is_perspective(),
-            w,
-            h,
-        };
+        let job = Job { projector, source, ids, cull, perspective: view.is_perspective(), w, h };
         let parts = self.prepare_parts(w, h, triangles);
         let runs = triangles.div_ceil(RUN);
         let results: Vec<(RasterStats, Vec<Setup>)> = self
@@ -374,25 +374,11 @@ impl Job<'_> {
                     Cull::BackFrom(_) => Cull::None,
                     c => c,
                 };
-                let (culled, corners) = match self.source {
-                    Source::Soup(tris) => {
-                        (self.projector.surely_culled(&tris[t], cull), Corners::Projected(&tris[t]))
-                    }
-                    Source::Indexed { positions, indices, corners } => {
-                        let k = [0, 1, 2].map(|c| indices[3 * t + c] as usize);
-                        let culled = self.projector.is_affine()
-                            && self.projector.surely_culled(&k.map(|k| positions[k]), cull);
-                        (culled, Corners::Given(k.map(|k| corners[k])))
-                    }
-                };
-                if culled {
+                if self.source.surely_culled(t, &self.projector, cull) {
                     stats.culled += 1;
                     continue;
                 }
-                let corners = match corners {
-                    Corners::Projected(tri) => tri.map(|p| corner(&self.projector, p, perspective)),
-                    Corners::Given(c) => c,
-                };
+                let corners = self.source.corners(t, &self.projector, perspective);
                 match setup_corners(corners, id, cull, w, h) {
                     Ok(Some(s)) => {
                         stats.drawn += 1;
@@ -512,12 +498,33 @@ impl Source<'_> {
             Self::Indexed { indices, .. } => indices.len() / 3,
         }
     }
-}
 
-/// A triangle's corners: to project, or projected.
-enum Corners<'a> {
-    Projected(&'a [Vec3; 3]),
-    Given([Corner; 3]),
+    /// Triangle `t`'s indices into the positions (indexed only).
+    fn indices(indices: &[u32], t: usize) -> [usize; 3] {
+        [0, 1, 2].map(|c| indices[3 * t + c] as usize)
+    }
+
+    /// Whether triangle `t` is surely culled before it is projected (an indexed
+    /// triangle is tested only in an affine view: in a perspective one its projected
+    /// corners decide).
+    fn surely_culled(&self, t: usize, projector: &Projector<'_>, cull: Cull) -> bool {
+        match *self {
+            Self::Soup(tris) => projector.surely_culled(&tris[t], cull),
+            Self::Indexed { positions, indices, .. } => {
+                projector.is_affine()
+                    && projector.surely_culled(&Self::indices(indices, t).map(|k| positions[k]), cull)
+            }
+        }
+    }
+
+    /// Triangle `t`'s corners as [`setup_corners`] takes them: a soup's projected now,
+    /// an indexed triangle's as its vertices were projected.
+    fn corners(&self, t: usize, projector: &Projector<'_>, perspective: bool) -> [Corner; 3] {
+        match *self {
+            Self::Soup(tris) => tris[t].map(|p| corner(projector, p, perspective)),
+            Self::Indexed { indices, corners, .. } => Self::indices(indices, t).map(|k| corners[k]),
+        }
+    }
 }
 
 /// A vertex as [`setup_corners`] meets it.
