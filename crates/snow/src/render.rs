@@ -541,8 +541,8 @@ fn render_scene(
     frame.fill_with(shade);
     timings.shade_ms = t.ms();
     timings.glints = timed(clock, &mut timings.glitter_ms, || {
-        let snow = &tris[scene.len()..];
-        draw_glitter((sim.seed(), glint_cache), settings, &lighting, (&view, eye), &buf, snow, &mut frame)
+        let mesh = (&snow.positions[..], &snow.indices[..]);
+        draw_glitter((sim.seed(), glint_cache), settings, &lighting, (&view, eye), &buf, mesh, &mut frame)
     });
     // Flakes are lit as the snow is: white in the default light.
     let flake_light = (settings.sun_strength + settings.sky_strength) / (SUN + AMBIENT);
@@ -577,7 +577,7 @@ fn depth_and_shadow(
     Some((buf, shadows))
 }
 
-/// The glints of the snow's grains (`snow`: the snow's triangles) where the sun reaches
+/// The glints of the snow's grains (`snow`: the snow mesh's positions and indices) where the sun reaches
 /// them and the eye sees that snow, each lighting its pixel by its face's share of the
 /// pixel's footprint, with 12 % of that on the four pixels around that show the scene
 /// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
@@ -588,7 +588,7 @@ fn draw_glitter(
     lighting: &Lighting<'_>,
     (view, eye): (&CameraView, Vec3),
     buf: &DepthBuffer,
-    snow: &[[Vec3; 3]],
+    snow: (&[Vec3], &[u32]),
     frame: &mut Frame,
 ) -> usize {
     let g = &settings.glitter;
@@ -675,14 +675,14 @@ fn glint_seen(view: &CameraView, buf: &DepthBuffer, p: Vec3) -> Option<(i64, i64
     (q.depth <= seen_limit(seen)).then_some((x, y, q))
 }
 
-/// The snow's upper faces (of `snow`) that face the eye and the sun, reach into the
-/// frame and are not wholly in shadow: only their grains can glint where the eye sees
-/// them. With `skip_hidden` and a perspective or orthographic view, also not those
+/// The snow's upper faces (of the mesh of `positions` and three `indices` a face) that
+/// face the eye and the sun, reach into the frame and are not wholly in shadow: only
+/// their grains can glint where the eye sees them. With `skip_hidden` and a perspective or orthographic view, also not those
 /// wholly behind what the frame shows there, whose every glint [`glint_seen`] would turn
 /// down (the same glints drawn, for less).
 /// In the triangles' order.
 fn glinting_faces(
-    snow: &[[Vec3; 3]],
+    (positions, indices): (&[Vec3], &[u32]),
     lighting: &Lighting<'_>,
     (view, eye): (&CameraView, Vec3),
     buf: &DepthBuffer,
@@ -691,9 +691,11 @@ fn glinting_faces(
     let (fw, fh) = (buf.width() as f32, buf.height() as f32);
     let planar = skip_hidden && view.is_planar();
     let eye_reach = eye.abs().max_element();
+    // Each vertex's image once, in parallel (a vertex is a corner of up to six faces).
+    let images: Vec<Option<Projected>> = positions.par_iter().map(|&p| view.project(p)).collect();
     // In the frame (or not wholly in front of the eye) and, with `skip_hidden`, not
     // wholly hidden.
-    let may_show = |t: &[Vec3; 3]| match screen_box(view, t) {
+    let may_show = |t: &[Vec3; 3], k: [usize; 3]| match screen_box_of(t, k.map(|k| images[k])) {
         None => true,
         Some(b) => {
             b.hi.x >= -2.0
@@ -711,19 +713,24 @@ fn glinting_faces(
             ![t[0], t[1], t[2], centre].iter().any(|&p| m.any_lit(p, 1.0))
         })
     };
+    let face = |f: usize| {
+        let k = [0, 1, 2].map(|c| indices[3 * f + c] as usize);
+        (k.map(|k| positions[k]), k)
+    };
     // Which to keep, in parallel, straight into place; then those kept, in order.
-    let keep: Vec<bool> = snow
-        .par_iter()
-        .map(|t| {
+    let keep: Vec<bool> = (0..indices.len() / 3)
+        .into_par_iter()
+        .map(|f| {
+            let (t, k) = face(f);
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
             n.y > 0.0
                 && n.dot(eye - t[0]) > 0.0
                 && n.dot(lighting.sun) > 0.0
-                && may_show(t)
-                && !in_full_shadow(t)
+                && may_show(&t, k)
+                && !in_full_shadow(&t)
         })
         .collect();
-    snow.iter().zip(keep).filter_map(|(t, keep)| keep.then_some(*t)).collect()
+    keep.iter().enumerate().filter(|&(_, &k)| k).map(|(f, _)| face(f).0).collect()
 }
 
 /// A triangle's image: its corners' box, pixels, its nearest corner's depth, and the
@@ -735,16 +742,17 @@ struct ScreenBox {
     reach: f32,
 }
 
-/// The image of `t`, `None` when a corner does not project (behind the eye).
-fn screen_box(view: &CameraView, t: &[Vec3; 3]) -> Option<ScreenBox> {
+/// The image of `t` whose corners' images are `images`, `None` when a corner does not
+/// project (behind the eye).
+fn screen_box_of(t: &[Vec3; 3], images: [Option<Projected>; 3]) -> Option<ScreenBox> {
     let mut b = ScreenBox {
         lo: glam::Vec2::splat(f32::INFINITY),
         hi: glam::Vec2::splat(f32::NEG_INFINITY),
         near: f32::INFINITY,
         reach: 0.0,
     };
-    for p in t {
-        let q = view.project(*p)?;
+    for (p, q) in t.iter().zip(images) {
+        let q = q?;
         b.reach = b.reach.max(p.abs().max_element());
         b.lo = b.lo.min(glam::Vec2::new(q.x_px, q.y_px));
         b.hi = b.hi.max(glam::Vec2::new(q.x_px, q.y_px));
@@ -1381,7 +1389,7 @@ mod tests {
     #[test]
     fn the_faces_skipped_as_hidden_hold_no_glint_the_eye_sees() {
         let sim = snowy_village((100, 16), 20.0, 10);
-        let (tris, _) = triangles(&sim);
+        let (tris, snow) = triangles(&sim);
         let scene = sim.mesh().triangles.len();
         let settings = SnowRenderSettings::default();
         let sun = settings.sun_direction.normalize();
@@ -1396,8 +1404,9 @@ mod tests {
                 let all = glints(faces, viewing, &settings.glitter, sim.seed());
                 all.into_iter().filter(|g| glint_seen(&view, &buf, g.position).is_some()).collect()
             };
-            let every = glinting_faces(&tris[scene..], &lighting, (&view, position), &buf, false);
-            let kept = glinting_faces(&tris[scene..], &lighting, (&view, position), &buf, true);
+            let mesh = (&snow.positions[..], &snow.indices[..]);
+            let every = glinting_faces(mesh, &lighting, (&view, position), &buf, false);
+            let kept = glinting_faces(mesh, &lighting, (&view, position), &buf, true);
             let (a, b) = (seen(&every), seen(&kept));
             assert!(a.len() > 100, "{position}: {} glints seen: the case tests something", a.len());
             assert_eq!(a, b, "{position}: the glints seen differ");
