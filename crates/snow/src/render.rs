@@ -443,6 +443,7 @@ fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height:
 
 /// The triangles the scene view draws, the scene's then the snow's, and the snow's
 /// mesh (whose normals light it).
+#[cfg(test)]
 fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
     let snow = snow_surface(sim);
     let scene = &sim.mesh().triangles;
@@ -455,10 +456,13 @@ fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
     (tris, snow)
 }
 
-/// The triangles [`triangles`] lists as shared vertices and three indices a triangle,
-/// for [`rasterize_indexed`]: the scene's corners each a vertex of its own, then the
-/// snow's mesh. `None` past 2³² vertices (what a `u32` index can name).
-fn indexed(scene: &[[Vec3; 3]], snow: &TriMesh) -> Option<(Vec<Vec3>, Vec<u32>)> {
+/// Shared vertices and three indices into them a triangle.
+type Indexed = (Vec<Vec3>, Vec<u32>);
+
+/// The triangles the scene view draws, the `scene`'s then the `snow` mesh's, as shared
+/// vertices and three indices a triangle, for [`rasterize_indexed`]: the scene's corners
+/// each a vertex of its own, then the snow's mesh. `None` past 2³² vertices (what a `u32` index can name).
+fn indexed(scene: &[[Vec3; 3]], snow: &TriMesh) -> Option<Indexed> {
     let vertices = scene.len().checked_mul(3)?.checked_add(snow.positions.len())?;
     u32::try_from(vertices).ok()?;
     let offset = u32::try_from(3 * scene.len()).ok()?;
@@ -499,11 +503,11 @@ fn render_scene(
         let (d, seen) = none();
         return (frame, d, seen);
     };
-    let (tris, snow) = timed(clock, &mut timings.mesh_ms, || triangles(sim));
-    timings.triangles = tris.len();
+    let snow = timed(clock, &mut timings.mesh_ms, || snow_surface(sim));
+    timings.triangles = scene.len() + snow.triangles();
     let sun = settings.sun_direction.normalize_or_zero();
-    let Some((buf, shadows)) =
-        depth_and_shadow(&view, (scene, &snow, &tris), (sun, settings), (clock, timings))
+    let Some((buf, shadows, (positions, indices))) =
+        depth_and_shadow(&view, (scene, &snow), (sun, settings), (clock, timings))
     else {
         let (d, seen) = none();
         return (frame, d, seen);
@@ -520,7 +524,8 @@ fn render_scene(
         if id == NO_ID {
             return sky;
         }
-        let [a, b, c] = tris[id as usize];
+        let i = 3 * id as usize;
+        let [a, b, c] = [indices[i], indices[i + 1], indices[i + 2]].map(|k| positions[k as usize]);
         // The surface point: its depth along the view direction on the pixel's ray.
         let (o, dir) = view.ray(x as f32 + 0.5, y as f32 + 0.5);
         let p = o + dir * (buf.depth_at(x, y) / dir.dot(view.forward()).max(1e-6));
@@ -552,15 +557,16 @@ fn render_scene(
     (frame, buf.depth().to_vec(), seen(&buf, scene.len()))
 }
 
-/// The view's depth buffer and the sun's shadow map (towards unit `sun`) of `tris` (the
-/// `scene`'s triangles, then the `snow` mesh's), both drawn from shared vertices (each
-/// projected once); `None` when the view cannot be drawn.
+/// The view's depth buffer and the sun's shadow map (towards unit `sun`) of the
+/// `scene`'s triangles, then the `snow` mesh's, both drawn from shared vertices (each
+/// projected once), and those vertices and indices ([`indexed`]: triangle `id` of the
+/// buffer is indices `3 id..3 id + 3`); `None` when the view cannot be drawn.
 fn depth_and_shadow(
     view: &CameraView,
-    (scene, snow, tris): (&[[Vec3; 3]], &TriMesh, &[[Vec3; 3]]),
+    (scene, snow): (&[[Vec3; 3]], &TriMesh),
     (sun, settings): (Vec3, &SnowRenderSettings),
     (clock, timings): (&SharedClock, &mut SnowTimings),
-) -> Option<(DepthBuffer, Option<SunShadow>)> {
+) -> Option<(DepthBuffer, Option<SunShadow>, Indexed)> {
     // The snow's texel solids face outwards and are closed but for the bottoms left out
     // (`snow_surface`: they lie on the planar ground that holds the snow): their back
     // faces (the bottoms, the far sides) are never what the eye or the sun sees first.
@@ -572,9 +578,9 @@ fn depth_and_shadow(
     })?;
     let (buf, _) = raster.ok()?;
     let shadows = timed(clock, &mut timings.shadow_ms, || {
-        SunShadow::new_indexed(tris, (&indexed.0, &indexed.1), sun, settings.shadow_map_px, cull)
+        SunShadow::new_indexed((&indexed.0, &indexed.1), sun, settings.shadow_map_px, cull)
     });
-    Some((buf, shadows))
+    Some((buf, shadows, indexed))
 }
 
 /// The glints of the snow's grains (`snow`: the snow mesh's positions and indices) where the sun reaches
@@ -714,8 +720,8 @@ fn glinting_faces(
         })
     };
     let face = |f: usize| {
-        let k = [0, 1, 2].map(|c| indices[3 * f + c] as usize);
-        (k.map(|k| positions[k]), k)
+        let k = [indices[3 * f] as usize, indices[3 * f + 1] as usize, indices[3 * f + 2] as usize];
+        ([positions[k[0]], positions[k[1]], positions[k[2]]], k)
     };
     // Which to keep, in parallel, straight into place; then those kept, in order.
     let keep: Vec<bool> = (0..indices.len() / 3)
@@ -889,28 +895,25 @@ impl SunShadow {
     /// side, with faces skipped as `cull` says (see [`SunShadow::framed`]).
     #[cfg(test)]
     fn new(tris: &[[Vec3; 3]], sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
-        Self::framed(tris, sun, px, |view| crate::raster::rasterize(view, tris, None, cull))
+        let bounds = (!tris.is_empty()).then(|| bounds(tris));
+        Self::framed(bounds, sun, px, |view| crate::raster::rasterize(view, tris, None, cull))
     }
 
-    /// The map of `tris` (towards unit `sun`, `px` pixels a side, faces skipped as
-    /// `cull` says) drawn from their shared vertices and indices `indexed`
-    /// ([`rasterize_indexed`]: the same map as drawing `tris` themselves); see
-    /// [`SunShadow::framed`].
-    fn new_indexed(
-        tris: &[[Vec3; 3]],
-        indexed: (&[Vec3], &[u32]),
-        sun: Vec3,
-        px: u32,
-        cull: Cull,
-    ) -> Option<Self> {
-        Self::framed(tris, sun, px, |view| rasterize_indexed(view, indexed, None, cull))
+    /// The map of the triangles of shared vertices and indices `indexed` (towards unit
+    /// `sun`, `px` pixels a side, faces skipped as `cull` says; [`rasterize_indexed`]:
+    /// the same map as drawing the triangles themselves); see [`SunShadow::framed`].
+    fn new_indexed(indexed: (&[Vec3], &[u32]), sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
+        let (positions, indices) = indexed;
+        let bounds = (indices.len() >= 3).then(|| bounds_indexed(positions, indices));
+        Self::framed(bounds, sun, px, |view| rasterize_indexed(view, indexed, None, cull))
     }
 
-    /// The map of `tris` from direction `sun` (unit, towards the sun) at `px` pixels a
-    /// side, framed on their box and drawn by `draw`; `None` for no shadows (0 pixels,
-    /// no sun, nothing to shade, or a map that cannot be drawn).
+    /// The map of triangles whose box is `bounds` (`None`: no triangles) from direction
+    /// `sun` (unit, towards the sun) at `px` pixels a side, framed on that box and drawn
+    /// by `draw`; `None` for no shadows (0 pixels, no sun, nothing to shade, or a map
+    /// that cannot be drawn).
     fn framed(
-        tris: &[[Vec3; 3]],
+        bounds: Option<(Vec3, Vec3)>,
         sun: Vec3,
         px: u32,
         draw: impl FnOnce(
@@ -918,10 +921,7 @@ impl SunShadow {
         )
             -> Result<(DepthBuffer, crate::raster::RasterStats), crate::raster::RasterError>,
     ) -> Option<Self> {
-        if px == 0 || sun == Vec3::ZERO || tris.is_empty() {
-            return None;
-        }
-        let (lo, hi) = bounds(tris);
+        let (lo, hi) = bounds.filter(|_| px > 0 && sun != Vec3::ZERO)?;
         let centre = 0.5 * (lo + hi);
         let radius = (0.5 * (hi - lo).length()).max(1e-3);
         let up = if sun.cross(Vec3::Y).length() > 1e-3 { Vec3::Y } else { Vec3::Z };
@@ -1016,32 +1016,50 @@ impl SkyVisibility<'_> {
 /// snow around it.
 const BOUNCE: f32 = 0.3;
 
+/// Triangles a chunk of [`bounds`] and [`bounds_indexed`] holds.
+const BOX_CHUNK: usize = 16_384;
+
 /// The box around `tris` (the origin for none).
 fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
     if tris.is_empty() {
         return (Vec3::ZERO, Vec3::ZERO);
     }
-    // Chunks in parallel, each kept as nine running extremes (one per coordinate of a
-    // triangle's corners: independent comparisons, in vector lanes), then merged in
-    // order. The smallest and largest values do not depend on the order they are met
-    // in, so this is the box of a one-pass fold (which took 2.2-2.4 ms for the village's
-    // 133,000 triangles on one core), equal under `==`: a zero bound met both as +0.0
-    // and −0.0 may keep the other sign, which moves nothing. A NaN coordinate is passed
-    // over (an axis of NaNs alone gives +∞ to −∞).
-    let parts: Vec<([f32; 9], [f32; 9])> = tris
-        .par_chunks(16_384)
-        .map(|chunk| {
-            let (mut lo, mut hi) = ([f32::INFINITY; 9], [f32::NEG_INFINITY; 9]);
-            for t in chunk {
-                let v = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
-                for k in 0..9 {
-                    lo[k] = if v[k] < lo[k] { v[k] } else { lo[k] };
-                    hi[k] = if v[k] > hi[k] { v[k] } else { hi[k] };
-                }
-            }
-            (lo, hi)
-        })
-        .collect();
+    merged(tris.par_chunks(BOX_CHUNK).map(|chunk| extremes(chunk.iter().copied())).collect())
+}
+
+/// The box around the triangles of shared vertices `positions` and three `indices` a
+/// triangle: the box [`bounds`] gives for those triangles, in the same chunks (the origin
+/// for none).
+fn bounds_indexed(positions: &[Vec3], indices: &[u32]) -> (Vec3, Vec3) {
+    if indices.len() < 3 {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    let corners = |t: &[u32]| [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
+    merged(
+        indices.par_chunks(3 * BOX_CHUNK).map(|chunk| extremes(chunk.chunks_exact(3).map(corners))).collect(),
+    )
+}
+
+/// Nine running extremes of `tris`' corners' coordinates (one per coordinate of a
+/// corner: independent comparisons, in vector lanes), smallest and largest.
+fn extremes(tris: impl Iterator<Item = [Vec3; 3]>) -> ([f32; 9], [f32; 9]) {
+    let (mut lo, mut hi) = ([f32::INFINITY; 9], [f32::NEG_INFINITY; 9]);
+    for t in tris {
+        let v = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+        for k in 0..9 {
+            lo[k] = if v[k] < lo[k] { v[k] } else { lo[k] };
+            hi[k] = if v[k] > hi[k] { v[k] } else { hi[k] };
+        }
+    }
+    (lo, hi)
+}
+
+/// The box of chunks' [`extremes`], merged in order. The smallest and largest values do
+/// not depend on the order they are met in, so this is the box of a one-pass fold (which
+/// took 2.2-2.4 ms for the village's 133,000 triangles on one core), equal under `==`: a
+/// zero bound met both as +0.0 and −0.0 may keep the other sign, which moves nothing. A
+/// NaN coordinate is passed over (an axis of NaNs alone gives +∞ to −∞).
+fn merged(parts: Vec<([f32; 9], [f32; 9])>) -> (Vec3, Vec3) {
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for (l, h) in parts {
         for k in 0..9 {
@@ -1166,6 +1184,20 @@ mod tests {
         tris[100][1].y = f32::NAN;
         tris[20_000][0].x = f32::NAN;
         assert_eq!(bounds(&tris), clean);
+        // The same triangles from shared vertices and indices: the same box, bit for bit
+        // (zero signs too), the vertices listed in another order than the corners.
+        let bits = |(lo, hi): (Vec3, Vec3)| [lo.to_array(), hi.to_array()].map(|v| v.map(f32::to_bits));
+        for tris in [&tris[..], &tris[..16_385], &ground[..], &tris[..1], &[]] {
+            let corners = 3 * tris.len();
+            let positions: Vec<Vec3> = (0..corners).rev().map(|k| tris[k / 3][k % 3]).collect();
+            let indices: Vec<u32> = (0..corners).map(|k| (corners - 1 - k) as u32).collect();
+            assert_eq!(
+                bits(bounds_indexed(&positions, &indices)),
+                bits(bounds(tris)),
+                "{} triangles",
+                tris.len()
+            );
+        }
     }
 
     #[test]
