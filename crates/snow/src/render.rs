@@ -195,7 +195,7 @@ pub struct SnowRenderer {
 /// was given a clock by [`SnowRenderer::set_clock`]), and how much it drew.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SnowTimings {
-    /// The snow's surface made into triangles ([`snow_surface`]) beside the scene's.
+    /// The snow's surface made into a mesh ([`snow_surface`]).
     pub mesh_ms: f64,
     /// The camera's depth buffer of every triangle (with the shared vertices and
     /// indices it is drawn from, which the shadow map draws from too).
@@ -441,8 +441,8 @@ fn camera_of(settings: &SnowRenderSettings, sim: &SnowSim, width: usize, height:
     })
 }
 
-/// The triangles the scene view draws, the scene's then the snow's, and the snow's
-/// mesh (whose normals light it).
+/// The triangles the scene view draws as a soup, the scene's then the snow's, and the
+/// snow's mesh (for tests: the renderer draws [`indexed`]'s list of the same triangles).
 #[cfg(test)]
 fn triangles(sim: &SnowSim) -> (Vec<[Vec3; 3]>, TriMesh) {
     let snow = snow_surface(sim);
@@ -583,11 +583,12 @@ fn depth_and_shadow(
     Some((buf, shadows, indexed))
 }
 
-/// The glints of the snow's grains (`snow`: the snow mesh's positions and indices) where the sun reaches
-/// them and the eye sees that snow, each lighting its pixel by its face's share of the
-/// pixel's footprint, with 12 % of that on the four pixels around that show the scene
-/// (the lens's spread: a bright glint blooms past white, a faint far one is lost in the
-/// snow's own light). Returns how many glints the sun lights on pixels that show them.
+/// The glints of the snow's grains (`snow`: the snow mesh's positions and indices)
+/// where the sun reaches them and the eye sees that snow, each lighting its pixel by its
+/// face's share of the pixel's footprint, with 12 % of that on the four pixels around
+/// that show the scene (the lens's spread: a bright glint blooms past white, a faint
+/// far one is lost in the snow's own light). Returns how many glints the sun lights on
+/// pixels that show them.
 fn draw_glitter(
     (seed, cache): (u64, &mut GlintCache),
     settings: &SnowRenderSettings,
@@ -683,9 +684,10 @@ fn glint_seen(view: &CameraView, buf: &DepthBuffer, p: Vec3) -> Option<(i64, i64
 
 /// The snow's upper faces (of the mesh of `positions` and three `indices` a face) that
 /// face the eye and the sun, reach into the frame and are not wholly in shadow: only
-/// their grains can glint where the eye sees them. With `skip_hidden` and a perspective or orthographic view, also not those
-/// wholly behind what the frame shows there, whose every glint [`glint_seen`] would turn
-/// down (the same glints drawn, for less).
+/// their grains can glint where the eye sees them. With `skip_hidden` and a perspective
+/// or orthographic view, also not those wholly behind what the frame shows there, whose
+/// every glint [`glint_seen`] would turn down (the same glints drawn, for less). Each
+/// vertex is projected once.
 /// In the triangles' order.
 fn glinting_faces(
     (positions, indices): (&[Vec3], &[u32]),
@@ -904,7 +906,9 @@ impl SunShadow {
     /// the same map as drawing the triangles themselves); see [`SunShadow::framed`].
     fn new_indexed(indexed: (&[Vec3], &[u32]), sun: Vec3, px: u32, cull: Cull) -> Option<Self> {
         let (positions, indices) = indexed;
-        let bounds = (indices.len() >= 3).then(|| bounds_indexed(positions, indices));
+        // No box to work out for no map (the checks `framed` makes first).
+        let drawn = indices.len() >= 3 && px > 0 && sun != Vec3::ZERO;
+        let bounds = drawn.then(|| bounds_indexed(positions, indices));
         Self::framed(bounds, sun, px, |view| rasterize_indexed(view, indexed, None, cull))
     }
 
@@ -1150,6 +1154,22 @@ mod tests {
     use crate::mesh::table_scene;
     use crate::raster::rasterize;
     use crate::sim::SnowConfig;
+
+    #[test]
+    fn the_indexed_list_names_the_soups_triangles_in_order() {
+        // The shading reads triangle `id` of the depth buffer through the indices: they
+        // must name the soup's triangle `id`, the scene's first, then the snow's.
+        let sim = snowy_village((60, 8), 20.0, 4);
+        let (tris, snow) = triangles(&sim);
+        let scene = &sim.mesh().triangles;
+        let (positions, indices) = indexed(scene, &snow).expect("fits u32");
+        assert!(scene.len() > 100 && snow.triangles() > 100, "both parts present");
+        assert_eq!(indices.len(), 3 * tris.len());
+        for (t, tri) in tris.iter().enumerate() {
+            let corners = [0, 1, 2].map(|k| positions[indices[3 * t + k] as usize]);
+            assert_eq!(corners.map(|p| p.to_array()), tri.map(|p| p.to_array()), "triangle {t}");
+        }
+    }
 
     #[test]
     fn the_box_is_the_one_pass_folds() {
